@@ -1,0 +1,413 @@
+"""Linear elastic materials: isotropic and transverse-isotropic, in Voigt notation.
+
+Conventions (see :mod:`metasheet.conventions`): stresses in MPa, Voigt order
+11, 22, 33, 23, 13, 12 with engineering shear strains; the transverse-isotropic
+longitudinal axis ``l`` is local axis 3.
+
+Transverse isotropy about axis 3 (compliance, e.g. Jones, *Mechanics of Composite
+Materials*, ch. 2)::
+
+    S11 = S22 = 1/E_t        S33 = 1/E_l
+    S12 = -nu_t/E_t          S13 = S23 = -nu_tl/E_t = -nu_lt/E_l
+    S44 = S55 = 1/mu_l       S66 = 2 (1 + nu_t)/E_t
+
+so ``nu_lt = nu_tl E_l / E_t`` is derived, never given: the compliance is
+symmetric by construction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from .conventions import MANDEL_SCALE
+from .errors import ConfigError
+
+_MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)
+
+
+def _finite_positive(name: str, value: float) -> float:
+    v = float(value)
+    if not np.isfinite(v) or v <= 0.0:
+        raise ConfigError(f"{name}: {value!r}: must be a finite number > 0 [MPa]")
+    return v
+
+
+@dataclass(frozen=True)
+class Isotropic:
+    """Isotropic linear elastic material.
+
+    Parameters
+    ----------
+    E : Young's modulus [MPa], > 0.
+    nu : Poisson ratio [-], in (-1, 0.5).
+    """
+
+    E: float
+    nu: float
+
+    def __post_init__(self):
+        _finite_positive("E", self.E)
+        if not (-1.0 < float(self.nu) < 0.5):
+            raise ConfigError(
+                f"nu: {self.nu!r}: condition -1 < nu < 0.5 violated (positive-definite stiffness)"
+            )
+
+    @property
+    def mu(self) -> float:
+        """Shear modulus [MPa]."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def lam(self) -> float:
+        """First Lame parameter [MPa]."""
+        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+
+    @property
+    def bulk(self) -> float:
+        """Bulk modulus [MPa]."""
+        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
+
+    def compliance(self) -> np.ndarray:
+        """(6, 6) compliance [1/MPa], Voigt, engineering shear."""
+        return self.as_transverse().compliance()
+
+    def stiffness(self) -> np.ndarray:
+        """(6, 6) stiffness [MPa], Voigt, engineering shear."""
+        lam, mu = self.lam, self.mu
+        C = np.zeros((6, 6))
+        C[:3, :3] = lam
+        C[np.arange(3), np.arange(3)] = lam + 2.0 * mu
+        C[np.arange(3, 6), np.arange(3, 6)] = mu
+        return C
+
+    def as_transverse(self) -> "TransverseIsotropic":
+        """The same material written as a (degenerate) transverse-isotropic one."""
+        return TransverseIsotropic(self.E, self.E, self.nu, self.nu, self.mu)
+
+
+@dataclass(frozen=True)
+class TransverseIsotropic:
+    """Transverse-isotropic material, longitudinal axis = local axis 3.
+
+    Parameters
+    ----------
+    E_t : transverse Young's modulus (in the isotropy plane) [MPa].
+    E_l : longitudinal Young's modulus (along the axis) [MPa].
+    nu_t : transverse Poisson ratio (in-plane) [-].
+    nu_tl : transverse-longitudinal Poisson ratio, S13 = -nu_tl / E_t [-].
+    mu_l : longitudinal shear modulus (planes containing the axis) [MPa].
+
+    Construction checks every condition for a positive-definite tensor and names
+    the one that fails.
+    """
+
+    E_t: float
+    E_l: float
+    nu_t: float
+    nu_tl: float
+    mu_l: float
+
+    def __post_init__(self):
+        for name in ("E_t", "E_l", "mu_l"):
+            _finite_positive(name, getattr(self, name))
+        for name in ("nu_t", "nu_tl"):
+            if not np.isfinite(float(getattr(self, name))):
+                raise ConfigError(f"{name}: {getattr(self, name)!r}: must be finite")
+        if not (-1.0 < self.nu_t < 1.0):
+            raise ConfigError(
+                f"nu_t: {self.nu_t!r}: condition -1 < nu_t < 1 violated (positive-definite stiffness)"
+            )
+        det = 1.0 - self.nu_t - 2.0 * self.nu_tl * self.nu_lt
+        if det <= 0.0:
+            raise ConfigError(
+                "nu_tl: condition 1 - nu_t - 2 nu_tl nu_lt > 0 violated "
+                f"(nu_t={self.nu_t:g}, nu_tl={self.nu_tl:g}, nu_lt={self.nu_lt:g}: "
+                f"value {det:g}); allowed |nu_tl| < {np.sqrt((1 - self.nu_t) * self.E_t / (2 * self.E_l)):g}"
+            )
+
+    @property
+    def nu_lt(self) -> float:
+        """Longitudinal-transverse Poisson ratio, nu_tl E_l / E_t [-]."""
+        return self.nu_tl * self.E_l / self.E_t
+
+    @property
+    def mu_t(self) -> float:
+        """Transverse (in-plane) shear modulus, E_t / (2 (1 + nu_t)) [MPa]."""
+        return self.E_t / (2.0 * (1.0 + self.nu_t))
+
+    @property
+    def alpha(self) -> float:
+        """Anisotropy percentage of the paper's Fig. 7: 100 - 100 E_l / E_t [%]."""
+        return 100.0 - 100.0 * self.E_l / self.E_t
+
+    def compliance(self) -> np.ndarray:
+        """(6, 6) compliance [1/MPa], Voigt, engineering shear, axis 3 = l."""
+        S = np.zeros((6, 6))
+        S[0, 0] = S[1, 1] = 1.0 / self.E_t
+        S[2, 2] = 1.0 / self.E_l
+        S[0, 1] = S[1, 0] = -self.nu_t / self.E_t
+        S[0, 2] = S[2, 0] = S[1, 2] = S[2, 1] = -self.nu_tl / self.E_t
+        S[3, 3] = S[4, 4] = 1.0 / self.mu_l
+        S[5, 5] = 2.0 * (1.0 + self.nu_t) / self.E_t
+        return S
+
+    def stiffness(self) -> np.ndarray:
+        """(6, 6) stiffness [MPa], Voigt, engineering shear, axis 3 = l."""
+        C = np.linalg.inv(self.compliance())
+        return 0.5 * (C + C.T)
+
+    def to_dict(self) -> dict:
+        """The five constants [MPa, -] as a plain dict."""
+        return {k: float(getattr(self, k)) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")}
+
+    @classmethod
+    def from_compliance(cls, S: np.ndarray) -> "TransverseIsotropic":
+        """Read the five constants off a (6, 6) transverse-isotropic compliance (axis 3)."""
+        S = np.asarray(S, float)
+        E_t = float(2.0 / (S[0, 0] + S[1, 1]))
+        return cls(
+            E_t=E_t,
+            E_l=float(1.0 / S[2, 2]),
+            nu_t=float(-S[0, 1] * E_t),
+            nu_tl=float(-0.5 * (S[0, 2] + S[1, 2]) * E_t),
+            mu_l=float(2.0 / (S[3, 3] + S[4, 4])),
+        )
+
+    @classmethod
+    def fit(cls, C: np.ndarray, axis=None) -> "TransverseFit":
+        """Closest transverse-isotropic tensor to a (6, 6) Voigt stiffness.
+
+        Closeness is the Frobenius norm in Mandel notation (rotation invariant).
+        For a given unit ``axis`` (3,) the answer is the orthogonal projection onto
+        the transverse-isotropic tensors about that axis, i.e. the average of ``C``
+        over rotations about it. With ``axis=None`` the axis minimising the misfit
+        is searched over the sphere (coarse grid, then local refinement).
+
+        Returns a :class:`TransverseFit` with ``.material``, ``.axis`` (3,) and the
+        relative ``.misfit`` = ||C - C_fit|| / ||C||.
+        """
+        C = _check_stiffness("C", C)
+        if axis is not None:
+            a = _unit("axis", axis)
+            return _fit_about(C, a)
+        return _fit_axis_search(C)
+
+
+@dataclass(frozen=True)
+class TransverseFit:
+    """Result of :meth:`TransverseIsotropic.fit`."""
+
+    material: TransverseIsotropic
+    axis: np.ndarray  # (3,) unit vector, the fitted longitudinal axis
+    misfit: float  # ||C - C_fit||_F / ||C||_F in Mandel notation
+    C_fit: np.ndarray  # (6, 6) the fitted tensor in the global frame [MPa]
+
+
+# --------------------------------------------------------------------------- rotations
+
+
+def _symmetric_basis() -> np.ndarray:
+    """(6, 3, 3) orthonormal Mandel basis of symmetric tensors, Voigt order."""
+    B = np.zeros((6, 3, 3))
+    r = 1.0 / np.sqrt(2.0)
+    for I, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))):
+        if i == j:
+            B[I, i, i] = 1.0
+        else:
+            B[I, i, j] = B[I, j, i] = r
+    return B
+
+
+_BASIS = _symmetric_basis()
+
+
+def mandel_rotation(R: np.ndarray) -> np.ndarray:
+    """(n, 6, 6) orthogonal Mandel matrices of rotations ``R`` (n, 3, 3).
+
+    For a symmetric tensor ``s`` with Mandel vector ``m``, ``Q @ m`` is the Mandel
+    vector of ``R s R^T``.
+    """
+    R = np.asarray(R, float)
+    RB = np.einsum("nik,Jkl,njl->nJij", R, _BASIS, R, optimize=True)
+    return np.einsum("Iij,nJij->nIJ", _BASIS, RB, optimize=True)
+
+
+def frames_from_axes(axes: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations whose third column is the unit vector ``axes`` (n, 3).
+
+    The first two columns complete a right-handed orthonormal frame; which one does
+    not matter for transverse isotropy.
+    """
+    a = np.asarray(axes, float)
+    a = a / np.linalg.norm(a, axis=1, keepdims=True)
+    # Cross with the global axis least aligned with a, for a well-conditioned e1.
+    helper = np.zeros_like(a)
+    helper[np.arange(len(a)), np.argmin(np.abs(a), axis=1)] = 1.0
+    e1 = np.cross(helper, a)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(a, e1)
+    return np.stack([e1, e2, a], axis=2)
+
+
+def rotate_stiffness(C: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Rotate a Voigt (6, 6) tensor from the local frame to global frames.
+
+    Parameters
+    ----------
+    C : (6, 6) stiffness in the local frame [MPa], engineering-shear Voigt.
+    R : (n, 3, 3) rotations, columns = local axes expressed in global coordinates.
+
+    Returns
+    -------
+    (n, 6, 6) global Voigt stiffnesses [MPa].
+    """
+    Cm = np.asarray(C, float) * _MANDEL
+    Q = mandel_rotation(R)
+    Cg = np.einsum("nIK,KL,nJL->nIJ", Q, Cm, Q, optimize=True)
+    return Cg / _MANDEL
+
+
+def stiffness_along(C: np.ndarray, fibers: np.ndarray) -> np.ndarray:
+    """(n, 6, 6) global stiffness of a material whose local axis 3 follows ``fibers`` (n, 3).
+
+    A zero fibre is an error; fibres need not be unit length.
+    """
+    f = np.asarray(fibers, float)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise ConfigError(f"fibers: shape is {f.shape} and should be (n, 3)")
+    norms = np.linalg.norm(f, axis=1)
+    if np.any(~np.isfinite(norms)) or np.any(norms < 1e-12):
+        bad = int(np.flatnonzero(~(norms >= 1e-12))[0])
+        raise ConfigError(f"fibers[{bad}]: {f[bad].tolist()}: must be a non-zero finite vector")
+    return rotate_stiffness(C, frames_from_axes(f))
+
+
+# --------------------------------------------------------------------------- fitting
+
+
+def _check_stiffness(name: str, C) -> np.ndarray:
+    C = np.asarray(C, float)
+    if C.shape != (6, 6):
+        raise ConfigError(f"{name}: shape is {C.shape} and should be (6, 6)")
+    if not np.all(np.isfinite(C)):
+        raise ConfigError(f"{name}: contains non-finite values")
+    return 0.5 * (C + C.T)
+
+
+def _unit(name: str, v) -> np.ndarray:
+    a = np.asarray(v, float).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-12:
+        raise ConfigError(f"{name}: {v!r}: must be a non-zero 3-vector")
+    return a / np.linalg.norm(a)
+
+
+def _ti_basis() -> np.ndarray:
+    """(5, 6, 6) orthonormal (Frobenius) basis of Mandel TI tensors about axis 3."""
+    mats = []
+    # C11 = C22, C12, C13 = C23, C33, C44 = C55 (Mandel), C66 = C11 - C12 (Mandel).
+    def m(entries):
+        M = np.zeros((6, 6))
+        for (i, j), v in entries:
+            M[i, j] = M[j, i] = v
+        return M
+
+    mats.append(m([((0, 0), 1), ((1, 1), 1), ((5, 5), 1)]))  # a
+    mats.append(m([((0, 1), 1), ((5, 5), -1)]))  # b
+    mats.append(m([((0, 2), 1), ((1, 2), 1)]))  # c
+    mats.append(m([((2, 2), 1)]))  # d
+    mats.append(m([((3, 3), 1), ((4, 4), 1)]))  # e
+    flat = np.array([M.ravel() for M in mats]).T
+    q, _ = np.linalg.qr(flat)
+    return q.T.reshape(5, 6, 6)
+
+
+_TI = _ti_basis()
+
+
+def _project_local(Cm_local: np.ndarray) -> np.ndarray:
+    """Orthogonal projection of a Mandel tensor onto TI tensors about axis 3."""
+    coeff = np.einsum("kij,ij->k", _TI, Cm_local)
+    return np.einsum("k,kij->ij", coeff, _TI)
+
+
+def _misfit_about(Cm: np.ndarray, axis: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    R = frames_from_axes(axis[None, :])
+    Q = mandel_rotation(R)[0]
+    local = Q.T @ Cm @ Q
+    proj = _project_local(local)
+    return float(np.linalg.norm(local - proj)), proj, Q
+
+
+def _fit_about(C: np.ndarray, axis: np.ndarray) -> TransverseFit:
+    Cm = C * _MANDEL
+    err, proj_local, Q = _misfit_about(Cm, axis)
+    norm = float(np.linalg.norm(Cm))
+    C_local = proj_local / _MANDEL
+    material = TransverseIsotropic.from_compliance(np.linalg.inv(C_local))
+    C_fit = (Q @ proj_local @ Q.T) / _MANDEL
+    return TransverseFit(material, axis, err / norm if norm > 0 else 0.0, C_fit)
+
+
+def _sphere_grid(n: int) -> np.ndarray:
+    """(n, 3) Fibonacci points on the upper hemisphere (axes are sign-free)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - k / n
+    phi = np.pi * (1.0 + np.sqrt(5.0)) * k
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _fit_axis_search(C: np.ndarray) -> TransverseFit:
+    Cm = C * _MANDEL
+    candidates = np.vstack([np.eye(3), _sphere_grid(400)])
+    errs = [_misfit_about(Cm, a)[0] for a in candidates]
+    best = candidates[int(np.argmin(errs))]
+
+    def f(angles):
+        th, ph = angles
+        a = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+        return _misfit_about(Cm, a)[0]
+
+    th0 = np.arccos(np.clip(best[2], -1, 1))
+    ph0 = np.arctan2(best[1], best[0])
+    res = minimize(f, [th0, ph0], method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-14})
+    th, ph = res.x
+    a = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    # Snap to a coordinate axis when it is as good: cleaner numbers for users.
+    for e in np.eye(3):
+        if _misfit_about(Cm, e)[0] <= _misfit_about(Cm, a)[0] * (1 + 1e-9) + 1e-14:
+            a = e.copy()
+            break
+    if a[np.argmax(np.abs(a))] < 0:
+        a = -a
+    return _fit_about(C, a)
+
+
+# --------------------------------------------------------------------------- anisotropy family
+
+
+def interpolate(material: TransverseIsotropic, alpha: float) -> TransverseIsotropic:
+    """The anisotropy sweep's material at ``alpha`` [%] (paper Fig. 7).
+
+    ``alpha = 100 - 100 E_l / E_t``. At ``alpha = 0`` the result is isotropic with
+    ``E = E_t`` and ``nu = nu_t``; at ``alpha = material.alpha`` it is ``material``.
+    In between, ``E_l`` follows the definition of alpha exactly and the other
+    constants (nu_tl, and the shear compliance 1 / mu_l) move linearly with
+    ``s = alpha / material.alpha``.
+    """
+    a_max = material.alpha
+    if a_max <= 0:
+        raise ConfigError(
+            f"material: alpha = {a_max:g} %: interpolation needs E_l < E_t (alpha in (0, 100))"
+        )
+    if not (0.0 <= float(alpha) <= a_max + 1e-12):
+        raise ConfigError(f"alpha: {alpha!r}: allowed range is [0, {a_max:g}] %")
+    s = float(alpha) / a_max
+    iso = Isotropic(material.E_t, material.nu_t)
+    E_l = material.E_t * (1.0 - float(alpha) / 100.0)
+    nu_tl = (1 - s) * iso.nu + s * material.nu_tl
+    inv_mu = (1 - s) / iso.mu + s / material.mu_l
+    return TransverseIsotropic(material.E_t, E_l, material.nu_t, nu_tl, 1.0 / inv_mu)

@@ -1,0 +1,94 @@
+"""The stage registry: what each stage reads, which parameters it takes, what it writes.
+
+A stage is a plain function ``run(ctx: StageContext) -> dict`` plus its declaration.
+It reads its upstream stages' artefacts from ``ctx.inputs[name]`` (their output
+directories), writes every file into ``ctx.workdir`` (a fresh temporary directory)
+and returns a small JSON-able summary for the manifest. The runner moves the
+whole directory into place only when the stage succeeded, so a failing or killed
+stage never leaves a half-written output.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+from ..executor import Executor
+
+
+class Params(BaseModel):
+    """Base of every stage's parameter model: unknown keys are errors, models are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass
+class StageContext:
+    """What a running stage gets.
+
+    Attributes
+    ----------
+    name : the stage's name.
+    params : the validated parameter model of the stage.
+    workdir : temporary directory to write every output into.
+    inputs : upstream stage name -> that stage's (finished) output directory.
+    root : directory of the pipeline file; relative paths in params resolve here.
+    executor : where to run independent work units.
+    progress : ``progress(description, done, total)`` reports progress to the user.
+    """
+
+    name: str
+    params: Any
+    workdir: Path
+    inputs: dict[str, Path]
+    root: Path
+    executor: Executor = field(default_factory=Executor)
+    progress: Callable[[str, int, int], None] = lambda desc, done, total: None
+
+    def path(self, filename: str) -> Path:
+        """Where to write the output file ``filename``."""
+        return self.workdir / filename
+
+
+@dataclass(frozen=True)
+class Stage:
+    """Declaration of one stage.
+
+    Attributes
+    ----------
+    name : stage name, the ``[NAME]`` table of a pipeline file.
+    params : pydantic model of that table.
+    run : the stage function.
+    requires : upstream stages whose outputs it reads (must be in the pipeline).
+    optional : upstream stages it reads when they are in the pipeline.
+    outputs : files it writes (documentation and a post-run check).
+    doc : one line for ``metasheet stages``.
+    """
+
+    name: str
+    params: type[Params]
+    run: Callable[[StageContext], dict]
+    requires: tuple[str, ...] = ()
+    optional: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
+    doc: str = ""
+
+
+_REGISTRY: dict[str, Stage] = {}
+
+
+def register(stage: Stage) -> Stage:
+    """Add a stage to the registry (stage modules call this at import)."""
+    _REGISTRY[stage.name] = stage
+    return stage
+
+
+def stages() -> dict[str, Stage]:
+    """All registered stages, by name, in registration (pipeline) order."""
+    from . import stages as _  # noqa: F401  (imports register every stage)
+
+    return dict(_REGISTRY)
