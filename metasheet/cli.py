@@ -1,0 +1,114 @@
+"""The ``metasheet`` command: run pipelines, list stages, drive the robot.
+
+Errors metasheet raises on purpose (bad config, infeasible target, failed stage)
+print as one red message and exit with status 2; anything else is a bug and keeps
+its traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from .errors import MetasheetError
+
+app = typer.Typer(
+    help="metasheet: soft robots from 3D-printed anisotropic foam, cell to controller.",
+    no_args_is_help=True,
+    add_completion=False,
+)
+robot_app = typer.Typer(help="Drive the robot model.", no_args_is_help=True)
+app.add_typer(robot_app, name="robot")
+console = Console(stderr=True)
+
+
+def _progress_factory(progress: Progress):
+    def factory(stage: str):
+        tasks: dict[str, int] = {}
+
+        def update(desc: str, done: int, total: int) -> None:
+            label = f"{stage}: {desc}"
+            if label not in tasks:
+                tasks[label] = progress.add_task(label, total=total)
+            progress.update(tasks[label], completed=done, total=total)
+
+        return update
+
+    return factory
+
+
+@app.command()
+def run(
+    pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
+    stage: Annotated[Optional[str], typer.Option("--stage", help="run only this stage (and what it needs)")] = None,
+    force: Annotated[bool, typer.Option("--force", help="rerun even when outputs are up to date")] = False,
+    workers: Annotated[Optional[int], typer.Option("--workers", min=1, help="local worker processes")] = None,
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="dask scheduler, tcp://HOST:PORT")] = None,
+    out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
+) -> None:
+    """Run the stages of PIPELINE in dependency order; up-to-date stages are skipped."""
+    from .executor import Executor
+    from .pipeline.config import load_pipeline
+    from .pipeline.runner import run_pipeline
+
+    p = load_pipeline(pipeline)
+    ex = Executor(workers or p.section.workers, scheduler or p.section.scheduler)
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        outcomes = run_pipeline(
+            p,
+            out_root=out,
+            only=stage,
+            force=force,
+            executor=ex,
+            report=lambda s, msg: progress.console.print(f"[bold]{s}[/bold]: {msg}"),
+            progress_factory=_progress_factory(progress),
+        )
+    table = Table(title=f"pipeline {p.name}")
+    for col in ("stage", "status", "time [s]", "outputs"):
+        table.add_column(col)
+    for o in outcomes:
+        table.add_row(o.name, o.status, f"{o.wall_time:.1f}", str(o.directory))
+    Console().print(table)
+
+
+@app.command("stages")
+def list_stages() -> None:
+    """List the stages, what they read and what they write."""
+    from .pipeline.registry import stages
+
+    table = Table(title="metasheet stages")
+    for col in ("stage", "reads", "writes", "what"):
+        table.add_column(col)
+    for s in stages().values():
+        reads = ", ".join([*s.requires, *(f"({o})" for o in s.optional)]) or "-"
+        table.add_row(s.name, reads, ", ".join(s.outputs), s.doc)
+    Console().print(table)
+
+
+@app.command()
+def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")]) -> None:
+    """Check a pipeline file without running it."""
+    from .pipeline.config import load_pipeline
+
+    p = load_pipeline(pipeline)
+    Console().print(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except MetasheetError as err:
+        console.print(f"[red]error:[/red] {err}", markup=True, highlight=False)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,157 @@
+"""Pipeline files: TOML, validated with pydantic, errors as ``file: field: value: what is allowed``.
+
+A pipeline file has one ``[pipeline]`` table and one table per stage::
+
+    [pipeline]
+    name = "quick"                       # outputs go to outputs/<name>/
+    stages = ["material", "orient"]      # which stages run (order is resolved from their inputs)
+
+    [material]
+    E_t = 1.39                           # [MPa]
+
+A stage listed without a table runs with its defaults.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field, ValidationError
+
+from ..errors import ConfigError
+from .registry import Params, Stage, stages
+
+
+class PipelineSection(Params):
+    """The ``[pipeline]`` table."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$", description="run name: outputs/<name>/")
+    stages: list[str] = Field(min_length=1, description="stages to run")
+    description: str = ""
+    workers: int = Field(1, ge=1, le=256, description="local worker processes for sweeps")
+    scheduler: str | None = Field(None, description="dask.distributed scheduler address")
+
+
+@dataclass(frozen=True)
+class Pipeline:
+    """A validated pipeline: its file, name, stages (dependency order) and their parameters."""
+
+    path: Path
+    root: Path
+    section: PipelineSection
+    order: tuple[str, ...]
+    params: dict[str, Params]
+
+    @property
+    def name(self) -> str:
+        return self.section.name
+
+
+def find_root(path: Path) -> Path:
+    """The project directory of a pipeline file: the nearest ancestor holding ``cells/``."""
+    for parent in path.resolve().parents:
+        if (parent / "cells").is_dir():
+            return parent
+    return path.resolve().parent
+
+
+def format_validation(source: str, table: str, err: ValidationError, data: dict) -> str:
+    """One ``file: field: value: what is allowed`` line per pydantic error."""
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"])
+        field = f"{table}.{loc}" if loc else table
+        value = e.get("input", data)
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key"
+        elif e["type"] == "missing":
+            msg, value = "required key is missing", "<missing>"
+        else:
+            msg = e["msg"]
+        lines.append(f"{source}: {field}: {value!r}: {msg}")
+    return "\n".join(lines)
+
+
+def validate_table(source: str, table: str, model: type[Params], data: Any) -> Params:
+    """Validate one table with ``model`` or raise :class:`ConfigError` naming the fields."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: {table}: {data!r}: expected a table")
+    try:
+        return model.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(format_validation(source, table, err, data)) from None
+
+
+def load_pipeline(path: str | Path) -> Pipeline:
+    """Read and validate a pipeline TOML file.
+
+    Raises :class:`ConfigError` for a missing file, a TOML syntax error, an unknown
+    stage or table, a wrong type or a value out of range.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: pipeline file not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: invalid TOML: {err}") from None
+    registry = stages()
+    if "pipeline" not in data:
+        raise ConfigError(f"{path}: pipeline: <missing>: a [pipeline] table with name and stages is required")
+    section = validate_table(str(path), "pipeline", PipelineSection, data["pipeline"])
+    for i, name in enumerate(section.stages):
+        if name not in registry:
+            raise ConfigError(
+                f"{path}: pipeline.stages[{i}]: {name!r}: unknown stage; known: {', '.join(registry)}"
+            )
+    for table in data:
+        if table != "pipeline" and table not in registry:
+            raise ConfigError(
+                f"{path}: {table}: unknown table; allowed: pipeline, {', '.join(registry)}"
+            )
+    params = {
+        name: validate_table(str(path), name, registry[name].params, data.get(name, {}))
+        for name in section.stages
+    }
+    order = resolve_order(section.stages, registry, str(path))
+    return Pipeline(path, find_root(path), section, order, params)
+
+
+def resolve_order(names: list[str], registry: dict[str, Stage], source: str) -> tuple[str, ...]:
+    """Topological order of ``names``; a missing required upstream stage is an error."""
+    chosen = set(names)
+    for name in names:
+        for up in registry[name].requires:
+            if up not in chosen:
+                raise ConfigError(
+                    f"{source}: pipeline.stages: {names!r}: stage {name!r} needs stage {up!r}; add it"
+                )
+    order: list[str] = []
+    visiting: set[str] = set()
+
+    def visit(n: str) -> None:
+        if n in order:
+            return
+        if n in visiting:
+            raise ConfigError(f"{source}: pipeline.stages: dependency cycle through {n!r}")
+        visiting.add(n)
+        st = registry[n]
+        for up in (*st.requires, *st.optional):
+            if up in chosen:
+                visit(up)
+        visiting.discard(n)
+        order.append(n)
+
+    for n in registry:  # registry order breaks ties: stable, readable
+        if n in chosen:
+            visit(n)
+    return tuple(order)
+
+
+def upstream(pipeline: Pipeline, name: str) -> tuple[str, ...]:
+    """The stages of ``pipeline`` that stage ``name`` reads (required and optional)."""
+    st = stages()[name]
+    return tuple(u for u in (*st.requires, *st.optional) if u in pipeline.params)

@@ -1,0 +1,171 @@
+"""Pipeline layer: caching, partial reruns, atomic outputs, config errors, executor."""
+
+import json
+from pathlib import Path
+
+import pytest
+from pydantic import Field
+
+from metasheet.errors import ConfigError, StageError
+from metasheet.executor import Executor
+from metasheet.pipeline import registry
+from metasheet.pipeline.config import load_pipeline
+from metasheet.pipeline.registry import Params, Stage, register
+from metasheet.pipeline.runner import run_pipeline
+
+CALLS: list[str] = []
+
+
+class AParams(Params):
+    value: float = Field(1.0, ge=0, le=10, description="a number [-]")
+    explode: bool = False
+
+
+class BParams(Params):
+    scale: float = 2.0
+
+
+def run_a(ctx):
+    CALLS.append("t_a")
+    ctx.path("a.txt").write_text(f"{ctx.params.value}\n")
+    if ctx.params.explode:
+        ctx.path("half.txt").write_text("half-written")
+        raise RuntimeError("boom")
+    return {"value": ctx.params.value}
+
+
+def run_b(ctx):
+    CALLS.append("t_b")
+    a = float((ctx.inputs["t_a"] / "a.txt").read_text())
+    ctx.path("b.txt").write_text(f"{a * ctx.params.scale}\n")
+    return {}
+
+
+@pytest.fixture
+def project(tmp_path, monkeypatch):
+    registry.stages()  # import the real stages first
+    register(Stage("t_a", AParams, run_a, outputs=("a.txt",)))
+    register(Stage("t_b", BParams, run_b, requires=("t_a",), outputs=("b.txt",)))
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "pipelines").mkdir()
+    CALLS.clear()
+    yield tmp_path
+    registry._REGISTRY.pop("t_a")
+    registry._REGISTRY.pop("t_b")
+
+
+def write(project: Path, text: str) -> Path:
+    p = project / "pipelines" / "p.toml"
+    p.write_text(text)
+    return p
+
+
+BASE = '[pipeline]\nname = "p"\nstages = ["t_b", "t_a"]\n[t_a]\nvalue = {v}\n[t_b]\nscale = {s}\n'
+
+
+def test_runs_in_dependency_order_and_caches(project):
+    pl = load_pipeline(write(project, BASE.format(v=1.5, s=2.0)))
+    assert pl.order == ("t_a", "t_b")
+    out = run_pipeline(pl)
+    assert [o.status for o in out] == ["ran", "ran"]
+    assert (project / "outputs/p/t_b/b.txt").read_text() == "3.0\n"
+    manifest = json.loads((project / "outputs/p/t_b/manifest.json").read_text())
+    assert "a.txt" in manifest["inputs"]["t_a"]
+    assert manifest["outputs"]["b.txt"]["bytes"] == 4
+    assert "numpy" in manifest["versions"]
+    CALLS.clear()
+    out = run_pipeline(load_pipeline(write(project, BASE.format(v=1.5, s=2.0))))
+    assert [o.status for o in out] == ["cached", "cached"] and CALLS == []
+
+
+def test_parameter_change_reruns_only_that_stage_and_downstream(project):
+    run_pipeline(load_pipeline(write(project, BASE.format(v=1.5, s=2.0))))
+    CALLS.clear()
+    run_pipeline(load_pipeline(write(project, BASE.format(v=1.5, s=4.0))))
+    assert CALLS == ["t_b"]
+    CALLS.clear()
+    run_pipeline(load_pipeline(write(project, BASE.format(v=2.5, s=4.0))))
+    assert CALLS == ["t_a", "t_b"]
+    assert (project / "outputs/p/t_b/b.txt").read_text() == "10.0\n"
+
+
+def test_tampered_output_is_recomputed(project):
+    pl = load_pipeline(write(project, BASE.format(v=1.5, s=2.0)))
+    run_pipeline(pl)
+    (project / "outputs/p/t_b/b.txt").write_text("garbage\n")
+    CALLS.clear()
+    run_pipeline(pl)
+    assert CALLS == ["t_b"]
+
+
+def test_only_and_force(project):
+    pl = load_pipeline(write(project, BASE.format(v=1.5, s=2.0)))
+    run_pipeline(pl, only="t_a")
+    assert CALLS == ["t_a"] and not (project / "outputs/p/t_b").exists()
+    CALLS.clear()
+    run_pipeline(pl, only="t_b", force=True)
+    assert CALLS == ["t_b"]  # upstream fresh: reused, not forced
+    with pytest.raises(ConfigError, match="--stage"):
+        run_pipeline(pl, only="nope")
+
+
+def test_failing_stage_keeps_old_outputs_and_leaves_no_partial_file(project):
+    run_pipeline(load_pipeline(write(project, BASE.format(v=1.5, s=2.0))))
+    before = (project / "outputs/p/t_a/manifest.json").read_text()
+    bad = write(project, BASE.format(v=3.0, s=2.0).replace("value = 3.0", "value = 3.0\nexplode = true"))
+    with pytest.raises(StageError, match="stage 't_a' failed: RuntimeError: boom"):
+        run_pipeline(load_pipeline(bad))
+    out = project / "outputs/p"
+    assert (out / "t_a/a.txt").read_text() == "1.5\n"
+    assert (out / "t_a/manifest.json").read_text() == before
+    assert not (out / "t_a/half.txt").exists()
+    assert sorted(p.name for p in out.iterdir()) == ["t_a", "t_b"]  # no temporary leftovers
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (BASE.format(v=11, s=2.0), r"p.toml: t_a.value: 11: Input should be less than or equal to 10"),
+        (BASE.format(v='"x"', s=2.0), r"p.toml: t_a.value: 'x': Input should be a valid number"),
+        (BASE.format(v=1, s=2.0) + "bogus = 1\n", r"p.toml: t_b.bogus: 1: unknown key"),
+        ('[pipeline]\nname = "p"\nstages = ["t_b"]\n', r"stage 't_b' needs stage 't_a'"),
+        ('[pipeline]\nname = "p"\nstages = ["nope"]\n', r"pipeline.stages\[0\]: 'nope': unknown stage"),
+        ('[pipeline]\nname = "p"\nstages = ["t_a"]\n[zzz]\n', r"zzz: unknown table"),
+        ("[pipeline\n", r"invalid TOML"),
+    ],
+)
+def test_config_errors_name_the_field(project, text, expected):
+    with pytest.raises(ConfigError, match=expected):
+        load_pipeline(write(project, text))
+
+
+def square(x):
+    return x * x
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_executor_keeps_order(workers):
+    seen = []
+    out = Executor(workers=workers).map(square, range(7), progress=lambda d, n: seen.append((d, n)))
+    assert out == [x * x for x in range(7)]
+    assert seen[-1] == (7, 7)
+
+
+def test_executor_rejects_bad_settings():
+    with pytest.raises(ConfigError, match="workers"):
+        Executor(workers=0)
+    with pytest.raises(ConfigError, match="scheduler"):
+        Executor(scheduler="localhost:8786")
+
+
+def test_quick_pipeline_material_stage(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    pl = load_pipeline(root / "pipelines" / "quick.toml")
+    run_pipeline(pl, out_root=tmp_path, only="material")
+    data = json.loads((tmp_path / "quick/material/material.json").read_text())
+    assert data["constants"]["E_t"] > data["constants"]["E_l"] > 0
+    assert data["nu_lt"] == pytest.approx(data["constants"]["nu_tl"] * data["constants"]["E_l"] / data["constants"]["E_t"])
+    import numpy as np
+
+    assert np.allclose(np.array(data["stiffness"]) @ np.array(data["compliance"]), np.eye(6), atol=1e-9)
+    assert (tmp_path / "quick/material/manifest.json").is_file()
