@@ -1,0 +1,213 @@
+"""Stage ``orient``: the tripod sheet, its spiral fibre field and per-element constants.
+
+Writes ``sheet.vtu`` (the normal sheet) and ``sheet_mirrored.vtu`` (its reflection
+y -> -y, for the second tripod), each with cell data ``fiber`` (m, 3) (local axis 3 of
+the transverse-isotropic material, the foam's soft direction), ``material_id`` (m,),
+``density`` (m,) [-], ``alpha`` (m,) [%] and the constants ``E_t, E_l, nu_t, nu_tl, mu_l``
+(m,) [MPa], and point data ``attach`` (n,) (0 free, k + 1 tip box of arm k, 4 centre);
+``sheet.json`` (geometry, arm angles, fibre law, counts, mesh quality, material) and
+``sheet.png`` (fibre streaks of both sheets side by side, like the paper's Fig. 3).
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from ...material import TransverseIsotropic, interpolate
+from ...sheet import fibers as fb
+from ...sheet import geometry as geo
+from ...sheet import grading as gr
+from ..manifest import write_json_atomic
+from ..registry import Params, Stage, StageContext, register
+
+PAPER = {"E_t": 1.39, "E_l": 0.09422, "nu_t": 0.26162, "nu_tl": 0.4161, "mu_l": 0.01628215}
+
+
+class ConstantsParams(Params):
+    """Fallback constants when the material stage is not in the pipeline (paper's foam)."""
+
+    E_t: float = Field(PAPER["E_t"], gt=0, description="transverse Young's modulus [MPa]")
+    E_l: float = Field(PAPER["E_l"], gt=0, description="longitudinal Young's modulus [MPa]")
+    nu_t: float = Field(PAPER["nu_t"], gt=-1, lt=1, description="transverse Poisson ratio [-]")
+    nu_tl: float = Field(PAPER["nu_tl"], gt=-1, lt=2, description="transverse-longitudinal Poisson ratio [-]")
+    mu_l: float = Field(PAPER["mu_l"], gt=0, description="longitudinal shear modulus [MPa]")
+
+
+class GradingParams(Params):
+    """A graded design; empty means uniform (see ``metasheet.sheet.grading``)."""
+
+    table: dict[Literal["hub", "arms", "tips"], dict[Literal["density", "alpha"], float]] = Field(
+        default_factory=dict, description="per-region overrides: density [-], alpha [%]"
+    )
+    density_expr: str | None = Field(None, description="relative density as an expression of x, y, z, r [mm], t [rad]")
+    alpha_expr: str | None = Field(None, description="anisotropy alpha [%] as an expression of x, y, z, r, t")
+
+
+class OrientParams(Params):
+    arm_width: float = Field(30.0, ge=2, le=200, description="arm width [mm]")
+    reach: float = Field(66.0, gt=0, le=1000, description="centre to arm end [mm]")
+    thickness: float = Field(5.0, ge=0.3, le=100, description="sheet thickness [mm]")
+    hole_radius: float = Field(5.0, ge=0, le=90, description="central hole radius [mm]")
+    fillet_radius: float = Field(5.0, ge=0, le=600, description="fillet radius between arms [mm]")
+    mesh_size: float = Field(5.0, ge=0.3, le=50, description="target tet edge [mm]; 5 gives ~2,900 tets")
+    tip_box: tuple[float, float, float] = Field(
+        (15.0, 45.0, 30.0), description="arm-tip box (along arm, across, z) [mm]"
+    )
+    centre_radius: float = Field(7.5, gt=0, le=1000, description="effector node sphere radius [mm]")
+    law: Literal["log", "archimedean", "circular", "radial"] = Field("log", description="fibre law")
+    pitch_deg: float = Field(45.0, ge=-90, le=90, description="spiral pitch angle beta [deg]")
+    r_ref: float = Field(33.0, gt=0, le=1000, description="radius where an r-dependent law has pitch_deg [mm]")
+    tilt_deg: float = Field(0.0, ge=-90, le=90, description="out-of-plane fibre tilt [deg]")
+    isotropic: bool = Field(False, description="isotropic sheet: alpha = 0 (E = E_t, nu = nu_t), iso = 1")
+    relative_density: float = Field(0.15, gt=0, le=1, description="the design's relative density [-]")
+    rho_exponent: float = Field(2.0, gt=0, le=4, description="modulus ~ rho^n without a chart [-]")
+    grading: GradingParams = Field(default_factory=GradingParams, description="graded design")
+    constants: ConstantsParams = Field(default_factory=ConstantsParams, description="fallback constants")
+
+
+def sheet_params(p: OrientParams) -> geo.SheetParams:
+    return geo.SheetParams(
+        arm_width=p.arm_width, reach=p.reach, thickness=p.thickness, hole_radius=p.hole_radius,
+        fillet_radius=p.fillet_radius, mesh_size=p.mesh_size, tip_box=p.tip_box,
+        centre_radius=p.centre_radius,
+    )
+
+
+def fiber_settings(p: OrientParams) -> dict:
+    """Keyword arguments of ``spiral_fibers`` (also stored in sheet.json for printmap)."""
+    return {"law": p.law, "pitch_deg": p.pitch_deg, "tilt_deg": p.tilt_deg, "r_ref": p.r_ref}
+
+
+def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
+    if "material" in ctx.inputs:
+        data = json.loads((ctx.inputs["material"] / "material.json").read_text())
+        c = data["constants"]
+        return TransverseIsotropic(*(float(c[k]) for k in gr.CONSTANTS)), "material stage"
+    c = ctx.params.constants
+    return TransverseIsotropic(c.E_t, c.E_l, c.nu_t, c.nu_tl, c.mu_l), "orient.constants"
+
+
+def _chart_lookup(ctx: StageContext):
+    """Hook for the homogenize design chart: (rho, alpha) -> TransverseIsotropic, or None.
+
+    Expects ``metasheet.homogenize.chart.lookup(chart_dir, density=rho, alpha=alpha)``;
+    when that is missing the stage falls back to scaling and says so in sheet.json.
+    """
+    if "chart" not in ctx.inputs:
+        return None, "no chart stage"
+    try:
+        from ...homogenize.chart import lookup
+    except ImportError as exc:
+        return None, f"chart lookup unavailable ({exc})"
+    chart_dir = ctx.inputs["chart"]
+    return (lambda rho, alpha: lookup(chart_dir, density=rho, alpha=alpha)), "chart"
+
+
+def _vtu(path, sheet: geo.SheetMesh, cell_data: dict[str, np.ndarray]) -> None:
+    import meshio
+
+    mesh = meshio.Mesh(
+        sheet.points, [("tetra", sheet.tets)],
+        point_data={"attach": sheet.attach.astype(np.int32)},
+        cell_data={k: [np.asarray(v)] for k, v in cell_data.items()},
+    )
+    meshio.write(path, mesh, file_format="vtu")
+
+
+def run(ctx: StageContext) -> dict:
+    p: OrientParams = ctx.params
+    sp = sheet_params(p)
+    ctx.progress("meshing the sheet", 0, 4)
+    normal = geo.tripod_sheet(sp)
+    mirrored = geo.mirror_sheet(normal)
+    material, source = _material(ctx)
+    if p.isotropic:
+        material = interpolate(material, 0.0) if material.alpha > 0 else material
+    ctx.progress("fibres and grading", 1, 4)
+    fs = fiber_settings(p)
+    fib = fb.spiral_fibers(normal.centroids(), mirrored=False, **fs)
+    fib_m = fb.spiral_fibers(mirrored.centroids(), mirrored=True, **fs)
+    g = p.grading
+    grading = gr.grade(
+        normal.centroids(), sp, density=p.relative_density, alpha=material.alpha,
+        table={k: dict(v) for k, v in g.table.items()} or None,
+        density_expr=g.density_expr, alpha_expr=None if p.isotropic else g.alpha_expr,
+    )
+    if p.isotropic:
+        grading = gr.Grading(grading.density, np.zeros_like(grading.alpha), grading.material_id, grading.names)
+    graded = bool(g.table or g.density_expr or g.alpha_expr)
+    lookup, how = (None, "uniform design: the material itself")
+    if graded:
+        lookup, how = _chart_lookup(ctx)
+        if lookup is not None:
+            try:
+                consts = gr.element_constants(grading, lookup)
+            except (TypeError, AttributeError) as exc:  # the chart's API differs from the hook's
+                lookup, how = None, f"chart lookup failed ({exc}); scaling used"
+        if lookup is None:
+            how = f"scaling (rho/{p.relative_density:g})^{p.rho_exponent:g} + interpolate; {how}"
+    if lookup is None:
+        base = gr.scaling_lookup(material, p.relative_density, p.rho_exponent)
+        consts = gr.element_constants(grading, base)
+    ctx.progress("writing meshes", 2, 4)
+    common = {"material_id": grading.material_id.astype(np.int32), "density": grading.density,
+              "alpha": grading.alpha, **consts}
+    _vtu(ctx.path("sheet.vtu"), normal, {"fiber": fib, **common})
+    _vtu(ctx.path("sheet_mirrored.vtu"), mirrored, {"fiber": fib_m, **common})
+    counts = {str(k): int(np.sum(normal.attach == k)) for k in range(5)}
+    info = {
+        "geometry": sp.to_dict(),
+        "units": {"lengths": "mm", "angles": "deg", "moduli": "MPa"},
+        "frame": "centre at origin, mid-plane z = 0, arm k along 120 deg * k from +x",
+        "arm_angles_deg": np.degrees(normal.arm_angles).tolist(),
+        "attach_tags": {"0": "free", "1": "tip arm 0", "2": "tip arm 1", "3": "tip arm 2", "4": "centre"},
+        "attach_counts": counts,
+        "n_points": int(len(normal.points)),
+        "n_tets": int(len(normal.tets)),
+        "quality": normal.quality.to_dict(),
+        "quality_mirrored": mirrored.quality.to_dict(),
+        "fibers": {**fs, "mirror": "l_m(p) = M l(M p), M = diag(1, -1, 1)", "axis": "local 3 (soft l)"},
+        "isotropic": p.isotropic,
+        "material": {**material.to_dict(), "alpha_percent": material.alpha, "source": source},
+        "relative_density": p.relative_density,
+        "graded": graded,
+        "regions": list(grading.names),
+        "constants_source": how,
+        "files": {"normal": "sheet.vtu", "mirrored": "sheet_mirrored.vtu"},
+    }
+    write_json_atomic(ctx.path("sheet.json"), info)
+    ctx.progress("picture", 3, 4)
+    from ...viz.sheet import sheet_picture
+
+    outline = geo.outline_polygon(sp)
+    panels = [
+        (f"normal sheet (pitch {p.pitch_deg:g} deg)", lambda q: fb.spiral_fibers(q, **fs),
+         normal.points[normal.attach > 0]),
+        ("mirrored sheet (reflection y -> -y)", lambda q: fb.spiral_fibers(q, mirrored=True, **fs),
+         mirrored.points[mirrored.attach > 0]),
+    ]
+    ctx.path("sheet.png").write_bytes(sheet_picture(outline, sp.hole_radius, panels))
+    ctx.progress("done", 4, 4)
+    return {
+        "n_tets": int(len(normal.tets)), "n_points": int(len(normal.points)),
+        "worst_aspect": round(normal.quality.worst_aspect, 3),
+        "min_volume_mm3": round(normal.quality.min_volume, 4),
+        "attach_counts": counts, "constants_source": how, "material_source": source,
+    }
+
+
+register(
+    Stage(
+        name="orient",
+        params=OrientParams,
+        run=run,
+        requires=(),
+        optional=("material", "chart"),
+        outputs=("sheet.vtu", "sheet_mirrored.vtu", "sheet.json", "sheet.png"),
+        doc="tripod sheet mesh + spiral fibre field (normal and mirrored) -> sheet.vtu, sheet.png",
+    )
+)

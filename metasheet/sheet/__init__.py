@@ -1,0 +1,1 @@
+"""The tripod sheet: geometry and tet mesh, spiral fibre field, grading, IceSL export."""

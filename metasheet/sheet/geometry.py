@@ -1,0 +1,332 @@
+"""The tripod sheet: a Y-shaped plate with a central hole, tetrahedralised with gmsh.
+
+Frame (binding for the robot code): the sheet's centre is the origin, its mid-plane is
+z = 0 and it spans z in [-t/2, t/2]; arm k (k = 0, 1, 2) points along the angle
+120 deg * k from +x, so arm 0 lies along +x. The outline is symmetric under the
+reflection y -> -y, which maps the sheet onto itself and swaps arms 1 and 2; the
+mirrored sheet of the second tripod is that reflection (:func:`mirror_sheet`).
+
+Node tags (``SheetMesh.attach``): 0 free, k + 1 for the nodes in the tip box of arm k
+(where a servo horn holds the arm), 4 for the central nodes tied to the effector.
+Defaults follow the authors' 6-DOF scene (FACTS.md): arms 30 mm wide reaching 66 mm,
+5 mm thick, hole radius 5 mm, tip box 45 x 15 x 30 mm, centre sphere radius 7.5 mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ConfigError, MeshError, check_range
+
+ATTACH_FREE = 0
+ATTACH_CENTRE = 4
+
+
+@dataclass(frozen=True)
+class SheetParams:
+    """Geometry and mesh size of the tripod sheet (all lengths [mm]).
+
+    Attributes
+    ----------
+    arm_width : width of each arm [mm].
+    reach : distance from the centre to the flat end of each arm [mm].
+    thickness : plate thickness along z [mm].
+    hole_radius : radius of the central through hole [mm] (0 for no hole).
+    fillet_radius : radius of the fillets in the three concave corners between arms [mm].
+    mesh_size : target tetrahedron edge length h [mm]; the default 5 mm gives ~2,900 tets.
+    tip_box : (along the arm, across the arm, along z) size of the box centred on each
+        arm's end whose nodes the servo horn holds [mm].
+    centre_radius : nodes within this distance of the centre are tied to the effector [mm].
+    """
+
+    arm_width: float = 30.0
+    reach: float = 66.0
+    thickness: float = 5.0
+    hole_radius: float = 5.0
+    fillet_radius: float = 5.0
+    mesh_size: float = 5.0
+    tip_box: tuple[float, float, float] = (15.0, 45.0, 30.0)
+    centre_radius: float = 7.5
+
+    def __post_init__(self):
+        check_range("arm_width", self.arm_width, 2.0, 200.0)
+        w = float(self.arm_width)
+        corner = w / np.sqrt(3.0)  # distance of the concave corners from the centre
+        check_range("reach", self.reach, corner + 2.0, 1000.0)
+        check_range("thickness", self.thickness, 0.3, 100.0)
+        check_range("hole_radius", self.hole_radius, 0.0, 0.9 * w / 2.0)
+        fmax = np.sqrt(3.0) * (float(self.reach) - corner) * 0.5
+        check_range("fillet_radius", self.fillet_radius, 0.0, min(fmax, 3.0 * w))
+        check_range("mesh_size", self.mesh_size, 0.3, 50.0)
+        if len(self.tip_box) != 3:
+            raise ConfigError(f"tip_box: {self.tip_box!r}: expected 3 sizes [mm]")
+        for i, s in enumerate(self.tip_box):
+            check_range(f"tip_box[{i}]", s, 0.0, 1000.0, lo_open=True)
+        check_range("centre_radius", self.centre_radius, float(self.hole_radius), 1000.0, lo_open=True)
+        object.__setattr__(self, "tip_box", tuple(float(s) for s in self.tip_box))
+
+    def to_dict(self) -> dict:
+        return {
+            "arm_width": self.arm_width, "reach": self.reach, "thickness": self.thickness,
+            "hole_radius": self.hole_radius, "fillet_radius": self.fillet_radius,
+            "mesh_size": self.mesh_size, "tip_box": list(self.tip_box),
+            "centre_radius": self.centre_radius,
+        }
+
+
+@dataclass(frozen=True)
+class MeshQuality:
+    """Quality of a tet mesh.
+
+    ``worst_aspect`` is the largest circumradius / (3 inradius) over the elements
+    (1 for a regular tetrahedron, large for slivers); ``min_volume`` the smallest
+    signed volume [mm^3] (> 0: no inverted element); ``volume`` the total [mm^3].
+    """
+
+    n_points: int
+    n_tets: int
+    worst_aspect: float
+    mean_aspect: float
+    min_volume: float
+    volume: float
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class SheetMesh:
+    """The tetrahedralised sheet.
+
+    Attributes
+    ----------
+    points : (n, 3) float [mm].
+    tets : (m, 4) int, positively oriented (det[p1-p0, p2-p0, p3-p0] > 0).
+    attach : (n,) int node tags: 0 free, k + 1 tip box of arm k, 4 centre (effector).
+    arm_angles : (3,) float [rad], arm k along 2 pi k / 3 from +x.
+    quality : :class:`MeshQuality`.
+    params : the :class:`SheetParams` it was built from.
+    mirrored : True for the reflection y -> -y of the built sheet.
+    """
+
+    points: np.ndarray
+    tets: np.ndarray
+    attach: np.ndarray
+    arm_angles: np.ndarray
+    quality: MeshQuality
+    params: SheetParams = field(default_factory=SheetParams)
+    mirrored: bool = False
+
+    def centroids(self) -> np.ndarray:
+        """Element centroids, (m, 3) float [mm]."""
+        return self.points[self.tets].mean(axis=1)
+
+    def volumes(self) -> np.ndarray:
+        """Signed element volumes, (m,) float [mm^3]."""
+        return tet_volumes(self.points, self.tets)
+
+    def node_set(self, tag: int) -> np.ndarray:
+        """Indices of the nodes with attach tag ``tag``, (k,) int."""
+        return np.flatnonzero(self.attach == tag)
+
+
+ARM_ANGLES = np.deg2rad([0.0, 120.0, 240.0])
+
+
+def tet_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Signed volumes (m,) [mm^3] of tets (m, 4) over points (n, 3)."""
+    p = points[tets]
+    return np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0]) / 6.0
+
+
+def mesh_quality(points: np.ndarray, tets: np.ndarray) -> MeshQuality:
+    """Quality report of a tet mesh (see :class:`MeshQuality`)."""
+    p = points[tets]
+    vol = tet_volumes(points, tets)
+    faces = [(1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2)]
+    area = sum(0.5 * np.linalg.norm(np.cross(p[:, b] - p[:, a], p[:, c] - p[:, a]), axis=1) for a, b, c in faces)
+    r_in = 3.0 * np.abs(vol) / area
+    # circumradius from the lengths: R = sqrt((aA+bB+cC)(aA+bB-cC)(aA-bB+cC)(-aA+bB+cC)) / (24 V)
+    def d(i, j):
+        return np.linalg.norm(p[:, i] - p[:, j], axis=1)
+
+    aA, bB, cC = d(0, 1) * d(2, 3), d(0, 2) * d(1, 3), d(0, 3) * d(1, 2)
+    prod = (aA + bB + cC) * (aA + bB - cC) * (aA - bB + cC) * (-aA + bB + cC)
+    R = np.sqrt(np.maximum(prod, 0.0)) / (24.0 * np.maximum(np.abs(vol), 1e-300))
+    aspect = R / (3.0 * r_in)
+    return MeshQuality(
+        n_points=int(len(points)), n_tets=int(len(tets)),
+        worst_aspect=float(aspect.max()), mean_aspect=float(aspect.mean()),
+        min_volume=float(vol.min()), volume=float(vol.sum()),
+    )
+
+
+def outline_corners(params: SheetParams) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
+    """The 2D outline, counter-clockwise, as a list of (kind, point (2,), centre (2,) or None).
+
+    ``kind`` is "line" (straight segment ending at ``point``) or "arc" (fillet arc ending
+    at ``point`` around ``centre``). The sequence is closed: it ends where it starts.
+    """
+    w, L, rho = float(params.arm_width), float(params.reach), float(params.fillet_radius)
+    out = []
+    for k in range(3):
+        a = ARM_ANGLES[k]
+        d = np.array([np.cos(a), np.sin(a)])
+        n = np.array([-np.sin(a), np.cos(a)])
+        b = a + np.pi / 3  # bisector of the concave corner between arm k and arm k + 1
+        ub = np.array([np.cos(b), np.sin(b)])
+        dn = np.array([np.cos(a + 2 * np.pi / 3), np.sin(a + 2 * np.pi / 3)])
+        corner = (w / np.sqrt(3.0)) * ub
+        out.append(("line", L * d - 0.5 * w * n, None))  # up the right side of arm k
+        out.append(("line", L * d + 0.5 * w * n, None))  # across the flat end
+        if rho > 0:
+            # fillet tangent to both sides; its centre lies in the gap on the bisector
+            t1 = corner + (rho / np.sqrt(3.0)) * d
+            t2 = corner + (rho / np.sqrt(3.0)) * dn
+            c = corner + (rho / np.sin(np.pi / 3)) * ub
+            out.append(("line", t1, None))
+            out.append(("arc", t2, c))
+        else:
+            out.append(("line", corner, None))
+    return out
+
+
+def tripod_sheet(params: SheetParams | None = None) -> SheetMesh:
+    """Build and tetrahedralise the tripod sheet with gmsh (deterministic, one thread).
+
+    Raises :class:`MeshError` if gmsh fails or leaves inverted elements.
+    """
+    import gmsh
+
+    params = params or SheetParams()
+    t, h = float(params.thickness), float(params.mesh_size)
+    was_init = gmsh.isInitialized()
+    if not was_init:
+        gmsh.initialize(interruptible=False)
+    try:
+        gmsh.model.add("tripod_sheet")
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.4 * h)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.option.setNumber("Mesh.Optimize", 1)
+        # plain Delaunay left slivers (aspect > 100) at some sizes; Netgen's pass removes them
+        gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
+        occ = gmsh.model.occ
+        seq = outline_corners(params)
+        z0 = -0.5 * t
+        start = occ.addPoint(*seq[-1][1], z0)
+        first, curves = start, []
+        for i, (kind, pt, centre) in enumerate(seq):
+            end = first if i == len(seq) - 1 else occ.addPoint(*pt, z0)
+            if kind == "line":
+                curves.append(occ.addLine(start, end))
+            else:
+                c = occ.addPoint(*centre, z0)
+                curves.append(occ.addCircleArc(start, c, end))
+            start = end
+        loops = [occ.addCurveLoop(curves)]
+        if params.hole_radius > 0:
+            circle = occ.addCircle(0.0, 0.0, z0, float(params.hole_radius))
+            loops.append(occ.addCurveLoop([circle]))
+        surf = occ.addPlaneSurface(loops)
+        occ.extrude([(2, surf)], 0.0, 0.0, t)
+        occ.synchronize()
+        gmsh.model.mesh.generate(3)
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        etags, enodes = gmsh.model.mesh.getElementsByType(4)
+    except Exception as exc:  # gmsh raises bare Exceptions
+        raise MeshError(f"gmsh failed to mesh the tripod sheet ({params}): {exc}") from exc
+    finally:
+        gmsh.model.remove()
+        if not was_init:
+            gmsh.finalize()
+    return _assemble(params, tags, coords, enodes)
+
+
+def _assemble(params, tags, coords, enodes) -> SheetMesh:
+    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    pts = coords.reshape(-1, 3)
+    tets = index[enodes.astype(np.int64).reshape(-1, 4)]
+    used = np.unique(tets)
+    remap = np.full(len(pts), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    points, tets = pts[used].copy(), remap[tets]
+    vol = tet_volumes(points, tets)
+    neg = vol < 0
+    tets[neg] = tets[neg][:, [0, 2, 1, 3]]  # one swap flips the orientation
+    quality = mesh_quality(points, tets)
+    if quality.min_volume <= 0:
+        raise MeshError(f"tripod sheet: degenerate element of volume {quality.min_volume:g} mm^3")
+    attach = attach_tags(points, params)
+    for tag in (1, 2, 3, ATTACH_CENTRE):
+        if not np.any(attach == tag):
+            raise MeshError(
+                f"tripod sheet: attachment set {tag} is empty; enlarge tip_box / centre_radius "
+                f"or refine mesh_size ({params.mesh_size:g} mm)"
+            )
+    return SheetMesh(points, tets, attach, ARM_ANGLES.copy(), quality, params, False)
+
+
+def attach_tags(points: np.ndarray, params: SheetParams) -> np.ndarray:
+    """Node tags (n,) int for points (n, 3) [mm] of an unmirrored sheet (see module doc)."""
+    attach = np.zeros(len(points), dtype=np.int64)
+    r = np.linalg.norm(points, axis=1)
+    attach[r <= params.centre_radius] = ATTACH_CENTRE
+    half = 0.5 * np.asarray(params.tip_box)
+    for k, a in enumerate(ARM_ANGLES):
+        s = points[:, 0] * np.cos(a) + points[:, 1] * np.sin(a)
+        q = -points[:, 0] * np.sin(a) + points[:, 1] * np.cos(a)
+        inside = (
+            (np.abs(s - params.reach) <= half[0] + 1e-9)
+            & (np.abs(q) <= half[1] + 1e-9)
+            & (np.abs(points[:, 2]) <= half[2] + 1e-9)
+        )
+        attach[inside] = k + 1
+    return attach
+
+
+REFLECT = np.diag([1.0, -1.0, 1.0])  # the mirror y -> -y, about the plane containing arm 0
+
+
+def mirror_sheet(sheet: SheetMesh) -> SheetMesh:
+    """The reflection y -> -y of ``sheet`` (the second tripod's sheet).
+
+    Points are reflected, each tet's orientation is restored by swapping two nodes,
+    and the tip tags of arms 1 and 2 are swapped so that tag k + 1 still names the
+    arm along 120 deg * k. Element i of the result is the image of element i.
+    """
+    points = sheet.points @ REFLECT
+    tets = sheet.tets[:, [0, 2, 1, 3]].copy()
+    attach = sheet.attach.copy()
+    attach[sheet.attach == 2], attach[sheet.attach == 3] = 3, 2
+    return SheetMesh(
+        points, tets, attach, sheet.arm_angles.copy(), mesh_quality(points, tets),
+        sheet.params, not sheet.mirrored,
+    )
+
+
+def outline_polygon(params: SheetParams, n_arc: int = 10) -> np.ndarray:
+    """The sheet's outer outline as a closed polygon (k, 2) [mm], counter-clockwise.
+
+    Fillet arcs are sampled with ``n_arc`` segments (for pictures and inside tests).
+    """
+    seq = outline_corners(params)
+    pts = [seq[-1][1]]
+    for kind, pt, centre in seq:
+        if kind == "arc":
+            a0 = np.arctan2(*(pts[-1] - centre)[::-1])
+            a1 = np.arctan2(*(pt - centre)[::-1])
+            da = (a1 - a0 + np.pi) % (2 * np.pi) - np.pi  # the short way round (60 deg)
+            rad = np.linalg.norm(pt - centre)
+            s = a0 + da * np.linspace(0, 1, n_arc + 1)[1:]
+            pts.extend(centre + rad * np.stack([np.cos(s), np.sin(s)], axis=1))
+        else:
+            pts.append(pt)
+    return np.array(pts)

@@ -1,0 +1,173 @@
+"""orient + printmap stages end to end, and the IceSL script run by a real Lua interpreter.
+
+The Lua test runs the generated ``print.lua`` against a small stand-in for IceSL's
+functions (tex3d_r8f, v, load, emit, set_setting_value, set_service) and checks that
+every field file is read, has 64^3 values, and is bound to the right setting and box.
+It needs a ``lua`` binary (Debian: ``apt-get install lua5.4``) and skips without one.
+"""
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from metasheet.pipeline.registry import StageContext
+from metasheet.pipeline.stages import orient, printmap
+from metasheet.sheet import icesl
+
+LUA = next((shutil.which(n) for n in ("lua5.4", "lua5.3", "lua", "luajit") if shutil.which(n)), None)
+needs_lua = pytest.mark.skipif(LUA is None, reason="no Lua interpreter (apt-get install lua5.4)")
+
+STANDIN = r"""
+local real_open = io.open
+local last_opened = nil
+io.open = function(name, mode) last_opened = name; return real_open(name, mode) end
+function v(x, y, z) return {x = x, y = y, z = z} end
+local textures = {}
+function tex3d_r8f(a, b, c)
+  local t = {dims = {a, b, c}, file = last_opened, n = 0, sets = 0, sum = 0.0, seen = {}}
+  function t:set(i, j, k, val)
+    assert(i >= 0 and i < a and j >= 0 and j < b and k >= 0 and k < c, 'texel out of range')
+    assert(i == math.floor(i) and j == math.floor(j) and k == math.floor(k), 'non-integer texel')
+    local key = i + a * (j + b * k)
+    if not self.seen[key] then self.seen[key] = true; self.n = self.n + 1 end
+    self.sets = self.sets + 1
+    self.sum = self.sum + val.x
+  end
+  textures[#textures + 1] = t
+  return t
+end
+local loaded, emitted, settings = {}, 0, {}
+function load(path) loaded[#loaded + 1] = path; return {mesh = path} end
+function load_centered(path) error('load_centered would move the part off its texture box') end
+function emit(shape, brush) assert(shape and shape.mesh, 'emit without a shape'); emitted = emitted + 1 end
+function set_service(name) end
+function set_setting_value(name, value, lo, hi) settings[#settings + 1] = {name = name, value = value, lo = lo, hi = hi} end
+dofile(arg[1])
+for _, s in ipairs(settings) do
+  if type(s.value) == 'table' then
+    local t = s.value
+    print(string.format('FIELD %s %s %d %d %d %d %d %.10f %.6f %.6f %.6f %.6f %.6f %.6f', s.name, t.file,
+      t.dims[1], t.dims[2], t.dims[3], t.n, t.sets, t.sum, s.lo.x, s.lo.y, s.lo.z, s.hi.x, s.hi.y, s.hi.z))
+  else
+    print('SET ' .. s.name .. ' ' .. tostring(s.value))
+  end
+end
+print('LOAD ' .. tostring(loaded[1]) .. ' ' .. #loaded)
+print('EMIT ' .. emitted)
+"""
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("stages")
+    o, pm = root / "orient", root / "printmap"
+    o.mkdir()
+    pm.mkdir()
+    po = orient.OrientParams(mesh_size=8.0, pitch_deg=40.0,
+                             grading={"table": {"tips": {"density": 0.25}}})
+    so = orient.run(StageContext("orient", po, o, {}, root))
+    sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(), pm, {"orient": o}, root))
+    return o, pm, so, sp
+
+
+def _nonblank_png(path: Path):
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(path)
+    assert img.shape[0] > 200 and img.shape[1] > 400
+    assert img[..., :3].std() > 0.05
+
+
+def test_orient_outputs(runs):
+    import meshio
+
+    o, _, summary, _ = runs
+    for name in ("sheet.vtu", "sheet_mirrored.vtu", "sheet.json", "sheet.png"):
+        assert (o / name).exists(), name
+    info = json.loads((o / "sheet.json").read_text())
+    assert info["n_tets"] == summary["n_tets"] and info["quality"]["min_volume"] > 0
+    assert all(info["attach_counts"][k] > 0 for k in "1234")
+    a, b = meshio.read(o / "sheet.vtu"), meshio.read(o / "sheet_mirrored.vtu")
+    fa, fb_ = a.cell_data["fiber"][0], b.cell_data["fiber"][0]
+    assert fa.shape == (summary["n_tets"], 3)
+    assert np.allclose(fb_, fa * [1, -1, 1])  # element i of the mirror is the image of i
+    assert np.allclose(b.points, a.points * [1, -1, 1])
+    E_t = a.cell_data["E_t"][0]
+    assert set(np.round(np.unique(E_t / 1.39), 9)) == {1.0, round((0.25 / 0.15) ** 2, 9)}
+    assert set(np.unique(a.point_data["attach"])) == {0, 1, 2, 3, 4}
+    _nonblank_png(o / "sheet.png")
+
+
+def test_printmap_outputs(runs):
+    _, pm, _, summary = runs
+    for label in ("normal", "mirrored"):
+        for f in ("sheet.stl", "print.lua", "density.txt", "theta.txt", "phi.txt", "iso.txt"):
+            assert (pm / label / f).exists(), f"{label}/{f}"
+        assert summary[f"{label}_percent_range"] == [15.0, 25.0]
+    _nonblank_png(pm / "printmap.png")
+
+
+@needs_lua
+@pytest.mark.parametrize("label", ["normal", "mirrored"])
+def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label):
+    _, pm, _, _ = runs
+    info = json.loads((pm / "printmap.json").read_text())["sheets"][label]
+    driver = tmp_path / "standin.lua"
+    driver.write_text(STANDIN)
+    res = subprocess.run([LUA, str(driver), "print.lua"], cwd=pm / label, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    fields = {ln.split()[1]: ln.split()[2:] for ln in lines if ln.startswith("FIELD")}
+    expected = {"infill_percentage_0": "density.txt", "phasor_infill_theta_0": "theta.txt",
+                "phasor_infill_phi_0": "phi.txt", "phasor_infill_iso_0": "iso.txt"}
+    assert set(fields) == set(expected)
+    for setting, fname in expected.items():
+        f = fields[setting]
+        assert f[0] == fname
+        assert [int(x) for x in f[1:6]] == [64, 64, 64, 64**3, 64**3]
+        values = np.loadtxt(pm / label / fname)
+        assert float(f[6]) == pytest.approx(values.sum(), rel=1e-9, abs=1e-6)
+        assert np.allclose([float(x) for x in f[7:10]], info["box_lo_mm"], atol=1e-6)
+        assert np.allclose([float(x) for x in f[10:13]], info["box_hi_mm"], atol=1e-6)
+    assert "SET infill_type_0 Phasor" in lines
+    assert "SET z_layer_height_mm 0.3" in lines
+    assert "LOAD sheet.stl 1" in lines and "EMIT 1" in lines
+
+
+@needs_lua
+def test_polyfoam_script_binds_density_and_angle(tmp_path):
+    rng = np.random.default_rng(0)
+    files = {"density": "density.txt", "theta": "angle.txt"}
+    sums = {}
+    for k, fname in files.items():
+        v = np.round(rng.random((64, 64, 64)), 4)
+        (tmp_path / fname).write_text(icesl.field_text(v))
+        sums[fname] = v.sum()
+    box = icesl.GridBox(np.array([-1.0, -2.0, -3.0]), np.array([1.0, 2.0, 3.0]))
+    (tmp_path / "print.lua").write_text(icesl.lua_script(
+        stl="sheet.stl", infill="polyfoam", files=files, box=box, settings={"z_layer_height_mm": 0.3}))
+    (tmp_path / "standin.lua").write_text(STANDIN)
+    res = subprocess.run([LUA, "standin.lua", "print.lua"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    fields = {ln.split()[1]: ln.split()[2:] for ln in res.stdout.splitlines() if ln.startswith("FIELD")}
+    assert {k: v[0] for k, v in fields.items()} == {"infill_percentage_0": "density.txt", "infill_angle_0": "angle.txt"}
+    for f in fields.values():
+        assert float(f[6]) == pytest.approx(sums[f[0]], rel=1e-9)
+        assert [float(x) for x in f[7:13]] == [-1.0, -2.0, -3.0, 1.0, 2.0, 3.0]
+    assert "SET infill_type_0 Polyfoam" in res.stdout.splitlines()
+
+
+@needs_lua
+def test_lua_script_fails_loudly_on_a_short_field(tmp_path):
+    box = icesl.GridBox(np.zeros(3), np.ones(3))
+    files = {"density": "density.txt", "theta": "angle.txt"}
+    (tmp_path / "density.txt").write_text(icesl.field_text(np.zeros((64, 64, 64))))
+    (tmp_path / "angle.txt").write_text("0.5 0.5\n")
+    (tmp_path / "print.lua").write_text(icesl.lua_script(stl="s.stl", infill="polyfoam", files=files, box=box, settings={}))
+    (tmp_path / "standin.lua").write_text(STANDIN)
+    res = subprocess.run([LUA, "standin.lua", "print.lua"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert res.returncode != 0 and "expected 262144 values, read 2" in res.stderr
