@@ -91,7 +91,7 @@ def _map_dask(fn, items: Sequence, address: str, progress) -> list:
             "scheduler: running on a dask cluster needs the 'dist' extra: pip install 'metasheet[dist]'"
         ) from exc
     results: list = [None] * len(items)
-    with Client(address, set_as_default=False) as client:
+    with Client(address) as client:
         futures = client.map(fn, items, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for done, fut in enumerate(dask_completed(futures), 1):

@@ -1,0 +1,1 @@
+"""Off-screen pictures and plots, one module per stage area."""
