@@ -1,0 +1,230 @@
+"""Robots built from sheets: a single tripod (3 servos) and the paper's 6-DOF robot.
+
+Geometry decisions (FACTS.md; documented here because the sources do not pin them down):
+
+* Sheet frame: mid-plane z = 0, centre at the origin, arm k along ``arm_angles[k]``,
+  nodes tagged ``attach`` = k + 1 (tip box of arm k) or 4 (centre, tied to the effector).
+* Servo k sits behind the sheet (on the side of -n, n the sheet normal pointing away from the
+  servo base) with its axis ``a_k = n x u_k`` horizontal and perpendicular to the arm
+  (``u_k`` the arm's outward radial direction). The horn points from the pivot to the arm's
+  tip box: ``h(theta) = -cos(theta) u_k + sin(theta) n``, so motor angle 0 is a horizontal
+  horn reaching inwards and 90 degrees a vertical one (the paper's convention). The pivot lies
+  on the servo circle, ``|pivot| = servo_radius`` in the plane, and ``horn_length`` from the
+  tip box centre; the rest angle follows, ``cos(theta_0) = (servo_radius - r_tip) / horn``.
+  With the 6-DOF sheet (reach 66 mm, tip box centre at ~59 mm), servos on r = 66 mm and a
+  25 mm horn, theta_0 ~ 75 degrees: the flat sheet is the rest pose, pulling (towards 90,
+  the tip moves mostly outwards and stretches the arm) has ~15 degrees of travel and pushing
+  (towards 0, compressing the arm) ~75: the paper's "pull 15 / push 35" tests both fit.
+* 6-DOF robot: the rod runs along world x, gravity along -z. The sheets' mid-planes are at
+  x = -L/2 and x = +L/2 (L = ``rod_length``, default 80 mm), normals pointing at each other,
+  so the rod joins the two centres; the effector is the rod centre, the origin. Sheet A maps
+  local (x, y, z) -> world (-z, y, x); sheet B is the same turned 180 degrees about world z and
+  carries the mirrored (y -> -y) sheet and fibre field, which makes B the exact mirror image of
+  A through x = 0. FACTS gives "tripods at +-90 mm, rod 80 mm": we read +-90 mm as the servo
+  bases; with theta_0 ~ 75 degrees the pivots are ~24 mm behind each sheet (|x| ~ 64 mm), which
+  leaves ~26 mm for the servo body down to the base plate at |x| = 90 mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..conventions import GRAVITY, MANDEL_SCALE, TPU_DENSITY
+from ..errors import ConfigError, check_range
+from ..material import mandel_rotation
+from .rigid import RigidCoupling, Servo
+
+_MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)
+
+
+@dataclass(frozen=True)
+class ServoGeometry:
+    """Where the servos are.
+
+    Attributes
+    ----------
+    servo_radius : distance of each servo pivot from the sheet axis [mm].
+    horn_length : pivot -> tip-box centre [mm].
+    angle_min, angle_max : motor stroke [deg], 0 = horizontal horn, 90 = vertical.
+    """
+
+    servo_radius: float = 66.0
+    horn_length: float = 25.0
+    angle_min: float = 0.0
+    angle_max: float = 90.0
+
+    def __post_init__(self):
+        check_range("servo_radius", self.servo_radius, 0.0, None, lo_open=True)
+        check_range("horn_length", self.horn_length, 0.0, None, lo_open=True)
+        check_range("angle_min", self.angle_min, -180.0, 180.0)
+        check_range("angle_max", self.angle_max, self.angle_min, 180.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A soft robot: one elastic body, its rigid couplings and its actuation limits.
+
+    Attributes
+    ----------
+    name : "tripod" or "six_dof" (or a user's).
+    body : the FEM body (:class:`metasheet.robot.body.ElasticBody` or compatible).
+    coupling : :class:`RigidCoupling` (effector + servos).
+    gravity : (3,) [mm/s^2].
+    angle_min, angle_max : (na,) motor limits [rad].
+    axis : (3,) the effector axis of interest (rod axis / tripod normal).
+    info : JSON-able description of the geometry (pivots, rest angles...).
+    """
+
+    name: str
+    body: object
+    coupling: RigidCoupling
+    gravity: np.ndarray
+    angle_min: np.ndarray
+    angle_max: np.ndarray
+    axis: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "f_ext", np.asarray(self.body.gravity(tuple(self.gravity)), float).reshape(-1, 3))
+
+    def rest_state(self):
+        """The undeformed configuration (motors at their rest angles, no gravity sag)."""
+        from .statics import RobotState
+
+        c = self.coupling
+        return RobotState(c.origin.copy(), np.eye(3), c.rest_angles.copy(), c.rest.copy())
+
+    def linearizer(self):
+        """A fresh :class:`metasheet.robot.statics.Linearizer` for this robot."""
+        from .statics import Linearizer
+
+        return Linearizer(self)
+
+
+def _rotate_local(C, Q) -> np.ndarray:
+    """(m, 6, 6) or (6, 6) Voigt stiffness in a frame rotated by Q (3, 3) (local -> world)."""
+    Qm = mandel_rotation(Q[None])[0]
+    Cm = np.asarray(C, float) * _MANDEL
+    return np.einsum("IK,...KL,JL->...IJ", Qm, Cm, Qm) / _MANDEL
+
+
+def _check_sheet(sheet, stiffness, label):
+    pts, tets, att = np.asarray(sheet.points, float), np.asarray(sheet.tets), np.asarray(sheet.attach)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ConfigError(f"{label}.points: shape is {pts.shape} and should be (n, 3)")
+    if att.shape != (len(pts),):
+        raise ConfigError(f"{label}.attach: shape is {att.shape} and should be ({len(pts)},)")
+    for tag in range(1, 5):
+        if not np.any(att == tag):
+            raise ConfigError(f"{label}.attach: no node tagged {tag} (1-3 arm tips, 4 centre)")
+    C = np.asarray(stiffness, float)
+    if C.shape not in ((6, 6), (len(tets), 6, 6)):
+        raise ConfigError(f"{label} stiffness: shape is {C.shape} and should be (6, 6) or ({len(tets)}, 6, 6)")
+    if C.ndim == 2:
+        C = np.broadcast_to(C, (len(tets), 6, 6))
+    return pts, tets, att, C
+
+
+def _servos(pts_world, att, arm_angles, Q, centre, geo: ServoGeometry, offset: int, label):
+    """Servos of one sheet placed by Q (local -> world) at ``centre`` (3,) [mm]."""
+    n = Q[:, 2]
+    servos, info = [], []
+    for k, phi in enumerate(arm_angles):
+        nodes = np.flatnonzero(att == k + 1)
+        u = Q @ np.array([np.cos(phi), np.sin(phi), 0.0])
+        tip = pts_world[nodes].mean(axis=0)
+        r_tip = float(np.dot(tip - centre, u))
+        c0 = (geo.servo_radius - r_tip) / geo.horn_length
+        if not 0.0 <= c0 <= 1.0:
+            raise ConfigError(
+                f"servo_radius: {geo.servo_radius!r}: with horn_length {geo.horn_length} and the arm tip "
+                f"at r = {r_tip:.1f} mm the rest angle is undefined; allowed range "
+                f"[{r_tip:.1f}, {r_tip + geo.horn_length:.1f}] mm")
+        th0 = float(np.arccos(c0))
+        h0 = -np.cos(th0) * u + np.sin(th0) * n
+        pivot = tip - geo.horn_length * h0
+        servos.append(Servo(np.cross(n, u), pivot, geo.horn_length, th0, nodes + offset))
+        info.append({"sheet": label, "arm": k, "pivot_mm": pivot.round(3).tolist(),
+                     "axis": np.cross(n, u).round(6).tolist(), "rest_angle_deg": round(np.degrees(th0), 3)})
+    return servos, info
+
+
+def _make_robot(name, pts, tets, C, eff_nodes, origin, servos, info, geo, gravity, axis, density):
+    from .body import ElasticBody
+
+    body = ElasticBody(pts, tets, C, density=density)
+    coupling = RigidCoupling(pts, eff_nodes, origin, servos)
+    na = len(servos)
+    lo, hi = np.full(na, np.radians(geo.angle_min)), np.full(na, np.radians(geo.angle_max))
+    th0 = coupling.rest_angles
+    if np.any(th0 < lo - 1e-12) or np.any(th0 > hi + 1e-12):
+        raise ConfigError(
+            f"angle_min/angle_max: [{geo.angle_min}, {geo.angle_max}] deg: must contain the rest angles "
+            f"{np.degrees(th0).round(2).tolist()} deg")
+    info = {"servo_geometry": {"servo_radius_mm": geo.servo_radius, "horn_length_mm": geo.horn_length,
+                               "angle_min_deg": geo.angle_min, "angle_max_deg": geo.angle_max},
+            "servos": info, **info_extra(pts, tets, eff_nodes, density)}
+    return Robot(name, body, coupling, np.asarray(gravity, float), lo, hi, np.asarray(axis, float), info)
+
+
+def info_extra(pts, tets, eff, density) -> dict:
+    return {"n_nodes": int(len(pts)), "n_tets": int(len(tets)), "n_effector_nodes": int(len(eff)),
+            "density_t_per_mm3": density}
+
+
+def tripod(sheet, stiffness, *, geometry: ServoGeometry = ServoGeometry(), density: float = TPU_DENSITY,
+           gravity=(0.0, 0.0, -GRAVITY)) -> Robot:
+    """A single tripod: the sheet horizontal at z = 0, servos below, effector = sheet centre.
+
+    Parameters
+    ----------
+    sheet : object with ``points`` (n, 3) [mm], ``tets`` (m, 4), ``attach`` (n,), ``arm_angles`` (3,) [rad]
+        (a :class:`metasheet.sheet.geometry.SheetMesh`).
+    stiffness : (m, 6, 6) or (6, 6) Voigt stiffness in the sheet frame [MPa].
+    density : [t/mm^3]. gravity : (3,) [mm/s^2].
+    """
+    pts, tets, att, C = _check_sheet(sheet, stiffness, "sheet")
+    Q = np.eye(3)
+    servos, info = _servos(pts, att, sheet.arm_angles, Q, np.zeros(3), geometry, 0, "sheet")
+    return _make_robot("tripod", pts, tets, C, np.flatnonzero(att == 4), np.zeros(3), servos, info,
+                       geometry, gravity, (0.0, 0.0, 1.0), density)
+
+
+#: sheet A's local -> world rotation in the 6-DOF robot: (x, y, z) -> (-z, y, x)
+Q_A = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+#: sheet B's: A's turned 180 degrees about world z
+Q_B = np.diag([-1.0, -1.0, 1.0]) @ Q_A
+
+
+def six_dof(sheet_a, stiffness_a, sheet_b, stiffness_b, *, rod_length: float = 80.0,
+            geometry: ServoGeometry = ServoGeometry(), density: float = TPU_DENSITY,
+            gravity=(0.0, 0.0, -GRAVITY)) -> Robot:
+    """The paper's 6-DOF robot: two tripods facing each other joined by a rigid rod along x.
+
+    ``sheet_b`` should be the mirrored sheet (y -> -y, with the mirrored fibre field in
+    ``stiffness_b``); motors 0-2 belong to sheet A (at x = -rod_length/2), 3-5 to sheet B.
+    The effector is the rod centre (origin); both sheets' centre nodes belong to it.
+    """
+    check_range("rod_length", rod_length, 0.0, 1000.0, lo_open=True)
+    pa, ta, aa, Ca = _check_sheet(sheet_a, stiffness_a, "sheet_a")
+    pb, tb, ab, Cb = _check_sheet(sheet_b, stiffness_b, "sheet_b")
+    half = 0.5 * rod_length
+    ca, cb = np.array([-half, 0.0, 0.0]), np.array([half, 0.0, 0.0])
+    wa, wb = pa @ Q_A.T + ca, pb @ Q_B.T + cb
+    if np.max(np.abs(pa[:, 2])) >= half:
+        raise ConfigError(f"rod_length: {rod_length!r}: the sheets would overlap; allowed > "
+                          f"{2 * np.max(np.abs(pa[:, 2])):.1f} mm")
+    sa, ia = _servos(wa, aa, sheet_a.arm_angles, Q_A, ca, geometry, 0, "A")
+    sb, ib = _servos(wb, ab, sheet_b.arm_angles, Q_B, cb, geometry, len(pa), "B")
+    pts = np.vstack([wa, wb])
+    tets = np.vstack([ta, np.asarray(tb) + len(pa)])
+    C = np.concatenate([_rotate_local(Ca, Q_A), _rotate_local(Cb, Q_B)])
+    eff = np.concatenate([np.flatnonzero(aa == 4), np.flatnonzero(ab == 4) + len(pa)])
+    rob = _make_robot("six_dof", pts, tets, C, eff, np.zeros(3), sa + sb, ia + ib, geometry, gravity,
+                      (1.0, 0.0, 0.0), density)
+    rob.info["rod_length_mm"] = rod_length
+    rob.info["n_tets_per_sheet"] = [int(len(ta)), int(len(tb))]
+    rob.info["sheet_centres_mm"] = [ca.tolist(), cb.tolist()]
+    return rob

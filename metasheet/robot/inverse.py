@@ -1,0 +1,251 @@
+"""Inverse model (paper eq. 8): a QP on the motor increments, in a SOFA-like control loop.
+
+Each control step, at the current (nearly equilibrated) state:
+
+1. linearise: tangent, condensation, ``J = W_ea W_aa^-1`` (eq. 6-7) and the effector motion
+   ``dq_e^0`` that the pending equilibrium correction alone would cause;
+2. solve the QP
+
+       min_dq  1/2 |D (J dq - e)|^2 + 1/2 eps |dq|^2
+       s.t.    max(q_min - q, -dq_max) <= dq <= min(q_max - q, dq_max)
+
+   with ``e = (p* - p, log(R* R^T)) - dq_e^0`` the pose error (mm, rad) and
+   ``D = diag(1, 1, 1, w, w, w)``: ``w = rot_weight`` [mm/rad] makes 1 rad of orientation
+   error cost as much as ``w`` mm of position error (default 50 mm/rad, i.e. 1 degree ~
+   0.87 mm, about the sheet's arm length). ``eps = regularization * max eig(J^T D^2 J)``
+   keeps the problem strictly convex when J loses rank (5 controllable DOF with silicone);
+3. move the motors by dq and re-equilibrate with one Newton step from the same
+   linearisation (the predictor of :func:`.statics.Linearization.newton_step`).
+
+This is eq. (8) with the change of variable ``dq_a = W_aa dlambda``: the same minimiser, but
+the motor limits become simple bounds, which the dense solvers (daqp, quadprog, proxqp via
+qpsolvers) handle directly. The loop stops "reached" when the position error is below
+``pos_tol`` and the rotation error below ``rot_tol``, "stalled" when the weighted error has
+not improved for ``stall_steps`` steps (an unreachable goal: the closest pose found is
+returned, never an exception), or "max_steps". The reported pose is that of a fully
+converged equilibrium at the final motor angles (:func:`.statics.solve_equilibrium`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import qpsolvers
+
+from ..errors import ConfigError, ConvergenceError, check_range
+from .kinematics import jacobian_from_schur
+from .rigid import rotation_matrix, rotation_vector
+from .statics import RobotState, _reference, apply_step, solve_equilibrium
+
+SOLVERS = ("daqp", "quadprog", "proxqp")
+
+
+@dataclass(frozen=True)
+class InverseSettings:
+    """Settings of the inverse loop (units in brackets)."""
+
+    rot_weight: float = 50.0  # [mm/rad]
+    regularization: float = 1e-6  # [-], relative to the largest eigenvalue of J^T D^2 J
+    max_step_deg: float = 5.0  # [deg] per motor and control step
+    pos_tol: float = 0.1  # [mm]
+    rot_tol_deg: float = 0.2  # [deg]
+    max_steps: int = 200
+    stall_steps: int = 15
+    solver: str = "daqp"
+    refactor_every: int = 1  # 1: a fresh tangent + LU every step; n: keep them n steps
+    chord_tol: float = 0.25  # [-] refresh a kept tangent when residual > chord_tol * force scale
+
+    def __post_init__(self):
+        check_range("rot_weight", self.rot_weight, 0.0, None, lo_open=True)
+        check_range("regularization", self.regularization, 0.0, 1.0)
+        check_range("max_step_deg", self.max_step_deg, 0.0, 90.0, lo_open=True)
+        check_range("pos_tol", self.pos_tol, 0.0, None, lo_open=True)
+        check_range("rot_tol_deg", self.rot_tol_deg, 0.0, None, lo_open=True)
+        check_range("max_steps", self.max_steps, 1, 100000)
+        check_range("stall_steps", self.stall_steps, 1, 100000)
+        check_range("refactor_every", self.refactor_every, 1, 1000)
+        check_range("chord_tol", self.chord_tol, 0.0, 1.0, lo_open=True)
+        if self.solver not in SOLVERS:
+            raise ConfigError(f"solver: {self.solver!r}: allowed {SOLVERS}")
+
+
+@dataclass(frozen=True)
+class StepInfo:
+    """One control step: motor increment [rad], residual before it [N], QP status, time [s]."""
+
+    dq_a: np.ndarray
+    residual: float
+    error: float
+    qp_ok: bool
+    time: float
+
+
+@dataclass(frozen=True)
+class InverseResult:
+    """Outcome of :meth:`InverseController.goto`.
+
+    Attributes
+    ----------
+    status : "reached", "stalled" or "max_steps".
+    state : equilibrium at the final motor angles.
+    angles_deg : (na,) final motor angles [deg].
+    pose : (6,) final effector pose (mm, deg: rotation vector).
+    goal : (6,) the goal (mm, deg).
+    pos_error : [mm]. rot_error : [deg].
+    steps : control steps taken. step_times : [s] each. residuals : [N] before each step.
+    """
+
+    status: str
+    state: RobotState
+    angles_deg: np.ndarray
+    pose: np.ndarray
+    goal: np.ndarray
+    pos_error: float
+    rot_error: float
+    steps: int
+    step_times: tuple
+    residuals: tuple
+
+    @property
+    def reached(self) -> bool:
+        return self.status == "reached"
+
+    def to_dict(self) -> dict:
+        return {"status": self.status, "angles_deg": self.angles_deg.tolist(), "pose": self.pose.tolist(),
+                "goal": self.goal.tolist(), "pos_error_mm": self.pos_error, "rot_error_deg": self.rot_error,
+                "steps": self.steps, "median_step_ms": 1e3 * float(np.median(self.step_times or [0.0]))}
+
+
+def pose_error(p, R, goal_p, goal_R) -> np.ndarray:
+    """(6,) error (mm, rad) from (p, R) to the goal, rotation as a spatial rotation vector."""
+    return np.concatenate([goal_p - p, rotation_vector(goal_R @ R.T)])
+
+
+def solve_step_qp(J, e, q, q_min, q_max, settings: InverseSettings):
+    """The QP of eq. (8) in motor increments; returns (dq (na,) [rad], solver_ok)."""
+    D2 = np.array([1.0, 1.0, 1.0] + [settings.rot_weight**2] * 3)
+    H = J.T @ (D2[:, None] * J)
+    eps = settings.regularization * max(float(np.linalg.eigvalsh(H)[-1]), 1e-30)
+    H = H + eps * np.eye(len(q))
+    g = -J.T @ (D2 * e)
+    dmax = np.radians(settings.max_step_deg)
+    lb = np.maximum(q_min - q, -dmax)
+    ub = np.minimum(q_max - q, dmax)
+    lb = np.minimum(lb, 0.0)  # q may sit exactly on a limit
+    ub = np.maximum(ub, 0.0)
+    dq = qpsolvers.solve_qp(H, g, lb=lb, ub=ub, solver=settings.solver)
+    if dq is None or not np.all(np.isfinite(dq)):
+        return np.zeros_like(q), False
+    return np.clip(dq, lb, ub), True  # clip: solver tolerances must not leave the stroke
+
+
+class InverseController:
+    """The control loop of eq. (8) on one robot, starting from ``state`` (an equilibrium)."""
+
+    def __init__(self, robot, state: RobotState | None = None, settings: InverseSettings = InverseSettings()):
+        self.robot = robot
+        self.settings = settings
+        self.linearizer = robot.linearizer()
+        self.state = state if state is not None else solve_equilibrium(
+            robot, robot.coupling.rest_angles, linearizer=self.linearizer).state
+        self.n_steps = 0
+        self._lin = None
+        self._since = 0
+        self._J = None
+
+    def linearization(self):
+        """The step's linearisation: fresh every ``refactor_every`` steps, else the chord update.
+
+        A stale tangent is also dropped when the residual exceeds ``chord_tol`` times the force
+        scale (the chord iteration is not keeping up): the residual is monitored, never assumed.
+        """
+        s = self.settings
+        lin = None
+        if self._lin is not None and self._since < s.refactor_every:
+            lin = self.linearizer.update(self._lin, self.state)
+            ref = max(_reference(self.robot, lin), 1e-300)
+            if lin.residual_norm > s.chord_tol * ref:
+                lin = None
+        if lin is None:
+            lin = self.linearizer.linearize(self.state)
+            self._J = jacobian_from_schur(lin.S)[1]
+            self._since = 0
+        self._lin, self._last_res = lin, lin.residual_norm
+        self._since += 1
+        return lin
+
+    def _weighted(self, e) -> float:
+        w = self.settings.rot_weight
+        return float(np.sqrt(e[:3] @ e[:3] + w * w * (e[3:] @ e[3:])))
+
+    def step(self, goal_p, goal_R) -> StepInfo:
+        """One control step towards the goal (p* (3,) [mm], R* (3, 3)); updates ``self.state``."""
+        t0 = time.perf_counter()
+        s, rob = self.settings, self.robot
+        lin = self.linearization()
+        J = self._J
+        dq_e0, _ = lin.newton_step(None)
+        e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
+        dq, ok = solve_step_qp(J, e - dq_e0, self.state.angles, rob.angle_min, rob.angle_max, s)
+        dq_e, dx_f = lin.newton_step(dq)
+        self.state = apply_step(rob, self.state, dq_e, dx_f, dq)
+        self.n_steps += 1
+        return StepInfo(dq, lin.residual_norm, self._weighted(e), ok, time.perf_counter() - t0)
+
+    def _equilibrium(self, angles, start: RobotState) -> RobotState:
+        """Converged equilibrium at ``angles``, from the current state or, failing that, ``start``."""
+        self._lin = None
+        try:
+            st = solve_equilibrium(self.robot, angles, state=self.state, linearizer=self.linearizer).state
+        except ConvergenceError:  # the loop's state drifted too far: restart from the start pose
+            st = solve_equilibrium(self.robot, angles, state=start, linearizer=self.linearizer).state
+        self.state = st
+        return st
+
+    def goto(self, pose) -> InverseResult:
+        """Drive the effector to ``pose`` (6,) = (x, y, z [mm], rotation vector [deg])."""
+        pose = np.asarray(pose, dtype=float).reshape(-1)
+        if pose.shape != (6,) or not np.all(np.isfinite(pose)):
+            raise ConfigError(f"pose: {pose!r}: expected 6 finite numbers X Y Z [mm] RX RY RZ [deg]")
+        s = self.settings
+        goal_p, goal_R = pose[:3], rotation_matrix(np.radians(pose[3:]))
+        times, res = [], []
+        start = self.state
+        best, best_angles, since = np.inf, self.state.angles.copy(), 0
+        status = "max_steps"
+        for _ in range(s.max_steps):
+            e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
+            if np.linalg.norm(e[:3]) <= s.pos_tol and np.degrees(np.linalg.norm(e[3:])) <= s.rot_tol_deg:
+                # confirm on the converged equilibrium, not on the one-Newton-step state
+                self.state = self._equilibrium(self.state.angles, start)
+                e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
+                if np.linalg.norm(e[:3]) <= s.pos_tol and np.degrees(np.linalg.norm(e[3:])) <= s.rot_tol_deg:
+                    status = "reached"
+                    break
+            err = self._weighted(e)
+            if err < best * (1.0 - 1e-3):
+                best, best_angles, since = err, self.state.angles.copy(), 0
+            else:
+                since += 1
+                if since >= s.stall_steps:
+                    status = "stalled"
+                    break
+            info = self.step(goal_p, goal_R)
+            times.append(info.time)
+            res.append(info.residual)
+        if status == "reached":
+            eq_state = self.state
+        else:
+            eq_state = self._equilibrium(self.state.angles if status != "stalled" else best_angles, start)
+        e = pose_error(eq_state.p, eq_state.R, goal_p, goal_R)
+        pos_err, rot_err = float(np.linalg.norm(e[:3])), float(np.degrees(np.linalg.norm(e[3:])))
+        within = pos_err <= s.pos_tol and rot_err <= s.rot_tol_deg
+        if within:
+            status = "reached"
+        elif status == "reached":  # the one-Newton-step state was close, the equilibrium is not
+            status = "stalled"
+        out_pose = np.concatenate([eq_state.p, np.degrees(rotation_vector(eq_state.R))])
+        return InverseResult(status, eq_state, np.degrees(eq_state.angles), out_pose, pose, pos_err,
+                             rot_err, len(times), tuple(times), tuple(res))

@@ -1,0 +1,290 @@
+"""Static equilibrium of the coupled robot (paper eq. 1) by Newton's method with line search.
+
+Unknowns are the effector's 6 rigid DOFs and the free nodes, ``y = (q_e, x_f)``; the motor
+angles ``q_a`` are given. With ``r(x) = f(x) - f_ext`` (internal minus gravity/loads,
+``f_ext = M g``) the reduced residual is ``R(y) = [J_e^T r ; r_f]`` (eq. 1 projected by
+eq. 2) and the reduced tangent is the e/f part of the paper's matrix ``A`` (eq. 6),
+``J^T K J`` plus the rigid bodies' geometric term (see :mod:`.rigid`).
+
+The linear algebra is shared with the kinematics (:mod:`.kinematics`): the free block
+``K_ff`` is extracted from the body's CSR tangent through cached index maps, factorised
+once (SuperLU), and solved with all rigid columns (6 + n_act) and the residual at once;
+everything else is a small dense Schur complement ``S = A_rr - C K_ff^-1 B``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import ConfigError, ConvergenceError
+from .rigid import rotation_matrix, rotation_vector
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """A configuration of the robot.
+
+    Attributes
+    ----------
+    p : (3,) effector reference point [mm].
+    R : (3, 3) effector orientation.
+    angles : (na,) motor angles [rad].
+    x : (n, 3) all node positions [mm] (consistent with p, R, angles).
+    """
+
+    p: np.ndarray
+    R: np.ndarray
+    angles: np.ndarray
+    x: np.ndarray
+
+    @property
+    def pose(self) -> np.ndarray:
+        """(6,) effector pose: position [mm] and rotation vector [rad]."""
+        return np.concatenate([self.p, rotation_vector(self.R)])
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """Result of :func:`solve_equilibrium`.
+
+    Attributes
+    ----------
+    state : the converged :class:`RobotState`.
+    iterations : Newton iterations in all.
+    residuals : reduced residual norm [N] before each iteration and at the end.
+    reference : force scale the relative tolerance refers to [N].
+    time : wall time [s].
+    """
+
+    state: RobotState
+    iterations: int
+    residuals: tuple
+    reference: float
+    time: float
+
+
+def _block_map(K: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> tuple:
+    """Index map giving ``K[rows][:, cols]`` as ``data[map]`` on a fixed CSR pattern."""
+    tag = sp.csr_matrix((np.arange(1, K.nnz + 1, dtype=float), K.indices, K.indptr), shape=K.shape)
+    sub = tag[rows][:, cols].tocsr()
+    sub.sort_indices()
+    return (sub.data.astype(np.int64) - 1, sub.indices.copy(), sub.indptr.copy(), sub.shape)
+
+
+class Linearizer:
+    """Linearisation of a robot about a state, reusing index maps (and optionally LU).
+
+    Built once per robot; :meth:`linearize` returns a :class:`Linearization`.
+    """
+
+    def __init__(self, robot):
+        self.robot = robot
+        c = robot.coupling
+        self.dof_r = (3 * c.rigid_nodes[:, None] + np.arange(3)).ravel()
+        self.dof_f = (3 * c.free[:, None] + np.arange(3)).ravel()
+        self._maps = None
+        self._pattern = None
+        self.lu = None
+        self.factorizations = 0
+
+    def _blocks(self, K):
+        if self._maps is None or K.nnz != self._pattern[0] or not np.array_equal(K.indptr, self._pattern[1]):
+            r, f = self.dof_r, self.dof_f
+            self._maps = {k: _block_map(K, a, b) for k, (a, b) in
+                          {"rr": (r, r), "rf": (r, f), "fr": (f, r), "ff": (f, f)}.items()}
+            self._pattern = (K.nnz, K.indptr.copy())
+        out = {}
+        for k, (m, ind, ptr, shape) in self._maps.items():
+            out[k] = sp.csr_matrix((K.data[m], ind, ptr), shape=shape)
+        return out
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
+        # SuperLU's multi-RHS solve was seen to slow down past ~8 columns here: chunk it
+        if rhs.ndim == 1:
+            return self.lu.solve(rhs)
+        return np.column_stack([self.lu.solve(np.ascontiguousarray(rhs[:, i:i + 4]))
+                                for i in range(0, rhs.shape[1], 4)])
+
+    def linearize(self, state: RobotState) -> "Linearization":
+        """Fresh tangent, LU of K_ff, residual and Schur complement at ``state``."""
+        rob = self.robot
+        c = rob.coupling
+        f, K = rob.body.forces_and_tangent(state.x)
+        r = f.reshape(-1, 3) - rob.f_ext
+        B = self._blocks(K.tocsr() if not sp.isspmatrix_csr(K) else K)
+        Jr = c.rigid_jacobian(state.x, state.p)
+        A = Jr.T @ (B["rr"] @ Jr) + c.rigid_geometric(state.x, state.p, r)
+        Bfr = B["fr"] @ Jr  # (3nf, nr)
+        Crf = (B["rf"].T @ Jr).T  # (nr, 3nf)
+        self.lu = spla.splu(B["ff"].tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
+        self.factorizations += 1
+        rf = r[c.free].ravel()
+        Y = self._solve(np.column_stack([Bfr, rf]))
+        nr = Jr.shape[1]
+        S = A - Crf @ Y[:, :nr]
+        Rr = Jr.T @ r[c.rigid_nodes].ravel()  # generalised forces on the rigid DOFs
+        return Linearization(state=state, r=r, S=S, Y=Y[:, :nr], y_r=Y[:, nr], C=Crf,
+                             R_rigid=Rr - Crf @ Y[:, nr], res_e=Rr[:6], res_f=rf, fresh=True,
+                             moment_scale=c.length_scale)
+
+    def update(self, lin: "Linearization", state: RobotState, f=None) -> "Linearization":
+        """Fresh residual at ``state`` on ``lin``'s (stale) tangent: a chord / modified-Newton step.
+
+        Costs one force evaluation and one solve with the cached LU. ``f`` (n, 3) [N] the
+        internal forces at ``state`` if already known.
+        """
+        rob = self.robot
+        c = rob.coupling
+        f = rob.body.forces(state.x) if f is None else f
+        r = np.asarray(f).reshape(-1, 3) - rob.f_ext
+        Jr = c.rigid_jacobian(state.x, state.p)
+        rf = r[c.free].ravel()
+        y_r = self._solve(rf)
+        Rr = Jr.T @ r[c.rigid_nodes].ravel()
+        return Linearization(state=state, r=r, S=lin.S, Y=lin.Y, y_r=y_r, C=lin.C,
+                             R_rigid=Rr - lin.C @ y_r, res_e=Rr[:6], res_f=rf, fresh=False,
+                             moment_scale=c.length_scale)
+
+
+@dataclass(frozen=True)
+class Linearization:
+    """Everything eq. (6) needs at one state.
+
+    Attributes
+    ----------
+    state : where it was taken.
+    r : (n, 3) nodal residual f(x) - f_ext [N].
+    S : (6 + na, 6 + na) Schur complement of the free nodes in eq. (6)'s matrix A
+        (units mixed: N/mm, N, N mm per mm / rad).
+    Y : (3nf, 6 + na) K_ff^-1 B (free-node motion per unit rigid DOF).
+    y_r : (3nf,) K_ff^-1 r_f.
+    C : (6 + na, 3nf) coupling block J_r^T K_rf.
+    R_rigid : (6 + na,) condensed rigid residual J_r^T r - C K_ff^-1 r_f.
+    fresh : False when S, Y, C come from an earlier state (:meth:`Linearizer.update`).
+    moment_scale : [mm] the effector's size; moments / moment_scale count as forces in the norm.
+    res_e, res_f : (6,), (3nf,) reduced residual [N, N mm].
+    """
+
+    state: RobotState
+    r: np.ndarray
+    S: np.ndarray
+    Y: np.ndarray
+    y_r: np.ndarray
+    C: np.ndarray
+    R_rigid: np.ndarray
+    res_e: np.ndarray
+    res_f: np.ndarray
+    fresh: bool = True
+
+    moment_scale: float = 1.0
+
+    @property
+    def residual_norm(self) -> float:
+        """Norm of the reduced residual [J_e^T r ; r_f] [N], moments divided by ``moment_scale`` [mm]."""
+        m = self.res_e[3:] / self.moment_scale
+        return float(np.sqrt(self.res_e[:3] @ self.res_e[:3] + m @ m + self.res_f @ self.res_f))
+
+    def newton_step(self, dq_a=None) -> tuple[np.ndarray, np.ndarray]:
+        """Linearised step (dq_e (6,), dx_f (3nf,)) for a motor increment dq_a (na,) [rad]."""
+        S, na = self.S, self.S.shape[0] - 6
+        rhs = -self.R_rigid[:6].copy()
+        dx_f = -self.y_r.copy()
+        if dq_a is not None and np.any(dq_a):
+            rhs -= S[:6, 6:] @ dq_a
+            dx_f -= self.Y[:, 6:] @ dq_a
+        dq_e = np.linalg.solve(S[:6, :6], rhs)
+        dx_f -= self.Y[:, :6] @ dq_e
+        return dq_e, dx_f
+
+
+def apply_step(robot, state: RobotState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> RobotState:
+    """New :class:`RobotState` after the increment alpha * (dq_e, dq_a, dx_f)."""
+    c = robot.coupling
+    p = state.p + alpha * dq_e[:3]
+    R = rotation_matrix(alpha * dq_e[3:]) @ state.R
+    angles = state.angles if dq_a is None else state.angles + dq_a
+    x_f = state.x[c.free] + alpha * dx_f.reshape(-1, 3)
+    return RobotState(p, R, angles, c.positions(p, R, angles, x_f))
+
+
+def _reference(robot, lin: Linearization) -> float:
+    f = lin.r + robot.f_ext
+    return float(np.linalg.norm(f[robot.coupling.rigid_nodes]) + np.linalg.norm(robot.f_ext))
+
+
+def solve_equilibrium(robot, angles, *, state=None, tol: float = 1e-8, max_iter: int = 50,
+                      max_angle_step: float = np.radians(10.0), reuse_ratio: float = 0.25,
+                      linearizer=None) -> Equilibrium:
+    """Static equilibrium (eq. 1) at motor ``angles`` (na,) [rad] by Newton + line search.
+
+    Starts from ``state`` (default: the rest state) and moves the motors in increments of at
+    most ``max_angle_step`` [rad]; each increment begins with the linearised predictor (the
+    motors and the rest of the robot move together) and is then corrected by Newton with a
+    backtracking line search on the residual norm. The tangent (and the LU of K_ff) is kept
+    while each step cuts the residual by at least ``reuse_ratio`` (a chord step costs one
+    force evaluation and one solve) and recomputed otherwise; ``reuse_ratio = 0`` gives plain
+    Newton. Converged when the reduced residual is below ``tol`` times the force scale
+    (forces on the rigid nodes plus the external loads): the test is on the true residual,
+    whatever tangent was used.
+
+    Raises :class:`ConvergenceError` (with the residual history) when an increment fails.
+    """
+    target = np.asarray(angles, dtype=float).reshape(-1)
+    if target.shape != (robot.coupling.n_act,):
+        raise ConfigError(f"angles: shape {target.shape}: expected ({robot.coupling.n_act},) [rad]")
+    if tol <= 0 or max_iter < 1:
+        raise ConfigError(f"tol: {tol!r}, max_iter: {max_iter!r}: need tol > 0, max_iter >= 1")
+    check_reuse = float(reuse_ratio)
+    if not 0.0 <= check_reuse < 1.0:
+        raise ConfigError(f"reuse_ratio: {reuse_ratio!r}: allowed range [0, 1)")
+    t0 = time.perf_counter()
+    lz = linearizer or robot.linearizer()
+    st = state if state is not None else robot.rest_state()
+    jump = target - st.angles
+    n_inc = max(1, int(np.ceil(np.max(np.abs(jump), initial=0.0) / max_angle_step - 1e-12)))
+    history, iters, ref = [], 0, 0.0
+    for inc in range(n_inc):
+        dq_a = jump / n_inc if np.any(jump) else None
+        lin = lz.linearize(st)
+        for it in range(max_iter + 1):
+            res = lin.residual_norm
+            ref = max(_reference(robot, lin), 1e-300)
+            history.append(res)
+            if dq_a is None and (res <= tol * ref or res < 1e-13 * max(ref, 1.0)):
+                break
+            if it == max_iter:
+                raise ConvergenceError(
+                    f"statics: no convergence in {max_iter} Newton iterations (increment {inc + 1}/"
+                    f"{n_inc}); residual {res:.3e} N > {tol:g} x {ref:.3e} N", history)
+            dq_e, dx_f = lin.newton_step(dq_a)
+            iters += 1
+            if dq_a is not None:  # predictor: move the motors with the linearised response
+                st = apply_step(robot, st, dq_e, dx_f, dq_a)
+                dq_a = None
+                lin = lz.linearize(st)
+                continue
+            alpha = 1.0
+            for _ in range(12):
+                trial = apply_step(robot, st, dq_e, dx_f, alpha=alpha)
+                f_trial = robot.body.forces(trial.x)
+                new = lz.update(lin, trial, f_trial)
+                if new.residual_norm <= (1.0 - 1e-4 * alpha) * res:
+                    break
+                alpha *= 0.5
+            else:
+                if not lin.fresh:  # a stale tangent may give a poor direction: refresh, retry
+                    lin = lz.linearize(st)
+                    history.pop()
+                    continue
+                raise ConvergenceError(
+                    f"statics: line search failed at residual {res:.3e} N (increment {inc + 1}/{n_inc})",
+                    history)
+            st = trial
+            lin = new if new.residual_norm <= reuse_ratio * res else lz.linearize(st)
+    return Equilibrium(st, iters, tuple(history), ref, time.perf_counter() - t0)

@@ -1,0 +1,135 @@
+"""Rigid couplings (eq. 2), static equilibrium (eq. 1) and the Jacobian (eq. 6-7) on a coarse tripod."""
+
+import numpy as np
+import pytest
+
+from metasheet.errors import ConfigError, ConvergenceError
+from metasheet.material import Isotropic
+from metasheet.robot.assemblies import ServoGeometry, tripod
+from metasheet.robot.kinematics import kinematics_at
+from metasheet.robot.rigid import rotation_matrix, rotation_vector
+from metasheet.robot.statics import solve_equilibrium
+from metasheet.sheet.geometry import SheetParams, tripod_sheet
+
+
+@pytest.fixture(scope="module")
+def robot():
+    sheet = tripod_sheet(SheetParams(mesh_size=15.0))
+    return tripod(sheet, Isotropic(0.25, 0.45).stiffness(), density=1.07e-9)
+
+
+@pytest.fixture(scope="module")
+def rest(robot):
+    return solve_equilibrium(robot, robot.coupling.rest_angles, tol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_rotation_vector_round_trip(seed):
+    rng = np.random.default_rng(seed)
+    for t in (1e-9, 0.3, 2.0, np.pi - 1e-6):
+        w = rng.normal(size=3)
+        w *= t / np.linalg.norm(w)
+        R = rotation_matrix(w)
+        assert np.allclose(R @ R.T, np.eye(3), atol=1e-12) and np.isclose(np.linalg.det(R), 1.0)
+        assert np.allclose(rotation_vector(R), w, atol=1e-6 if t > 3 else 1e-12)
+
+
+def test_rigid_jacobian_and_geometric_term_match_finite_differences(robot, rest):
+    c, st = robot.coupling, rest.state
+    rng = np.random.default_rng(1)
+    r = rng.normal(size=(robot.body.n_nodes, 3))  # arbitrary fixed nodal forces [N]
+    J = c.rigid_jacobian(st.x, st.p)
+    G = c.rigid_geometric(st.x, st.p, r)
+    h = 1e-6
+
+    def rigid_x(dq):
+        p = st.p + dq[:3]
+        R = rotation_matrix(dq[3:6]) @ st.R
+        x = c.positions(p, R, st.angles + dq[6:], st.x[c.free])
+        return x, p
+
+    for j in range(c.n_rigid_dof):
+        d = np.zeros(c.n_rigid_dof)
+        d[j] = h
+        xp, pp = rigid_x(d)
+        xm, pm = rigid_x(-d)
+        fd = (xp[c.rigid_nodes] - xm[c.rigid_nodes]).ravel() / (2 * h)
+        assert np.allclose(J[:, j], fd, atol=1e-6 * np.abs(J).max())
+        gfd = (c.rigid_jacobian(xp, pp).T @ r[c.rigid_nodes].ravel()
+               - c.rigid_jacobian(xm, pm).T @ r[c.rigid_nodes].ravel()) / (2 * h)
+        assert np.allclose(G[:, j], gfd, atol=1e-6 * np.abs(G).max())
+
+
+def test_servo_convention_and_rest_geometry(robot):
+    """Angle 0 = horizontal horn, 90 = vertical; pivots on the servo circle behind the sheet."""
+    servos = robot.coupling.servos
+    for k, s in enumerate(servos):
+        assert np.isclose(np.hypot(*s.pivot[:2]), 66.0, atol=0.5)  # tip box centre ~ on the arm axis
+        assert s.pivot[2] < 0  # below the sheet
+        tip = robot.coupling.rest[s.nodes].mean(axis=0)
+        assert np.isclose(np.linalg.norm(tip - s.pivot), 25.0)
+        for deg, expect_vertical in ((0.0, False), (90.0, True)):
+            moved = robot.coupling.servo_positions(
+                [np.radians(deg) if i == k else t.rest_angle for i, t in enumerate(servos)])
+            horn = moved[k].mean(axis=0) - s.pivot
+            if expect_vertical:
+                assert np.isclose(horn[2], 25.0, atol=1e-9)
+            else:
+                assert abs(horn[2]) < 1e-9 and np.dot(horn[:2], s.pivot[:2]) < 0  # points inwards
+    with pytest.raises(ConfigError, match="servo_radius"):
+        tripod(tripod_sheet(SheetParams(mesh_size=15.0)), Isotropic(0.25, 0.45).stiffness(),
+               geometry=ServoGeometry(servo_radius=200.0))
+
+
+def test_gravity_sags_downwards_and_newton_converges(robot, rest):
+    res = np.array(rest.residuals)
+    assert res[-1] <= 1e-12 * rest.reference
+    assert rest.iterations <= 30  # chord steps included
+    assert rest.state.p[2] < -0.1  # the effector sinks [mm]
+    assert abs(rest.state.p[0]) < 0.05 * abs(rest.state.p[2])
+    dz = rest.state.x[robot.coupling.free, 2] - robot.coupling.rest[robot.coupling.free, 2]
+    assert dz.mean() < 0
+    # no gravity: the rest state is the equilibrium, with zero residual
+    no_g = tripod(tripod_sheet(SheetParams(mesh_size=15.0)), Isotropic(0.25, 0.45).stiffness(),
+                  gravity=(0.0, 0.0, 0.0))
+    eq = solve_equilibrium(no_g, no_g.coupling.rest_angles)
+    assert eq.iterations == 0 and np.allclose(eq.state.x, no_g.coupling.rest)
+
+
+def test_jacobian_matches_finite_differences_of_the_static_solution(robot, rest):
+    st = rest.state
+    kin = kinematics_at(robot, st)
+    h = 1e-4
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = h
+        sp = solve_equilibrium(robot, st.angles + d, state=st, tol=1e-12).state
+        sm = solve_equilibrium(robot, st.angles - d, state=st, tol=1e-12).state
+        fd = np.concatenate([(sp.p - sm.p) / (2 * h), rotation_vector(sp.R @ sm.R.T) / (2 * h)])
+        scale = np.array([1, 1, 1, 50, 50, 50.0])  # compare rotations as mm at 50 mm
+        err = np.abs(scale * (fd - kin.J[:, j])).max() / np.abs(scale * kin.J[:, j]).max()
+        assert err < 1e-3
+
+
+def test_compliance_symmetric_positive_definite_and_eq7(robot, rest):
+    lin = robot.linearizer().linearize(rest.state)
+    kin = kinematics_at(robot, rest.state)
+    W = kin.W
+    assert np.abs(W - W.T).max() <= 1e-8 * np.abs(W).max()
+    assert np.linalg.eigvalsh(0.5 * (W + W.T)).min() > 0
+    S = lin.S
+    J_direct = -np.linalg.solve(S[:6, :6], S[:6, 6:])
+    assert np.allclose(kin.J, J_direct, rtol=1e-8, atol=1e-10 * np.abs(J_direct).max())
+    # all three motors together: by the tripod's symmetry a translation along its axis
+    v = kin.all_together
+    assert abs(v[2]) > 0.3  # [mm/deg]
+    assert np.linalg.norm(v[:2]) < 0.05 * abs(v[2])
+
+
+def test_bad_input_and_nonconvergence_are_reported(robot, rest):
+    with pytest.raises(ConfigError, match="angles"):
+        solve_equilibrium(robot, [0.1, 0.2])
+    with pytest.raises(ConvergenceError) as exc:
+        solve_equilibrium(robot, rest.state.angles - np.radians(40), state=rest.state, max_iter=1,
+                          max_angle_step=np.radians(40), tol=1e-14)
+    assert len(exc.value.history) >= 2

@@ -1,0 +1,63 @@
+"""The robot stage end to end on a coarse orient-like input, and the goto helper."""
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from metasheet.pipeline.registry import StageContext
+from metasheet.pipeline.stages import robot as robot_stage
+from metasheet.robot.cli_support import format_result, goto, robot_from_orient
+from metasheet.robot.compare import PAPER_FOAM
+from metasheet.sheet.fibers import spiral_fibers
+from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+
+
+def _write_orient(d, mesh_size=15.0):
+    s = tripod_sheet(SheetParams(mesh_size=mesh_size))
+    m = mirror_sheet(s)
+    consts = {k: np.full(len(s.tets), getattr(PAPER_FOAM, k)) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")}
+    for name, sh, mir in (("sheet.vtu", s, False), ("sheet_mirrored.vtu", m, True)):
+        fib = spiral_fibers(sh.centroids(), mirrored=mir)
+        meshio.write(d / name, meshio.Mesh(sh.points, [("tetra", sh.tets)], point_data={"attach": sh.attach},
+                                           cell_data={"fiber": [fib], **{k: [v] for k, v in consts.items()}}))
+    (d / "sheet.json").write_text(json.dumps({"arm_angles_deg": [0.0, 120.0, 240.0]}))
+
+
+@pytest.fixture(scope="module")
+def orient_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("orient")
+    _write_orient(d)
+    return d
+
+
+def test_stage_writes_jacobian_vtu_and_picture(orient_dir, tmp_path):
+    mat = tmp_path / "material"
+    mat.mkdir()
+    (mat / "material.json").write_text(json.dumps({"density": 1.785e-10}))
+    work = tmp_path / "work"
+    work.mkdir()
+    ctx = StageContext("robot", robot_stage.RobotParams(delta_deg=-10.0), work,
+                       {"orient": orient_dir, "material": mat}, tmp_path)
+    summary = robot_stage.run(ctx)
+    json.dumps(summary)
+    data = json.loads((work / "jacobian.json").read_text())
+    foam, sil = data["materials"]["foam"], data["materials"]["silicone"]
+    assert np.array(foam["J_mm_per_rad_and_rad_per_rad"]).shape == (6, 6)
+    assert abs(foam["rod_rotation_deg_per_deg"]) > 10 * abs(sil["rod_rotation_deg_per_deg"])
+    m = meshio.read(work / "rest.vtu")
+    assert m.points.shape[1] == 3 and "displacement" in m.point_data
+    assert m.point_data["displacement"][:, 2].mean() < 0  # gravity sag
+    from PIL import Image
+
+    img = np.asarray(Image.open(work / "robot.png").convert("L"), float)
+    assert img.shape[0] > 500 and img.std() > 10  # written and not blank
+
+
+def test_goto_helper_reaches_a_small_offset(orient_dir):
+    rob = robot_from_orient(orient_dir)
+    res = goto(rob, [0.0, 0.0, 1.0, 2.0, 0.0, 0.0])
+    assert res.status == "reached", format_result(res)
+    assert "motor angles" in format_result(res)
+    assert np.all(res.angles_deg >= 0) and np.all(res.angles_deg <= 90)
