@@ -101,6 +101,22 @@ def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")
     Console().print(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}")
 
 
+@robot_app.command("goto")
+def robot_goto(
+    pose: Annotated[list[float], typer.Argument(help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
+    orient: Annotated[Optional[Path], typer.Option("--orient", help="an orient stage's output directory")] = None,
+    mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no --orient")] = 8.0,
+) -> None:
+    """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles."""
+    from .errors import ConfigError
+    from .robot.cli_support import GotoConfig, format_result, goto
+
+    if len(pose) != 6:
+        raise ConfigError(f"pose: {len(pose)} numbers given: expected 6 (X Y Z RX RY RZ)")
+    cfg = GotoConfig(orient_dir=str(orient) if orient else None, mesh_size=mesh_size)
+    typer.echo(format_result(goto(cfg, pose)))
+
+
 def main() -> None:
     """Console-script entry point."""
     try:
