@@ -1,8 +1,13 @@
 """Robot speed: one inverse control step and the rest equilibrium on the 6-DOF robot.
 
-Run: python benchmarks/bench_robot.py [--mesh-size 5.0] [--steps 30]
-Prints one table (medians over repeats, this machine, same process) with the peer
-(scikit-fem's generic assembly of the same linear stiffness) as a ratio.
+Run: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_robot.py [--mesh-size 5.0] [--steps 40]
+
+Prints one table (medians, same process, this machine, with the load average) comparing
+peers: SuperLU vs CHOLMOD (when scikit-sparse is installed) for the factorisation and the
+linearisation, the control step with a fresh tangent every step vs the default kept tangent,
+and our forces + tangent vs scikit-fem's generic assembly of the same mesh. Every control
+variant is checked for accuracy too: after the loop, the pose of its one-Newton-step state is
+compared with the converged equilibrium at the same motor angles ("drift").
 """
 
 from __future__ import annotations
@@ -23,14 +28,42 @@ def _median(fn, n):
     return float(np.median(ts))
 
 
+def _blas() -> str:
+    try:
+        from threadpoolctl import threadpool_info
+
+        return ", ".join(f"{i['internal_api']} {i.get('num_threads')} thr" for i in threadpool_info())
+    except Exception:  # pragma: no cover - threadpoolctl is optional
+        return f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}"
+
+
+def _control_run(rob, rest, steps, **kw):
+    """A moving goal (small circle + twist): every step does real work. Returns times, drift, ctl."""
+    from metasheet.robot.inverse import InverseController, InverseSettings
+    from metasheet.robot.rigid import rotation_matrix
+    from metasheet.robot.statics import solve_equilibrium
+
+    ctl = InverseController(rob, rest, InverseSettings(max_step_deg=2.0, **kw))
+    ts, drift = [], []
+    for k in range(steps):
+        ang = 2 * np.pi * k / steps
+        goal_p = np.array([0.0, 3 * np.cos(ang), 3 * np.sin(ang) - 0.05])
+        info = ctl.step(goal_p, rotation_matrix([np.radians(4) * np.sin(ang), 0, 0]))
+        ts.append(info.time)
+        if k % 10 == 9:  # accuracy probe (own linearizer, not timed): loop state vs equilibrium
+            eq = solve_equilibrium(rob, ctl.state.angles, state=ctl.state).state
+            drift.append(np.linalg.norm(eq.p - ctl.state.p))
+    return np.asarray(ts), max(drift), ctl
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh-size", type=float, default=5.0)
-    ap.add_argument("--steps", type=int, default=30)
+    ap.add_argument("--steps", type=int, default=40)
     a = ap.parse_args()
     from metasheet.robot.compare import PAPER_FOAM, build_six_dof
-    from metasheet.robot.inverse import InverseController, InverseSettings
-    from metasheet.robot.statics import solve_equilibrium
+    from metasheet.robot.linsolve import have_cholmod
+    from metasheet.robot.statics import Linearizer, solve_equilibrium
     from metasheet.sheet.fibers import spiral_fibers
     from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
 
@@ -39,33 +72,46 @@ def main():
     rob = build_six_dof(s, m, PAPER_FOAM, fibers=spiral_fibers(s.centroids()),
                         fibers_mirrored=spiral_fibers(m.centroids(), mirrored=True), density=1.785e-10)
     solve_equilibrium(rob, rob.coupling.rest_angles)  # numba warm-up
+    solvers = ["superlu"] + (["cholmod"] if have_cholmod() else [])
     rows = []
     eqs = []
     t_eq = _median(lambda: eqs.append(solve_equilibrium(rob, rob.coupling.rest_angles)), 5)
     rows.append(("static equilibrium from rest (gravity)", t_eq, f"{eqs[-1].iterations} it, target < 0.5 s"))
     rest = eqs[-1].state
+    # a deformed state too: the anisotropic tangent's asymmetry grows with deformation
+    moved = solve_equilibrium(rob, rest.angles + np.radians([8, -4, 6, 2, -8, 4]), state=rest).state
     x = rest.x
-    rows.append(("forces + tangent (both sheets)", _median(lambda: rob.body.forces_and_tangent(x), 20), ""))
-    lz = rob.linearizer()
-    rows.append(("linearise: blocks + splu + 7/13 RHS + Schur", _median(lambda: lz.linearize(rest), 10), ""))
+    t_f = _median(lambda: rob.body.forces(x), 20)
+    t_ft = _median(lambda: rob.body.forces_and_tangent(x), 20)
+    rows.append(("forces only (both sheets)", t_f, ""))
+    rows.append(("forces + tangent (both sheets)", t_ft, f"= {t_ft / t_f:.1f} x forces only"))
+    for st_name, st in (("rest", rest), ("deformed", moved)):
+        lzs = {n: Linearizer(rob, n) for n in solvers}
+        _, K = rob.body.forces_and_tangent(st.x)
+        Kff = lzs["superlu"]._blocks(K)["ff"]
+        t_fac = {n: _median(lambda n=n: lzs[n].solver.factorize(Kff), 7) for n in solvers}
+        t_lin = {n: _median(lambda n=n: lzs[n].linearize(st), 7) for n in solvers}
+        for n in solvers:
+            ratio = f", {t_fac[n] / t_fac['superlu']:.2f} x superlu" if n != "superlu" else ""
+            rows.append((f"factorise K_ff ({st_name}), {n}", t_fac[n], f"{Kff.shape[0]} DOFs{ratio}"))
+        for n in solvers:
+            ratio = f", {t_lin[n] / t_lin['superlu']:.2f} x superlu" if n != "superlu" else ""
+            rows.append((f"exact linearisation ({st_name}), {n}", t_lin[n], f"{lzs[n].solver.stats}{ratio}"))
+    lz = Linearizer(rob)
     lin = lz.linearize(rest)
     rows.append(("chord update: forces + 1 solve", _median(lambda: lz.update(lin, rest), 20), ""))
-    # a goal that moves: a small circle + twist, so every step does real work
-    for label, kw in (("inverse step, fresh tangent every step", dict(refactor_every=1)),
-                      ("inverse step, tangent kept <= 10 steps", dict(refactor_every=10))):
-        ctl = InverseController(rob, rest, InverseSettings(max_step_deg=2.0, **kw))
-        ts, res, fresh = [], [], 0
-        for k in range(a.steps):
-            ang = 2 * np.pi * k / a.steps
-            goal_p = np.array([0.0, 3 * np.cos(ang), 3 * np.sin(ang) - 0.05])
-            from metasheet.robot.rigid import rotation_matrix
-
-            info = ctl.step(goal_p, rotation_matrix([np.radians(4) * np.sin(ang), 0, 0]))
-            ts.append(info.time)
-            res.append(info.residual)
-            fresh += ctl._lin.fresh
-        rows.append((label, float(np.median(ts)),
-                     f"mean {1e3 * np.mean(ts):.1f} ms, {fresh}/{a.steps} fresh, max residual {max(res):.2e} N"))
+    variants = [("fresh tangent every step, superlu", dict(refactor_every=1)),
+                ("kept tangent (defaults), superlu", dict())]
+    if have_cholmod():
+        variants.append(("kept tangent, cholmod (symmetric part)", dict(linear_solver="cholmod")))
+    base = None
+    for label, kw in variants:
+        ts, drift, ctl = _control_run(rob, rest, a.steps, **kw)
+        med = float(np.median(ts))
+        base = base or med
+        rows.append((f"inverse step: {label}", med,
+                     f"{med / base:.2f} x fresh; mean {1e3 * ts.mean():.1f}, p90 {1e3 * np.quantile(ts, 0.9):.1f} ms; "
+                     f"{ctl.refreshes}/{a.steps} fresh {ctl.refresh_reasons}; drift <= {1e3 * drift:.1f} um"))
     # peer: scikit-fem's generic assembly of the linear stiffness of the same mesh (isotropic)
     try:
         import skfem
@@ -74,16 +120,15 @@ def main():
         mesh = skfem.MeshTet(rob.body.rest.T.copy(), np.asarray(rob.body.tets).T.copy())
         basis = skfem.Basis(mesh, skfem.ElementVector(skfem.ElementTetP1()))
         peer = _median(lambda: skfem.asm(linear_elasticity(*lame_parameters(1.0, 0.3)), basis), 5)
-        ours = _median(lambda: rob.body.forces_and_tangent(x), 20)
-        rows.append(("peer: scikit-fem assembly (linear, same mesh)", peer, f"ours/peer = {ours / peer:.3f}"))
+        rows.append(("peer: scikit-fem assembly (linear, same mesh)", peer, f"ours/peer = {t_ft / peer:.3f}"))
     except Exception as exc:  # pragma: no cover
         rows.append(("peer: scikit-fem", float("nan"), f"failed: {exc}"))
     print(f"6-DOF robot: {rob.info['n_tets']} tets ({rob.info['n_tets_per_sheet']} per sheet), "
-          f"{rob.body.n_nodes} nodes, {3 * len(rob.coupling.free)} free DOFs; "
-          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, load {os.getloadavg()[0]:.1f}")
-    print(f"{'case':50s} {'median [ms]':>12s}  notes")
+          f"{rob.body.n_nodes} nodes, {3 * len(rob.coupling.free)} free DOFs; BLAS: {_blas()}; "
+          f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; solvers: {', '.join(solvers)}")
+    print(f"{'case':52s} {'median [ms]':>12s}  notes")
     for name, t, note in rows:
-        print(f"{name:50s} {1e3 * t:12.2f}  {note}")
+        print(f"{name:52s} {1e3 * t:12.2f}  {note}")
 
 
 if __name__ == "__main__":

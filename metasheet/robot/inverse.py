@@ -19,7 +19,27 @@ Each control step, at the current (nearly equilibrated) state:
 
 This is eq. (8) with the change of variable ``dq_a = W_aa dlambda``: the same minimiser, but
 the motor limits become simple bounds, which the dense solvers (daqp, quadprog, proxqp via
-qpsolvers) handle directly. The loop stops "reached" when the position error is below
+qpsolvers) handle directly.
+
+Real time (issue 6): a fresh linearisation (tangent, factorisation, Schur complement) costs
+several chord steps, so the controller keeps it across control steps and only re-evaluates
+the forces and one solve with the cached factor (a chord / modified-Newton step). It is
+never trusted blindly; a fresh one is taken when any of these holds (defaults in brackets):
+
+* it is ``refactor_every`` steps old [20];
+* the motors moved more than ``refresh_angle_deg`` from where it was taken [8 deg], or the
+  state was set from outside (another goal, a reset);
+* the pending equilibrium correction of the effector, ``dq_e^0`` (mm, with rotations
+  weighted by ``rot_weight``), exceeds ``drift_tol * pos_tol`` [0.5 * 0.1 mm]: the chord
+  iterate is then too far from equilibrium for the pose the QP sees;
+* the reduced residual exceeds ``chord_tol`` times the force scale [1.0] (divergence guard).
+
+The sparse solver is SuperLU by default: CHOLMOD of the symmetric part (``linear_solver=
+"cholmod"``) factorises twice as fast, but on the deformed anisotropic tangent it is a poor
+Newton matrix (pending corrections ~0.2 mm, a refresh nearly every step) and its exact
+refinement often falls back to SuperLU; ``benchmarks/bench_robot.py`` prints both.
+
+The loop stops "reached" when the position error is below
 ``pos_tol`` and the rotation error below ``rot_tol``, "stalled" when the weighted error has
 not improved for ``stall_steps`` steps (an unreachable goal: the closest pose found is
 returned, never an exception), or "max_steps". The reported pose is that of a fully
@@ -36,10 +56,12 @@ import qpsolvers
 
 from ..errors import ConfigError, ConvergenceError, check_range
 from .kinematics import jacobian_from_schur
+from .linsolve import SOLVERS as LINEAR_SOLVERS
+from .linsolve import resolve
 from .rigid import rotation_matrix, rotation_vector
-from .statics import RobotState, _reference, apply_step, solve_equilibrium
+from .statics import Linearizer, RobotState, _reference, apply_step, solve_equilibrium
 
-SOLVERS = ("daqp", "quadprog", "proxqp")
+SOLVERS = ("daqp", "quadprog", "proxqp")  # QP solvers; sparse ones: LINEAR_SOLVERS
 
 
 @dataclass(frozen=True)
@@ -54,8 +76,11 @@ class InverseSettings:
     max_steps: int = 200
     stall_steps: int = 15
     solver: str = "daqp"
-    refactor_every: int = 1  # 1: a fresh tangent + LU every step; n: keep them n steps
-    chord_tol: float = 0.25  # [-] refresh a kept tangent when residual > chord_tol * force scale
+    refactor_every: int = 20  # 1: a fresh tangent + factor every step; n: keep them <= n steps
+    chord_tol: float = 1.0  # [-] refresh a kept tangent when residual > chord_tol * force scale
+    refresh_angle_deg: float = 8.0  # [deg] refresh when a motor moved this far since the tangent
+    drift_tol: float = 0.5  # [-] refresh when the pending correction |dq_e0| > drift_tol * pos_tol
+    linear_solver: str = "superlu"  # "cholmod" / "auto" (CHOLMOD if installed): slower here, see above
 
     def __post_init__(self):
         check_range("rot_weight", self.rot_weight, 0.0, None, lo_open=True)
@@ -66,7 +91,10 @@ class InverseSettings:
         check_range("max_steps", self.max_steps, 1, 100000)
         check_range("stall_steps", self.stall_steps, 1, 100000)
         check_range("refactor_every", self.refactor_every, 1, 1000)
-        check_range("chord_tol", self.chord_tol, 0.0, 1.0, lo_open=True)
+        check_range("chord_tol", self.chord_tol, 0.0, 10.0, lo_open=True)
+        check_range("refresh_angle_deg", self.refresh_angle_deg, 0.0, 90.0, lo_open=True)
+        check_range("drift_tol", self.drift_tol, 0.0, 100.0, lo_open=True)
+        resolve(self.linear_solver)  # ConfigError naming linear_solver if unknown / not installed
         if self.solver not in SOLVERS:
             raise ConfigError(f"solver: {self.solver!r}: allowed {SOLVERS}")
 
@@ -80,6 +108,7 @@ class StepInfo:
     error: float
     qp_ok: bool
     time: float
+    fresh: bool = True  # whether this step took a fresh linearisation
 
 
 @dataclass(frozen=True)
@@ -147,31 +176,58 @@ class InverseController:
     def __init__(self, robot, state: RobotState | None = None, settings: InverseSettings = InverseSettings()):
         self.robot = robot
         self.settings = settings
-        self.linearizer = robot.linearizer()
+        self.linearizer = Linearizer(robot, solver=settings.linear_solver)
         self.state = state if state is not None else solve_equilibrium(
             robot, robot.coupling.rest_angles, linearizer=self.linearizer).state
         self.n_steps = 0
+        self.refreshes = 0  # fresh linearisations taken by :meth:`linearization`
+        self.refresh_reasons: dict = {}  # why kept tangents were dropped: age, angle, residual, drift
         self._lin = None
         self._since = 0
         self._J = None
+        self._produced = None  # the state the last step left: anything else was set from outside
+        self._factor = None
+
+    def _keep(self, lin) -> bool:
+        """Whether the chord update ``lin`` (on a kept tangent) is still good enough (see module doc)."""
+        s = self.settings
+        moved = np.max(np.abs(self.state.angles - self._lin_angles), initial=0.0)
+        why = None
+        if self._since >= s.refactor_every:
+            why = "age"
+        elif moved > np.radians(s.refresh_angle_deg):
+            why = "angle"
+        elif lin.residual_norm > s.chord_tol * max(_reference(self.robot, lin), 1e-300):
+            why = "residual"
+        elif self._weighted(lin.newton_step(None)[0]) > s.drift_tol * s.pos_tol:
+            why = "drift"
+        if why is not None:
+            self.refresh_reasons[why] = self.refresh_reasons.get(why, 0) + 1
+        return why is None
 
     def linearization(self):
-        """The step's linearisation: fresh every ``refactor_every`` steps, else the chord update.
+        """The step's linearisation: the chord update on the kept tangent, or a fresh one.
 
-        A stale tangent is also dropped when the residual exceeds ``chord_tol`` times the force
-        scale (the chord iteration is not keeping up): the residual is monitored, never assumed.
+        The residual and the pending correction are evaluated at every step, never assumed.
         """
-        s = self.settings
+        if resolve(self.settings.linear_solver) != self.linearizer.solver_name:  # settings replaced
+            self.linearizer = Linearizer(self.robot, solver=self.settings.linear_solver)
+            self._lin = None
         lin = None
-        if self._lin is not None and self._since < s.refactor_every:
+        # keep only our own: a state set from outside, or a factor replaced by another user of
+        # the shared linearizer (solve_equilibrium, kinematics), forces a fresh linearisation
+        if self._lin is not None and self.state is self._produced and self.linearizer.factor is self._factor:
             lin = self.linearizer.update(self._lin, self.state)
-            ref = max(_reference(self.robot, lin), 1e-300)
-            if lin.residual_norm > s.chord_tol * ref:
+            if not self._keep(lin):
                 lin = None
         if lin is None:
-            lin = self.linearizer.linearize(self.state)
+            # modified Newton: the factor as it is (CHOLMOD: symmetric part), checked every step
+            lin = self.linearizer.linearize(self.state, exact=False)
             self._J = jacobian_from_schur(lin.S)[1]
             self._since = 0
+            self._lin_angles = self.state.angles.copy()
+            self._factor = self.linearizer.factor
+            self.refreshes += 1
         self._lin, self._last_res = lin, lin.residual_norm
         self._since += 1
         return lin
@@ -190,9 +246,9 @@ class InverseController:
         e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
         dq, ok = solve_step_qp(J, e - dq_e0, self.state.angles, rob.angle_min, rob.angle_max, s)
         dq_e, dx_f = lin.newton_step(dq)
-        self.state = apply_step(rob, self.state, dq_e, dx_f, dq)
+        self.state = self._produced = apply_step(rob, self.state, dq_e, dx_f, dq)
         self.n_steps += 1
-        return StepInfo(dq, lin.residual_norm, self._weighted(e), ok, time.perf_counter() - t0)
+        return StepInfo(dq, lin.residual_norm, self._weighted(e), ok, time.perf_counter() - t0, lin.fresh)
 
     def _equilibrium(self, angles, start: RobotState) -> RobotState:
         """Converged equilibrium at ``angles``, from the current state or, failing that, ``start``."""

@@ -8,8 +8,11 @@ eq. 2) and the reduced tangent is the e/f part of the paper's matrix ``A`` (eq. 
 
 The linear algebra is shared with the kinematics (:mod:`.kinematics`): the free block
 ``K_ff`` is extracted from the body's CSR tangent through cached index maps, factorised
-once (SuperLU), and solved with all rigid columns (6 + n_act) and the residual at once;
-everything else is a small dense Schur complement ``S = A_rr - C K_ff^-1 B``.
+once (:mod:`.linsolve`: CHOLMOD of its symmetric part plus iterative refinement when
+scikit-sparse is installed, else SuperLU), and solved exactly with all rigid columns
+(6 + n_act) and the residual at once; everything else is a small dense Schur complement
+``S = A_rr - C K_ff^-1 B``. Chord updates reuse the factor (for CHOLMOD: of the symmetric
+part, a modified Newton) and are always judged on the true residual.
 """
 
 from __future__ import annotations
@@ -19,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import ConfigError, ConvergenceError
+from .linsolve import SparseSolver
 from .rigid import rotation_matrix, rotation_vector
 
 
@@ -80,17 +83,30 @@ class Linearizer:
     """Linearisation of a robot about a state, reusing index maps (and optionally LU).
 
     Built once per robot; :meth:`linearize` returns a :class:`Linearization`.
+    ``solver`` : "auto" | "cholmod" | "superlu" (:mod:`.linsolve`); :attr:`solver_name` is
+    what runs and ``self.solver.stats`` counts factorisations, fallbacks and refinement sweeps.
     """
 
-    def __init__(self, robot):
+    def __init__(self, robot, solver: str = "superlu"):
         self.robot = robot
         c = robot.coupling
         self.dof_r = (3 * c.rigid_nodes[:, None] + np.arange(3)).ravel()
         self.dof_f = (3 * c.free[:, None] + np.arange(3)).ravel()
         self._maps = None
         self._pattern = None
-        self.lu = None
+        self.solver = SparseSolver(solver)
+        self.factor = None
         self.factorizations = 0
+
+    @property
+    def solver_name(self) -> str:
+        """The sparse solver in use: "cholmod" or "superlu"."""
+        return self.solver.name
+
+    @property
+    def lu(self):
+        """The current factor of K_ff (kept for callers of the SuperLU-only version)."""
+        return self.factor
 
     def _blocks(self, K):
         if self._maps is None or K.nnz != self._pattern[0] or not np.array_equal(K.indptr, self._pattern[1]):
@@ -104,14 +120,18 @@ class Linearizer:
         return out
 
     def _solve(self, rhs: np.ndarray) -> np.ndarray:
-        # SuperLU's multi-RHS solve was seen to slow down past ~8 columns here: chunk it
-        if rhs.ndim == 1:
-            return self.lu.solve(rhs)
-        return np.column_stack([self.lu.solve(np.ascontiguousarray(rhs[:, i:i + 4]))
-                                for i in range(0, rhs.shape[1], 4)])
+        """Chord solve with the current factor (exact for SuperLU, symmetric part for CHOLMOD)."""
+        return self.factor.solve(rhs)
 
-    def linearize(self, state: RobotState) -> "Linearization":
-        """Fresh tangent, LU of K_ff, residual and Schur complement at ``state``."""
+    def linearize(self, state: RobotState, *, exact: bool = True) -> "Linearization":
+        """Fresh tangent, factor of K_ff, residual and Schur complement at ``state``.
+
+        ``exact`` (default) solves with K_ff itself (refined or SuperLU, see :mod:`.linsolve`):
+        S and Y are then the true eq. (6) condensation, as the kinematics need. ``exact=False``
+        uses the factor as it is: with CHOLMOD, the symmetric part of K_ff, which makes the
+        Newton step a modified one (the control loop's choice: it checks the true residual
+        and the pending correction every step); with SuperLU nothing changes.
+        """
         rob = self.robot
         c = rob.coupling
         f, K = rob.body.forces_and_tangent(state.x)
@@ -121,35 +141,57 @@ class Linearizer:
         A = Jr.T @ (B["rr"] @ Jr) + c.rigid_geometric(state.x, state.p, r)
         Bfr = B["fr"] @ Jr  # (3nf, nr)
         Crf = (B["rf"].T @ Jr).T  # (nr, 3nf)
-        self.lu = spla.splu(B["ff"].tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                            options={"SymmetricMode": True})
+        self.factor = self.solver.factorize(B["ff"])
         self.factorizations += 1
         rf = r[c.free].ravel()
-        Y = self._solve(np.column_stack([Bfr, rf]))
+        rhs = np.column_stack([Bfr, rf])
+        if exact:
+            Y, self.factor = self.solver.solve_exact(self.factor, B["ff"], rhs)
+        else:
+            Y = self.factor.solve(rhs)
         nr = Jr.shape[1]
         S = A - Crf @ Y[:, :nr]
         Rr = Jr.T @ r[c.rigid_nodes].ravel()  # generalised forces on the rigid DOFs
         return Linearization(state=state, r=r, S=S, Y=Y[:, :nr], y_r=Y[:, nr], C=Crf,
                              R_rigid=Rr - Crf @ Y[:, nr], res_e=Rr[:6], res_f=rf, fresh=True,
-                             moment_scale=c.length_scale)
+                             moment_scale=c.length_scale, exact=exact or not self.factor.symmetric)
 
     def update(self, lin: "Linearization", state: RobotState, f=None) -> "Linearization":
         """Fresh residual at ``state`` on ``lin``'s (stale) tangent: a chord / modified-Newton step.
 
-        Costs one force evaluation and one solve with the cached LU. ``f`` (n, 3) [N] the
+        Costs one force evaluation and one solve with the cached factor. ``f`` (n, 3) [N] the
         internal forces at ``state`` if already known.
         """
         rob = self.robot
         c = rob.coupling
         f = rob.body.forces(state.x) if f is None else f
         r = np.asarray(f).reshape(-1, 3) - rob.f_ext
-        Jr = c.rigid_jacobian(state.x, state.p)
         rf = r[c.free].ravel()
         y_r = self._solve(rf)
-        Rr = Jr.T @ r[c.rigid_nodes].ravel()
+        Rr = rigid_forces(c, state.x, state.p, r)
         return Linearization(state=state, r=r, S=lin.S, Y=lin.Y, y_r=y_r, C=lin.C,
                              R_rigid=Rr - lin.C @ y_r, res_e=Rr[:6], res_f=rf, fresh=False,
-                             moment_scale=c.length_scale)
+                             moment_scale=c.length_scale, exact=False)
+
+
+def rigid_forces(coupling, x, p, r) -> np.ndarray:
+    """``J_r^T r`` (6 + na,) without forming J_r: effector force [N] and moment about ``p``
+    [N mm], then each servo's torque about its axis [N mm]. ``x`` (n, 3) [mm], ``r`` (n, 3) [N].
+    """
+    c = coupling
+    xr, rr = x[c.rigid_nodes], r[c.rigid_nodes]
+    arm = xr.copy()  # lever arm of each rigid node about its body's reference point
+    b = c._bounds
+    arm[b[0]:b[1]] -= p
+    for k, sv in enumerate(c.servos):
+        arm[b[k + 1]:b[k + 2]] -= sv.pivot
+    mom = np.cross(arm, rr)  # one cross product for all rigid nodes
+    out = np.empty(c.n_rigid_dof)
+    out[:3] = rr[b[0]:b[1]].sum(axis=0)
+    out[3:6] = mom[b[0]:b[1]].sum(axis=0)
+    for k, sv in enumerate(c.servos):
+        out[6 + k] = sv.axis @ mom[b[k + 1]:b[k + 2]].sum(axis=0)
+    return out
 
 
 @dataclass(frozen=True)
@@ -169,6 +211,7 @@ class Linearization:
     fresh : False when S, Y, C come from an earlier state (:meth:`Linearizer.update`).
     moment_scale : [mm] the effector's size; moments / moment_scale count as forces in the norm.
     res_e, res_f : (6,), (3nf,) reduced residual [N, N mm].
+    exact : True when S, Y, y_r solve with the true tangent at ``state`` (fresh and exact).
     """
 
     state: RobotState
@@ -183,6 +226,7 @@ class Linearization:
     fresh: bool = True
 
     moment_scale: float = 1.0
+    exact: bool = True
 
     @property
     def residual_norm(self) -> float:

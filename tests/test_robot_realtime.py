@@ -1,0 +1,138 @@
+"""Real-time linear algebra of the robot: solver choice, exact solves, and the kept-tangent loop.
+
+Accuracy is checked against independent answers: a dense solve, a SuperLU linearisation, and
+the converged equilibrium at the loop's motor angles. Speed is measured in benchmarks/.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from metasheet.errors import ConfigError
+from metasheet.material import Isotropic
+from metasheet.robot.assemblies import tripod
+from metasheet.robot.compare import PAPER_FOAM, build_six_dof
+from metasheet.robot.inverse import InverseController, InverseSettings
+from metasheet.robot.kinematics import kinematics
+from metasheet.robot.linsolve import SparseSolver, have_cholmod, resolve
+from metasheet.robot.rigid import rotation_matrix
+from metasheet.robot.statics import Linearizer, solve_equilibrium
+from metasheet.sheet.fibers import spiral_fibers
+from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+
+needs_cholmod = pytest.mark.skipif(not have_cholmod(), reason="scikit-sparse (CHOLMOD) not installed")
+
+
+def _spd(n, asym, seed):
+    """A sparse SPD-dominated matrix (1D Laplacian + diagonal) with a skew part of size ``asym``."""
+    rng = np.random.default_rng(seed)
+    main = 2.5 + rng.uniform(0, 1, n)
+    off = -np.ones(n - 1)
+    skew = asym * rng.uniform(-1, 1, n - 1)
+    return sp.diags([off - skew, main, off + skew], [-1, 0, 1], format="csr")
+
+
+@pytest.mark.parametrize("name", ["superlu", pytest.param("cholmod", marks=needs_cholmod)])
+@pytest.mark.parametrize("asym", [0.0, 1e-3, 0.05])
+def test_exact_solve_matches_dense(name, asym):
+    A = _spd(300, asym, seed=3)
+    b = np.random.default_rng(1).normal(size=(300, 5))
+    s = SparseSolver(name)
+    y, fac = s.solve_exact(s.factorize(A), A, b)
+    ref = np.linalg.solve(A.toarray(), b)
+    assert np.allclose(y, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+    assert fac.name in ("cholmod", "superlu")
+
+
+@needs_cholmod
+def test_cholmod_falls_back_to_superlu_when_refinement_cannot_converge():
+    A = _spd(200, 2.0, seed=0)  # skew part as large as the symmetric one: M^-1 A is far from I
+    b = np.ones(200)
+    s = SparseSolver("cholmod", max_refine=3)
+    y, fac = s.solve_exact(s.factorize(A), A, b)
+    assert np.allclose(A @ y, b, atol=1e-9)
+    assert fac.name == "superlu" and s.stats["fallbacks"] >= 1
+
+
+def test_bad_solver_name_is_a_config_error():
+    with pytest.raises(ConfigError, match="linear_solver"):
+        resolve("umfpack")
+    with pytest.raises(ConfigError, match="linear_solver"):
+        InverseSettings(linear_solver="mumps")
+    with pytest.raises(ConfigError, match="refresh_angle_deg"):
+        InverseSettings(refresh_angle_deg=0.0)
+
+
+@pytest.fixture(scope="module")
+def foam_robot():
+    sheet = tripod_sheet(SheetParams(mesh_size=15.0))
+    mirrored = mirror_sheet(sheet)
+    rob = build_six_dof(sheet, mirrored, PAPER_FOAM, fibers=spiral_fibers(sheet.centroids()),
+                        fibers_mirrored=spiral_fibers(mirrored.centroids(), mirrored=True), density=1.1e-9)
+    rest = solve_equilibrium(rob, rob.coupling.rest_angles).state
+    moved = solve_equilibrium(rob, rest.angles + np.radians([8, -4, 6, 2, -8, 4]), state=rest).state
+    return rob, rest, moved
+
+
+@pytest.mark.parametrize("name", ["superlu", pytest.param("cholmod", marks=needs_cholmod)])
+def test_exact_linearisation_is_solver_independent(foam_robot, name):
+    """On the deformed, non-symmetric anisotropic tangent both solvers give the same Jacobian."""
+    rob, _, moved = foam_robot
+    ref = kinematics(Linearizer(rob, "superlu").linearize(moved))
+    lin = Linearizer(rob, name).linearize(moved)
+    assert lin.exact
+    kin = kinematics(lin)
+    assert np.allclose(kin.J, ref.J, rtol=0, atol=1e-7 * np.abs(ref.J).max())
+
+
+def test_kept_tangent_loop_stays_at_equilibrium_and_refreshes(foam_robot):
+    """The kept-tangent loop tracks a moving goal as well as the fresh one, with fewer refreshes."""
+    rob, rest, _ = foam_robot
+    out = {}
+    for label, kw in (("fresh", dict(refactor_every=1)), ("kept", dict())):
+        ctl = InverseController(rob, rest, InverseSettings(max_step_deg=2.0, **kw))
+        for k in range(16):
+            a = 2 * np.pi * k / 16
+            info = ctl.step(np.array([0.0, 2 * np.cos(a), 2 * np.sin(a)]), rotation_matrix([0.03 * np.sin(a), 0, 0]))
+            assert np.all(ctl.state.angles >= rob.angle_min - 1e-12)
+            assert np.all(ctl.state.angles <= rob.angle_max + 1e-12)
+        eq = solve_equilibrium(rob, ctl.state.angles, state=ctl.state).state
+        out[label] = (ctl, np.linalg.norm(eq.p - ctl.state.p), eq.pose)
+        assert info.residual >= 0.0
+    fresh, kept = out["fresh"], out["kept"]
+    assert fresh[0].refreshes == 16
+    assert kept[0].refreshes < 16  # the tangent was kept at least once...
+    assert kept[1] <= 0.5 * InverseSettings().pos_tol  # ...without leaving the equilibrium
+    # both loops followed the same goals: their converged poses agree to a fraction of a mm
+    assert np.linalg.norm(kept[2][:3] - fresh[2][:3]) < 0.3
+
+
+def test_state_set_from_outside_forces_a_fresh_linearisation(foam_robot):
+    rob, rest, moved = foam_robot
+    ctl = InverseController(rob, rest, InverseSettings())
+    assert ctl.step(rest.p, rest.R).fresh
+    assert not ctl.step(rest.p, rest.R).fresh  # kept: nothing moved
+    ctl.state = moved
+    assert ctl.step(rest.p, rest.R).fresh
+
+
+def test_isotropic_tripod_reaches_with_cholmod_or_superlu():
+    rob = tripod(tripod_sheet(SheetParams(mesh_size=15.0)), Isotropic(0.25, 0.45).stiffness(), density=1.07e-9)
+    rest = solve_equilibrium(rob, rob.coupling.rest_angles).state
+    target = solve_equilibrium(rob, rest.angles + np.radians([-5.0, -2.0, -8.0]), state=rest).state
+    goal = np.concatenate([target.p, np.degrees(target.pose[3:])])
+    for name in ["superlu"] + (["cholmod"] if have_cholmod() else []):
+        res = InverseController(rob, rest, InverseSettings(pos_tol=0.02, rot_tol_deg=0.05, linear_solver=name)).goto(goal)
+        assert res.status == "reached", (name, res.to_dict())
+        assert np.allclose(res.angles_deg, np.degrees(target.angles), atol=0.5)
+
+
+def test_rigid_forces_equal_the_jacobian_transpose(foam_robot):
+    """The chord update's generalised forces equal J_r^T r computed with the explicit Jacobian."""
+    from metasheet.robot.statics import rigid_forces
+
+    rob, _, moved = foam_robot
+    c = rob.coupling
+    r = np.random.default_rng(4).normal(size=moved.x.shape)
+    ref = c.rigid_jacobian(moved.x, moved.p).T @ r[c.rigid_nodes].ravel()
+    assert np.allclose(rigid_forces(c, moved.x, moved.p, r), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
