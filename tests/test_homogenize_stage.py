@@ -1,0 +1,92 @@
+"""The homogenize stage on hand-made cell artefacts (exact laminate) and end to end."""
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from metasheet.homogenize.bounds import backus_laminate
+from metasheet.homogenize.samples import laminate
+from metasheet.material import Isotropic
+from metasheet.pipeline.registry import StageContext
+from metasheet.pipeline.stages import homogenize as stage
+
+
+def _cell_dir(tmp_path, phases, size, materials):
+    d = tmp_path / "cell"
+    d.mkdir()
+    np.savez(d / "voxels.npz", phases=phases.astype(np.uint8), size=np.asarray(size, float),
+             axis=np.array([0.0, 0.0, 1.0]))
+    (d / "cell.json").write_text(json.dumps({"name": "test_laminate", "materials": materials}))
+    return d
+
+
+def _png_is_not_blank(path):
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(path)
+    return img.shape[0] > 100 and float(img[..., :3].std()) > 0.05
+
+
+def test_stage_writes_exact_laminate_constants_fields_and_picture(tmp_path):
+    ph = laminate(6, 0.5, axis=2)
+    mats = {"1": {"E": 12.0, "nu": 0.3}, "2": {"E": 1.5, "nu": 0.45}}
+    cell = _cell_dir(tmp_path, ph, (2.0, 2.0, 2.0), mats)
+    work = tmp_path / "work"
+    work.mkdir()
+    ctx = StageContext("homogenize", stage.HomogenizeParams(tolerance=1e-10), work, {"cell": cell}, tmp_path)
+    summary = stage.run(ctx)
+    out = json.loads((work / "constants.json").read_text())
+    C_ex = backus_laminate([Isotropic(12.0, 0.3).stiffness(), Isotropic(1.5, 0.45).stiffness()], [0.5, 0.5])
+    assert np.abs(np.array(out["C"]) - C_ex).max() < 1e-6 * np.abs(C_ex).max()
+    for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l", "misfit", "relative_density", "solver", "resolution",
+              "localisation", "axis", "symmetry_error"):
+        assert k in out
+    assert out["misfit"] < 1e-8 and summary["E_t"] == pytest.approx(out["E_t"], rel=1e-5)
+    m = meshio.read(work / "fields.vtu")
+    assert len(m.cells_dict["hexahedron"]) == ph.size
+    strain = m.cell_data_dict["strain_E33"]["hexahedron"]
+    # volume average of the local strain is the macro strain E33 (uniform voxels)
+    np.testing.assert_allclose(strain.mean(axis=0), [0, 0, 1, 0, 0, 0], atol=1e-8)
+    assert _png_is_not_blank(work / "homogenize.png")
+
+
+def test_stage_refuses_bad_params_and_missing_mesh(tmp_path):
+    from pydantic import ValidationError
+
+    from metasheet.errors import ConfigError
+
+    with pytest.raises(ValidationError):
+        stage.HomogenizeParams(solver="lu")
+    with pytest.raises(ValidationError):
+        stage.HomogenizeParams(tolerance=0.5)
+    cell = _cell_dir(tmp_path, np.ones((4, 4, 4), int), (1.0, 1.0, 1.0), {"1": {"E": 12.0, "nu": 0.3}})
+    (tmp_path / "w").mkdir()
+    ctx = StageContext("homogenize", stage.HomogenizeParams(mesh_route=True), tmp_path / "w", {"cell": cell}, tmp_path)
+    with pytest.raises(ConfigError, match="cell.vtu"):
+        stage.run(ctx)
+    with pytest.raises(ConfigError, match="materials"):
+        stage.materials_from_json({"1": {"E": 12.0}})
+
+
+def test_cell_to_homogenize_end_to_end(tmp_path):
+    """Runs the colleague's cell stage on the catalogue's quick foam, then this stage."""
+    from pathlib import Path
+
+    from metasheet.pipeline.config import load_pipeline
+    from metasheet.pipeline.runner import run_pipeline
+
+    root = Path(__file__).resolve().parents[1]
+    (tmp_path / "pipelines").mkdir()
+    (tmp_path / "cells").symlink_to(root / "cells")
+    toml = tmp_path / "pipelines" / "h.toml"
+    toml.write_text('[pipeline]\nname = "h"\nstages = ["cell", "homogenize"]\n'
+                    '[cell]\ndesign = "cells/quick_foam.toml"\npicture = false\nsurface = false\n')
+    run_pipeline(load_pipeline(toml), out_root=tmp_path / "out")
+    out = json.loads((tmp_path / "out" / "h" / "homogenize" / "constants.json").read_text())
+    rho = out["relative_density"]
+    assert 0.1 < rho < 0.3
+    # an open-cell foam: far below Voigt, of Gibson-Ashby order
+    assert 0.1 * rho**2 < out["E_t"] / 12.0 < rho
+    assert out["axis"] == [0.0, 0.0, 1.0]
