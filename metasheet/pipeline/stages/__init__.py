@@ -7,7 +7,10 @@ pipeline order below; modules not named there follow alphabetically.
 import importlib
 import pkgutil
 
-CANONICAL = ("material", "cell", "homogenize", "chart", "orient", "printmap", "robot")
+CANONICAL = (
+    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot",
+    "workspace", "ranges", "anisotropy", "maze", "report",
+)
 
 
 def _import_all() -> None:

@@ -1,0 +1,100 @@
+"""Stage ``workspace``: the workspace exploration of paper Fig. 5, plus validity (max principal
+strain), loss of control (smallest Jacobian singular value) and continuity (components).
+
+Writes ``workspace.csv`` (one row per goal point), ``workspace.vtp`` (the point cloud with
+the same fields), ``workspace.png`` (front / side / top views) and ``workspace.json``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydantic import Field
+
+from ...studies.workspace import CLASS_NAMES, WorkspaceSettings, explore_workspace
+from ..manifest import write_json_atomic
+from ..registry import Stage, StageContext, register
+from ._studies import GridParams, build_spec, drop_cache, grid_from, progress, unit_cache, write_csv
+
+ROT_COLS = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+class WorkspaceParams(GridParams):
+    rot_deg: float = Field(10.0, gt=0, le=90, description="rotation tried at each reached point [deg]")
+    tol_rot_deg: float = Field(2.0, gt=0, le=90, description="rotation tolerance [deg]")
+    rotations: bool = Field(True, description="try the +-rot_deg rotations about x, y, z")
+    strain_limit: float = Field(0.3, gt=0, description="max principal strain of the homogenisation's validity [-]")
+    continuity: bool = Field(True, description="test paths between neighbouring reached points")
+    substeps: int = Field(3, ge=1, le=1000, description="intermediate goals on a continuity path [-]")
+    hold_orientation: bool = Field(False, description="point goals also ask for the rest orientation (paper: position only)")
+
+
+def settings_from(p) -> WorkspaceSettings:
+    return WorkspaceSettings(tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_rot_deg, max_steps=p.max_steps,
+                             rotations=p.rotations, stop_after=p.stop_after, strain_limit=p.strain_limit,
+                             continuity=p.continuity, substeps=p.substeps, hold_orientation=p.hold_orientation)
+
+
+def write_vtp(path, points, fields: dict) -> None:
+    import pyvista as pv
+
+    cloud = pv.PolyData(np.asarray(points, float))
+    for k, v in fields.items():
+        cloud.point_data[k] = np.asarray(v)
+    cloud.save(str(path), binary=True)
+
+
+def run(ctx: StageContext) -> dict:
+    p: WorkspaceParams = ctx.params
+    spec = build_spec(ctx)
+    grid = grid_from(p)
+    t0 = time.perf_counter()
+    res = explore_workspace(spec, grid, settings_from(p), executor=ctx.executor, progress=progress(ctx),
+                            cache=unit_cache(ctx))
+    wall = time.perf_counter() - t0
+    r = res.records
+    header = (["point", "ray", "step", "x_mm", "y_mm", "z_mm", "class", "class_name", "tried", "reached",
+               "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
+              + [f"rot{c}_error_deg" for c in ROT_COLS] + [f"rot{c}_error_mm" for c in ROT_COLS]
+              + ["rot_x_ok", "rot_y_ok", "rot_z_ok", "max_principal_strain", "valid", "min_singular_value",
+                 "component", "converged"])
+    rows = ([i, grid.ray[i], grid.index[i], *res.goals[i], res.cls[i], CLASS_NAMES[res.cls[i]], r.tried[i],
+             r.reached[i], r.error_mm[i], r.error_deg[i], r.steps[i], *r.motors_deg[i], *r.rot_error_deg[i],
+             *r.rot_error_mm[i], *r.rot_ok[i], r.strain[i], res.valid[i], r.sigma_min[i], res.component[i],
+             r.converged[i]]
+            for i in range(len(grid)))
+    write_csv(ctx.path("workspace.csv"), header, rows)
+    write_vtp(ctx.path("workspace.vtp"), res.goals, {
+        "class": res.cls, "error_mm": r.error_mm, "max_principal_strain": r.strain, "valid": res.valid.astype(np.int8),
+        "min_singular_value": r.sigma_min, "component": res.component, "ray": grid.ray})
+    from ...viz.studies import workspace_picture
+
+    counts = res.counts()
+    title = (f"Workspace (paper Fig. 5): {len(grid)} goals, {int(r.reached.sum())} reachable, "
+             f"{res.n_components} connected component(s) [{p.model}]")
+    ctx.path("workspace.png").write_bytes(workspace_picture(
+        res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title))
+    reached = r.reached
+    summary = {
+        "points": len(grid), "rays": int(len(grid.directions)), "counts": counts,
+        "reachable": int(reached.sum()), "tried": int(r.tried.sum()),
+        "solver_failures": int((r.tried & ~r.converged).sum()),
+        "invalid_strain": int((reached & ~res.valid).sum()), "strain_limit": p.strain_limit,
+        "max_strain": float(np.nanmax(r.strain)) if reached.any() else None,
+        "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
+        "components": res.n_components, "edges_tested": res.edges_tested, "edges_passed": res.edges_passed,
+        "in_rest_component": int((res.component == 0).sum()),
+        "wall_s": round(wall, 2), "s_per_point": round(wall / max(1, int(r.tried.sum())), 4),
+        "executor": ctx.executor.kind, "model": p.model,
+    }
+    write_json_atomic(ctx.path("workspace.json"), summary)
+    drop_cache(ctx)
+    return summary
+
+
+register(Stage(
+    name="workspace", params=WorkspaceParams, run=run, optional=("orient", "material", "robot"),
+    outputs=("workspace.csv", "workspace.vtp", "workspace.png", "workspace.json"),
+    doc="workspace exploration (Fig. 5) with strain validity, loss of control and continuity",
+))

@@ -1,0 +1,234 @@
+"""The real 6-DOF robot (:mod:`metasheet.robot`) as a :class:`~.model.RobotModel`.
+
+:class:`RobotSpec` is the picklable recipe (sheet meshes as arrays, fibre fields, the
+material's five constants, servo geometry, inverse settings); :class:`FemRobot` is the live
+robot built from it in each worker: the FEM body, one linearizer (cached factorisation
+pattern) and the eq. (8) controller. States are :class:`metasheet.robot.statics.RobotState`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..errors import ConfigError, ConvergenceError
+from ..material import Isotropic, TransverseIsotropic, interpolate
+from .model import ReachResult, check_motor_range, pose_errors
+
+
+@dataclass(frozen=True, eq=False)
+class RobotSpec:
+    """Recipe of the 6-DOF robot.
+
+    Attributes
+    ----------
+    points, tets, attach : the sheet mesh ((n, 3) [mm], (m, 4), (n,) tags 0-4); arm_angles (3,) [rad].
+    points_m, tets_m, attach_m : the mirrored sheet.
+    fibers, fibers_m : (m, 3) unit fibre directions of each sheet (local axis 3).
+    material : (E_t, E_l, nu_t, nu_tl, mu_l) [MPa, -] of the sheets (transverse isotropic).
+    design : the design material's constants (the anisotropy sweep interpolates from it).
+    rod_length [mm]; servo_radius, horn_length [mm]; motor_range (lo, hi) [deg]; density [t/mm^3].
+    consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
+    stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
+    rot_weight [mm/rad], max_step_deg [deg], stall_steps: inverse-loop settings (a goal counts as
+    unreachable after ``stall_steps`` steps without progress; the controller's default 15 makes
+    every unreachable workspace point cost 15+ FEM steps).
+    """
+
+    points: np.ndarray
+    tets: np.ndarray
+    attach: np.ndarray
+    arm_angles: np.ndarray
+    points_m: np.ndarray
+    tets_m: np.ndarray
+    attach_m: np.ndarray
+    fibers: np.ndarray
+    fibers_m: np.ndarray
+    material: tuple
+    design: tuple
+    rod_length: float = 80.0
+    servo_radius: float = 66.0
+    horn_length: float = 25.0
+    motor_range: tuple = (0.0, 90.0)
+    density: float = 1.19e-9 * 0.15
+    rot_weight: float = 50.0
+    max_step_deg: float = 5.0
+    stall_steps: int = 6
+    consts: np.ndarray | None = None
+    consts_m: np.ndarray | None = None
+
+    def __post_init__(self):
+        check_motor_range("motor_range", *self.motor_range)
+        for name in ("material", "design"):
+            if len(getattr(self, name)) != 5:
+                raise ConfigError(f"{name}: {getattr(self, name)!r}: expected (E_t, E_l, nu_t, nu_tl, mu_l)")
+        TransverseIsotropic(*self.material)  # validates the constants
+
+    @property
+    def key(self) -> str:
+        h = hashlib.sha256()
+        for a in (self.points, self.tets, self.attach, self.arm_angles, self.points_m, self.tets_m,
+                  self.attach_m, self.fibers, self.fibers_m):
+            h.update(np.ascontiguousarray(a).tobytes())
+        for a in (self.consts, self.consts_m):
+            h.update(b"-" if a is None else np.ascontiguousarray(a).tobytes())
+        h.update(repr((self.material, self.design, self.rod_length, self.servo_radius, self.horn_length,
+                       self.motor_range, self.density, self.rot_weight, self.max_step_deg,
+                       self.stall_steps)).encode())
+        return "fem-" + h.hexdigest()[:24]
+
+    @property
+    def design_alpha(self) -> float:
+        return TransverseIsotropic(*self.design).alpha
+
+    def build(self) -> "FemRobot":
+        return FemRobot(self)
+
+    def with_motor_range(self, lo_deg: float, hi_deg: float) -> "RobotSpec":
+        return replace(self, motor_range=(float(lo_deg), float(hi_deg)))
+
+    def with_alpha(self, alpha: float) -> "RobotSpec":
+        m = interpolate(TransverseIsotropic(*self.design), float(alpha))
+        return replace(self, material=_consts(m), consts=None, consts_m=None)
+
+    def with_material(self, material, density: float | None = None) -> "RobotSpec":
+        """Another sheet material (and density [t/mm^3], default unchanged)."""
+        if isinstance(material, Isotropic):
+            material = material.as_transverse()
+        return replace(self, material=_consts(material), consts=None, consts_m=None,
+                       density=self.density if density is None else float(density))
+
+    @classmethod
+    def from_sheets(cls, sheet, sheet_m, fibers, fibers_m, material, **kw) -> "RobotSpec":
+        """From :class:`metasheet.sheet.geometry.SheetMesh` pairs and a material."""
+        if isinstance(material, Isotropic):
+            material = material.as_transverse()
+        c = _consts(material)
+        return cls(np.asarray(sheet.points, float), np.asarray(sheet.tets), np.asarray(sheet.attach),
+                   np.asarray(sheet.arm_angles, float), np.asarray(sheet_m.points, float),
+                   np.asarray(sheet_m.tets), np.asarray(sheet_m.attach), np.asarray(fibers, float),
+                   np.asarray(fibers_m, float), c, kw.pop("design", c), **kw)
+
+
+def _consts(m: TransverseIsotropic) -> tuple:
+    return tuple(float(v) for v in (m.E_t, m.E_l, m.nu_t, m.nu_tl, m.mu_l))
+
+
+class FemRobot:
+    """The FEM robot of a :class:`RobotSpec` behind the study protocol."""
+
+    pull_sign = 1.0  # towards 90 deg the horn lifts the arm tip outwards: it stretches the arm
+
+    def __init__(self, spec: RobotSpec):
+        from ..robot.assemblies import ServoGeometry
+        from ..robot.compare import build_six_dof
+        from ..robot.inverse import InverseController, InverseSettings
+
+        self.spec = spec
+        mat = TransverseIsotropic(*spec.material)
+        if mat.alpha < 1e-9 and abs(mat.nu_tl - mat.nu_t) < 1e-12:
+            mat = Isotropic(mat.E_t, mat.nu_t)  # exactly isotropic: no fibre rotation needed
+        geo = ServoGeometry(spec.servo_radius, spec.horn_length, 0.0, 90.0)
+        a = SimpleNamespace(points=spec.points, tets=spec.tets, attach=spec.attach, arm_angles=spec.arm_angles)
+        b = SimpleNamespace(points=spec.points_m, tets=spec.tets_m, attach=spec.attach_m, arm_angles=spec.arm_angles)
+        if spec.consts is not None and spec.consts_m is not None:  # graded: per-element constants
+            from ..robot.assemblies import six_dof
+            from ..robot.cli_support import element_stiffness
+
+            self.robot = six_dof(a, element_stiffness(spec.fibers, spec.consts), b,
+                                 element_stiffness(spec.fibers_m, spec.consts_m), rod_length=spec.rod_length,
+                                 geometry=geo, density=spec.density)
+        else:
+            self.robot = build_six_dof(a, b, mat, fibers=spec.fibers, fibers_mirrored=spec.fibers_m,
+                                       rod_length=spec.rod_length, geometry=geo, density=spec.density)
+        # the limits may exclude the rest angles (the motor-range study): set them after the build
+        na = len(self.robot.angle_min)
+        self.robot = replace(self.robot, angle_min=np.full(na, np.radians(spec.motor_range[0])),
+                             angle_max=np.full(na, np.radians(spec.motor_range[1])))
+        self.settings = InverseSettings(rot_weight=spec.rot_weight, max_step_deg=spec.max_step_deg,
+                                        stall_steps=spec.stall_steps)
+        self.ctrl = InverseController(self.robot, settings=self.settings)
+        self.lz = self.ctrl.linearizer
+        self.rest = self.ctrl.state
+        self.motor_range = tuple(spec.motor_range)
+        ax = np.abs(self.robot.axis)
+        self.rod_axis = int(np.argmax(ax))
+        self._rest_x = self.robot.rest_state().x
+        tets = self.robot.body.tets
+        X = self._rest_x[tets]
+        self._tets = tets
+        self._dm_inv = np.linalg.inv(np.transpose(X[:, 1:] - X[:, :1], (0, 2, 1)))
+
+    def rest_pose(self) -> np.ndarray:
+        return self.rest.pose.copy()
+
+    def rest_motors(self) -> np.ndarray:
+        return np.degrees(self.rest.angles)
+
+    def reach(self, goal, *, state=None, tol_mm=1.0, tol_deg=None, max_steps=50, rot_weight=None) -> ReachResult:
+        goal = np.asarray(goal, float)
+        # rot_weight 0 (position only) becomes a tiny weight: the controller needs w > 0
+        rw = self.settings.rot_weight if rot_weight is None else max(float(rot_weight), 1e-6)
+        # a little inside the tolerance: the loop stops on its one-Newton-step state
+        self.ctrl.settings = replace(self.settings, rot_weight=rw, pos_tol=0.9 * tol_mm,
+                                     rot_tol_deg=180.0 if tol_deg is None else 0.9 * tol_deg,
+                                     max_steps=int(max_steps))
+        self.ctrl.state = self.rest if state is None else state
+        self.ctrl.n_steps = 0
+        goal_deg = np.concatenate([goal[:3], np.degrees(goal[3:])])
+        converged = True
+        try:
+            r = self.ctrl.goto(goal_deg)
+            st, steps = r.state, r.steps
+        except ConvergenceError:  # the final equilibrium failed: report the last control state
+            st, steps, converged = self.ctrl.state, self.ctrl.n_steps, False
+        pose = st.pose
+        e_mm, e_deg = pose_errors(goal, pose)
+        ok = converged and e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)
+        return ReachResult(ok, pose, np.degrees(st.angles), e_mm, e_deg, int(steps), st, converged)
+
+    def equilibrium(self, motors_deg, *, state=None):
+        from ..robot.statics import solve_equilibrium
+
+        eq = solve_equilibrium(self.robot, np.radians(np.asarray(motors_deg, float)),
+                               state=self.rest if state is None else state, linearizer=self.lz)
+        return eq.state.pose, eq.state
+
+    def max_principal_strain(self, state) -> float:
+        """Largest principal Green-Lagrange strain over the sheets' elements [-]."""
+        x = state.x[self._tets]
+        Ds = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+        F = Ds @ self._dm_inv
+        E = 0.5 * (np.transpose(F, (0, 2, 1)) @ F - np.eye(3))
+        return float(np.linalg.eigvalsh(E)[:, -1].max())
+
+    def min_singular_value(self, state) -> float:
+        """Smallest singular value of the Jacobian scaled by diag(1, 1, 1, 50 mm) [mm/rad]."""
+        from ..robot.kinematics import kinematics
+
+        return float(kinematics(self.lz.linearize(state)).singular_values.min())
+
+
+def paper_robot_spec(*, mesh_size: float = 5.0, rest_deg: float | None = None, material=None,
+                     pitch_deg: float = 45.0, **kw) -> RobotSpec:
+    """The paper's robot built in memory (no pipeline): default sheet, spiral fibres, the
+    paper's foam (or ``material``). ``rest_deg`` places the servos (``servo_radius``) so the
+    motors' rest angle is that value [deg]; None keeps ``servo_radius`` (default 66 mm).
+    For tests and benchmarks; the stages build their spec from the orient stage's sheets.
+    """
+    from ..robot.compare import PAPER_FOAM
+    from ..sheet.fibers import spiral_fibers
+    from ..sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+
+    sh = tripod_sheet(SheetParams(mesh_size=mesh_size))
+    mi = mirror_sheet(sh)
+    if rest_deg is not None:
+        tip = sh.points[sh.attach == 1].mean(axis=0)
+        horn = kw.get("horn_length", 25.0)
+        kw["servo_radius"] = float(np.hypot(tip[0], tip[1])) + horn * np.cos(np.radians(rest_deg))
+    fa = spiral_fibers(sh.centroids(), pitch_deg=pitch_deg)
+    fb = spiral_fibers(mi.centroids(), pitch_deg=pitch_deg, mirrored=True)
+    return RobotSpec.from_sheets(sh, mi, fa, fb, material or PAPER_FOAM, **kw)

@@ -1,0 +1,150 @@
+"""What a study needs from a robot: a small protocol, so the study logic is independent of the FEM.
+
+A study talks to a :class:`RobotModel` (the live robot, with its factorisations) built
+from a :class:`ModelSpec` (a small picklable description: mesh arrays and parameters).
+Work units sent to other processes carry the spec, never the live model; each process
+builds the model once and keeps it in :func:`get_model`'s cache.
+
+Poses are ``(6,)`` arrays ``[x, y, z, rx, ry, rz]``: the effector position [mm] and its
+rotation vector relative to the rest orientation [rad]. Motor angles are degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import ConfigError
+
+
+@dataclass(frozen=True)
+class ReachResult:
+    """Outcome of one inverse-model run towards a goal pose.
+
+    Attributes
+    ----------
+    reached : the model's own verdict for the tolerances it was given.
+    pose : (6,) float, final pose [mm, rad].
+    motors_deg : (n_motors,) float, final motor angles [deg].
+    error_mm : distance between final and goal positions [mm].
+    error_deg : angle of the rotation between final and goal orientations [deg].
+    steps : control steps used.
+    state : opaque model state, to continue from (picklable).
+    converged : False when the model's equilibrium solver failed (the pose is then the last
+        control state's, and the goal counts as not reached).
+    """
+
+    reached: bool
+    pose: np.ndarray
+    motors_deg: np.ndarray
+    error_mm: float
+    error_deg: float
+    steps: int
+    state: Any = None
+    converged: bool = True
+
+
+@runtime_checkable
+class RobotModel(Protocol):
+    """A robot as the studies see it (real FEM through :mod:`.adapter`, or :mod:`.standin`)."""
+
+    #: index (0, 1, 2) of the rod axis in the pose's rotation part: rod rotation = pose[3 + rod_axis].
+    rod_axis: int
+    #: (lo, hi) motor limits [deg].
+    motor_range: tuple[float, float]
+    #: +1 when "pulling" (paper Fig. 7) raises the motor angles, -1 when it lowers them.
+    pull_sign: float
+
+    def rest_pose(self) -> np.ndarray:
+        """(6,) effector pose at rest [mm, rad]."""
+
+    def rest_motors(self) -> np.ndarray:
+        """(n_motors,) motor angles at rest [deg]."""
+
+    def reach(self, goal, *, state=None, tol_mm: float = 1.0, tol_deg: float | None = None,
+              max_steps: int = 50, rot_weight: float | None = None) -> ReachResult:
+        """Run the inverse model from ``state`` (rest when None) towards ``goal`` (6,).
+
+        Never raises for an unreachable goal: returns the closest pose it found.
+        ``tol_deg`` None means the orientation is not part of the stopping test;
+        ``rot_weight`` [mm/rad] overrides the QP's weight of rotation errors (0: position only).
+        """
+
+    def equilibrium(self, motors_deg, *, state=None) -> tuple[np.ndarray, Any]:
+        """Forward model: the pose (6,) and the state at equilibrium for ``motors_deg``."""
+
+    def max_principal_strain(self, state) -> float:
+        """Largest principal (Green-Lagrange or log) strain in the soft parts at ``state`` [-]."""
+
+    def min_singular_value(self, state) -> float:
+        """Smallest singular value of the direct Jacobian at ``state`` (loss of control -> 0)."""
+
+
+class ModelSpec(Protocol):
+    """A picklable, hashable recipe for a :class:`RobotModel`."""
+
+    @property
+    def key(self) -> str:
+        """Stable identity (content hash): equal keys build identical models."""
+
+    @property
+    def design_alpha(self) -> float:
+        """Anisotropy of the design material, alpha = 100 - 100 E_l / E_t [%]."""
+
+    def build(self) -> RobotModel: ...
+
+    def with_motor_range(self, lo_deg: float, hi_deg: float) -> "ModelSpec": ...
+
+    def with_alpha(self, alpha: float) -> "ModelSpec":
+        """The same robot with the sheet material interpolated to ``alpha`` [%] (paper Fig. 7)."""
+
+    def with_material(self, material, density: float | None = None) -> "ModelSpec":
+        """The same robot with another sheet material (e.g. silicone) and density [t/mm^3]."""
+
+
+_MODELS: dict[str, RobotModel] = {}
+_MAX_CACHED = 4  # a worker may see a few specs (motor ranges, alphas); a robot is big
+
+
+def get_model(spec: ModelSpec) -> RobotModel:
+    """The model of ``spec``, built once per process and cached by ``spec.key``."""
+    k = spec.key
+    m = _MODELS.get(k)
+    if m is None:
+        if len(_MODELS) >= _MAX_CACHED:
+            _MODELS.pop(next(iter(_MODELS)))
+        m = _MODELS[k] = spec.build()
+    return m
+
+
+def check_motor_range(field: str, lo: float, hi: float) -> tuple[float, float]:
+    """Validate a motor range [deg] inside [0, 360) with lo < hi."""
+    lo, hi = float(lo), float(hi)
+    if not (-360.0 <= lo < hi <= 360.0):
+        raise ConfigError(f"{field}: ({lo:g}, {hi:g}): expected lo < hi within [-360, 360] deg")
+    return lo, hi
+
+
+def rotation_angle_deg(r_goal: np.ndarray, r_pose: np.ndarray) -> float:
+    """Angle [deg] of the rotation taking orientation ``r_pose`` to ``r_goal`` (rotation vectors [rad])."""
+    Rg = _rotmat(np.asarray(r_goal, float))
+    Rp = _rotmat(np.asarray(r_pose, float))
+    c = 0.5 * (np.trace(Rg @ Rp.T) - 1.0)
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def _rotmat(w: np.ndarray) -> np.ndarray:
+    t = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if t < 1e-8:
+        return np.eye(3) + K + 0.5 * K @ K
+    return np.eye(3) + np.sin(t) / t * K + (1.0 - np.cos(t)) / t**2 * K @ K
+
+
+def pose_errors(goal: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
+    """(position error [mm], orientation error [deg]) between two poses (6,)."""
+    goal = np.asarray(goal, float)
+    pose = np.asarray(pose, float)
+    return float(np.linalg.norm(goal[:3] - pose[:3])), rotation_angle_deg(goal[3:], pose[3:])

@@ -1,0 +1,102 @@
+"""Resumable maps: results of finished work units are kept on disk, so an interrupted study
+picks up where it stopped.
+
+The stage layer owns the directory (it lives next to the stage's outputs and is removed once
+the stage succeeds); this module only stores one pickle per unit, named by a hash of the
+unit itself, so a changed unit (another robot, other tolerances) never reuses a stale result.
+Files are written to a temporary name and renamed: a killed run leaves no half-written unit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import pickle
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from ..executor import Executor
+
+
+def unit_key(item: Any) -> str:
+    """Content hash of a work unit (its pickle; numpy arrays and frozen dataclasses pickle stably)."""
+    return hashlib.sha256(pickle.dumps(item, protocol=4)).hexdigest()[:32]
+
+
+class UnitCache:
+    """Per-unit result files in ``directory`` (None: no caching, a plain ``executor.map``)."""
+
+    def __init__(self, directory: Path | str | None):
+        self.directory = Path(directory) if directory is not None else None
+        if self.directory is not None:
+            self.directory.mkdir(parents=True, exist_ok=True)
+
+    def _file(self, key: str) -> Path:
+        return self.directory / f"{key}.pkl"
+
+    def load(self, key: str) -> tuple[bool, Any]:
+        if self.directory is None:
+            return False, None
+        f = self._file(key)
+        if not f.exists():
+            return False, None
+        try:
+            return True, pickle.loads(f.read_bytes())
+        except Exception:  # a corrupt file (foreign writer): recompute the unit
+            return False, None
+
+    def store(self, key: str, value: Any) -> None:
+        if self.directory is None:
+            return
+        tmp = self.directory / f".{key}.{os.getpid()}.tmp"
+        tmp.write_bytes(pickle.dumps(value, protocol=4))
+        os.replace(tmp, self._file(key))
+
+    def map(
+        self,
+        executor: Executor,
+        fn: Callable[[Any], Any],
+        items: Sequence[Any],
+        *,
+        progress: Callable[[int, int], None] = lambda d, n: None,
+        chunk: int | None = None,
+    ) -> list[Any]:
+        """``[fn(x) for x in items]`` through ``executor``, skipping units already stored.
+
+        Missing units run in chunks of ``chunk`` items (default: about a tenth of them, at
+        least two per worker); each chunk is stored as soon as it finishes.
+        """
+        items = list(items)
+        total = len(items)
+        if self.directory is None:
+            return executor.map(fn, items, progress=progress)
+        keys = [unit_key(x) for x in items]
+        results: list[Any] = [None] * total
+        todo = []
+        for i, k in enumerate(keys):
+            ok, val = self.load(k)
+            if ok:
+                results[i] = val
+            else:
+                todo.append(i)
+        done = total - len(todo)
+        progress(done, total)
+        if not todo:
+            return results
+        workers = executor.workers if executor.kind != "dask" else 4
+        size = chunk or max(2 * workers, math.ceil(len(todo) / 10))
+        for start in range(0, len(todo), size):
+            part = todo[start:start + size]
+            base = done
+
+            def inner(d, n, base=base):
+                progress(base + d, total)
+
+            out = executor.map(fn, [items[i] for i in part], progress=inner)
+            for i, val in zip(part, out):
+                results[i] = val
+                self.store(keys[i], val)
+            done += len(part)
+        return results

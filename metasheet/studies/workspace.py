@@ -1,0 +1,312 @@
+"""Workspace exploration (paper Fig. 5) with validity, loss of control and continuity.
+
+Each ray of a :class:`~.grid.StarGrid` is one work unit: its goals are reached by
+continuation outwards from the rest pose (each reach starts from the last reached state),
+within ``tol_mm`` (position only, as in the paper, unless ``hold_orientation``); at every
+reached point the six rotations +-``rot_deg`` about x, y and z of the orientation reached
+there are tried from that point's state, each within ``tol_rot_deg`` (and ``tol_mm``). An axis
+counts when both signs succeed (the second sign is skipped, NaN, when the first fails). Classes: 3, 2, 1 axes, 0 = reachable only, -1 = unreachable.
+
+Beyond the paper: the largest principal strain at each reached point against a limit
+(the homogenisation's domain of validity), the smallest Jacobian singular value (loss of
+control), and continuity: a graph whose nodes are the reached points (and the rest pose),
+with an edge along each ray where continuation went, and an edge between points at the same
+step of neighbouring rays when the inverse model walks from one to the other through
+``substeps`` intermediate goals, each reached. Its connected components are reported.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from ..errors import ConvergenceError, check_range
+from ..executor import Executor
+from .grid import StarGrid
+from .model import ModelSpec, get_model, pose_errors
+from .resume import UnitCache
+
+CLASS_NAMES = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
+
+
+@dataclass(frozen=True)
+class WorkspaceSettings:
+    """Tolerances and switches of the workspace study (lengths mm, angles deg)."""
+
+    tol_mm: float = 1.0
+    rot_deg: float = 10.0
+    tol_rot_deg: float = 2.0
+    max_steps: int = 60
+    rotations: bool = True
+    stop_after: int = 2  # consecutive failures on a ray before its outer points are left untried (0: try all)
+    strain_limit: float = 0.3
+    continuity: bool = True
+    substeps: int = 3
+    hold_orientation: bool = False  # point goals also ask for the rest orientation (else position only)
+
+    @property
+    def point_rot_weight(self) -> float | None:
+        """Rotation weight of the point reaches: the model's own, or 0 (position only)."""
+        return None if self.hold_orientation else 0.0
+
+    def __post_init__(self):
+        check_range("tol_mm", self.tol_mm, 0.0, None, lo_open=True)
+        check_range("rot_deg", self.rot_deg, 0.0, 90.0, lo_open=True)
+        check_range("tol_rot_deg", self.tol_rot_deg, 0.0, 90.0, lo_open=True)
+        check_range("max_steps", self.max_steps, 1, 100000)
+        check_range("stop_after", self.stop_after, 0, 100000)
+        check_range("strain_limit", self.strain_limit, 0.0, None, lo_open=True)
+        check_range("substeps", self.substeps, 1, 1000)
+
+
+@dataclass(frozen=True)
+class RayTask:
+    """One ray: goal positions (k, 3) [mm] (absolute), from the centre outwards."""
+
+    spec: ModelSpec
+    settings: WorkspaceSettings
+    goals: np.ndarray
+
+
+@dataclass(frozen=True)
+class PointRecords:
+    """Per-point records of a set of goals (k points); shapes in brackets.
+
+    tried, reached (k,) bool; error_mm, error_deg (k,) of the point reach; motors_deg (k, 6);
+    steps (k,) int; rot_error_mm, rot_error_deg (k, 6) for +x, -x, +y, -y, +z, -z (NaN untried);
+    rot_ok (k, 3) bool per axis; strain, sigma_min (k,) (NaN when not reached);
+    parent (k,) int: index in the ray of the point continuation started from (-1 = rest);
+    converged (k,) bool: False where the model's equilibrium solver failed on the point reach
+    (counted as not reached, with its error as recorded).
+    """
+
+    tried: np.ndarray
+    reached: np.ndarray
+    error_mm: np.ndarray
+    error_deg: np.ndarray
+    motors_deg: np.ndarray
+    steps: np.ndarray
+    rot_error_mm: np.ndarray
+    rot_error_deg: np.ndarray
+    rot_ok: np.ndarray
+    strain: np.ndarray
+    sigma_min: np.ndarray
+    parent: np.ndarray
+    converged: np.ndarray
+
+
+def rotation_goals(point: np.ndarray, rest_rot: np.ndarray, rot_deg: float) -> np.ndarray:
+    """(6, 6) goal poses: ``point`` with the rest orientation turned by +-rot_deg about x, y, z."""
+    out = np.zeros((6, 6))
+    for a in range(3):
+        for j, sgn in enumerate((1.0, -1.0)):
+            w = np.zeros(3)
+            w[a] = sgn * np.radians(rot_deg)
+            out[2 * a + j, :3] = point
+            out[2 * a + j, 3:] = _compose(w, rest_rot)
+    return out
+
+
+def _compose(w: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Rotation vector of exp([w]) exp([r]) (spatial increment w applied after r)."""
+    from scipy.spatial.transform import Rotation
+
+    return (Rotation.from_rotvec(w) * Rotation.from_rotvec(r)).as_rotvec()
+
+
+def explore_ray(task: RayTask) -> PointRecords:
+    """Work unit: continuation along one ray, then the rotation tests at every reached point."""
+    model = get_model(task.spec)
+    s = task.settings
+    rest = model.rest_pose()
+    k = len(task.goals)
+    nan = np.full(k, np.nan)
+    rec = dict(tried=np.zeros(k, bool), reached=np.zeros(k, bool), error_mm=nan.copy(), error_deg=nan.copy(),
+               motors_deg=np.full((k, len(model.rest_motors())), np.nan), steps=np.zeros(k, int),
+               rot_error_mm=np.full((k, 6), np.nan), rot_error_deg=np.full((k, 6), np.nan),
+               rot_ok=np.zeros((k, 3), bool), strain=nan.copy(), sigma_min=nan.copy(), parent=np.full(k, -1),
+               converged=np.ones(k, bool))
+    state, parent, fails = start_state(model), -1, 0
+    for i, p in enumerate(task.goals):
+        if s.stop_after and fails >= s.stop_after:
+            break
+        goal = np.concatenate([p, rest[3:]])
+        res = model.reach(goal, state=state, tol_mm=s.tol_mm, tol_deg=None, max_steps=s.max_steps,
+                          rot_weight=s.point_rot_weight)
+        e_mm, e_deg = pose_errors(goal, res.pose)
+        rec["tried"][i] = True
+        rec["error_mm"][i], rec["error_deg"][i] = e_mm, e_deg
+        rec["motors_deg"][i] = res.motors_deg
+        rec["steps"][i] = res.steps
+        rec["parent"][i] = parent
+        rec["converged"][i] = res.converged
+        if e_mm > s.tol_mm or not res.converged:
+            fails += 1
+            continue
+        fails = 0
+        rec["reached"][i] = True
+        rec["strain"][i] = model.max_principal_strain(res.state)
+        rec["sigma_min"][i] = model.min_singular_value(res.state)
+        if s.rotations:
+            base = rest[3:] if s.hold_orientation else res.pose[3:]
+            for j, g in enumerate(rotation_goals(p, base, s.rot_deg)):
+                if j % 2 and not _within(rec, i, j - 1, s):
+                    continue  # the axis failed one way already: the other sign cannot save it (NaN)
+                r = model.reach(g, state=res.state, tol_mm=s.tol_mm, tol_deg=s.tol_rot_deg, max_steps=s.max_steps)
+                rec["rot_error_mm"][i, j], rec["rot_error_deg"][i, j] = pose_errors(g, r.pose)
+            ok = (rec["rot_error_mm"][i] <= s.tol_mm) & (rec["rot_error_deg"][i] <= s.tol_rot_deg)
+            rec["rot_ok"][i] = ok.reshape(3, 2).all(axis=1)
+        state, parent = res.state, i
+    return PointRecords(**rec)
+
+
+def _within(rec, i, j, s) -> bool:
+    return bool(rec["rot_error_mm"][i, j] <= s.tol_mm and rec["rot_error_deg"][i, j] <= s.tol_rot_deg)
+
+
+def start_state(model):
+    """Where studies start: rest (None), or, when the rest angles lie outside the motor range
+    (a narrowed range), the equilibrium at the rest angles clipped into it."""
+    q0 = model.rest_motors()
+    lo, hi = model.motor_range
+    if q0.min() >= lo and q0.max() <= hi:
+        return None
+    return model.equilibrium(np.clip(q0, lo, hi))[1]
+
+
+def classify(reached: np.ndarray, rot_ok: np.ndarray) -> np.ndarray:
+    """(n,) class: number of rotation axes that work (3, 2, 1, 0) where reached, else -1."""
+    return np.where(np.asarray(reached, bool), np.asarray(rot_ok, bool).sum(axis=1), -1).astype(int)
+
+
+@dataclass(frozen=True)
+class EdgeTask:
+    """Paths to test: from each start (motor angles (6,) [deg], pose (6,)) to a goal pose (6,)."""
+
+    spec: ModelSpec
+    settings: WorkspaceSettings
+    starts_motors: np.ndarray  # (e, n_motors)
+    starts_pose: np.ndarray  # (e, 6)
+    goals: np.ndarray  # (e, 6)
+
+
+def test_paths(task: EdgeTask) -> np.ndarray:
+    """Work unit: (e,) bool, True where the inverse model walks from start to goal through
+    ``substeps`` evenly spaced goals, each reached within ``tol_mm``."""
+    model = get_model(task.spec)
+    s = task.settings
+    out = np.zeros(len(task.goals), bool)
+    for e, (q, a, b) in enumerate(zip(task.starts_motors, task.starts_pose, task.goals)):
+        try:
+            pose, state = model.equilibrium(q)
+        except ConvergenceError:  # no equilibrium found there: the path is not proven
+            continue
+        if pose_errors(a, pose)[0] > s.tol_mm:  # the forward model lands elsewhere (another branch)
+            continue
+        ok = True
+        for t in np.arange(1, s.substeps + 1) / s.substeps:
+            g = a + t * (b - a)
+            r = model.reach(g, state=state, tol_mm=s.tol_mm, max_steps=s.max_steps, rot_weight=s.point_rot_weight)
+            if pose_errors(g, r.pose)[0] > s.tol_mm or not r.converged:
+                ok = False
+                break
+            state = r.state
+        out[e] = ok
+    return out
+
+
+@dataclass(frozen=True)
+class WorkspaceResult:
+    """Everything the workspace study found; per-point arrays have n = len(grid) rows.
+
+    goals : (n, 3) absolute goal positions [mm]; cls : (n,) class (see CLASS_NAMES);
+    records : the :class:`PointRecords` of all points; valid : (n,) strain <= limit;
+    component : (n,) connected component (0 = the rest pose's, -1 = unreachable);
+    n_components : components among reached points; edges_tested / edges_passed : cross-ray paths.
+    """
+
+    goals: np.ndarray
+    cls: np.ndarray
+    records: PointRecords
+    valid: np.ndarray
+    component: np.ndarray
+    n_components: int
+    edges_tested: int
+    edges_passed: int
+    settings: WorkspaceSettings = field(default_factory=WorkspaceSettings)
+
+    def counts(self) -> dict[str, int]:
+        return {CLASS_NAMES[c]: int((self.cls == c).sum()) for c in (3, 2, 1, 0, -1)}
+
+
+def _concat(parts: list[PointRecords]) -> PointRecords:
+    return PointRecords(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in PointRecords.__dataclass_fields__})
+
+
+def explore_workspace(
+    spec: ModelSpec,
+    grid: StarGrid,
+    settings: WorkspaceSettings = WorkspaceSettings(),
+    *,
+    executor: Executor = Executor(),
+    progress: Callable[[str, int, int], None] = lambda d, i, n: None,
+    cache: UnitCache | None = None,
+    edges_per_unit: int = 8,
+) -> WorkspaceResult:
+    """Run the workspace study of ``spec``'s robot on ``grid`` (see the module docstring)."""
+    cache = cache or UnitCache(None)
+    rest = get_model(spec).rest_pose()
+    order = np.concatenate([grid.ray_points(r) for r in range(len(grid.directions))])
+    tasks = [RayTask(spec, settings, rest[:3] + grid.points[grid.ray_points(r)]) for r in range(len(grid.directions))]
+    parts = cache.map(executor, explore_ray, tasks, progress=lambda d, n: progress("workspace rays", d, n))
+    rec_sorted = _concat(parts)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    records = PointRecords(**{f: getattr(rec_sorted, f)[inv] for f in PointRecords.__dataclass_fields__})
+    # parent indices are ray-local: map to global point indices
+    parent = np.full(len(grid), -1)
+    for r in range(len(grid.directions)):
+        ids = grid.ray_points(r)
+        loc = records.parent[ids]
+        parent[ids] = np.where(loc >= 0, ids[np.maximum(loc, 0)], -1)
+    goals = rest[:3] + grid.points
+    cls = classify(records.reached, records.rot_ok)
+    valid = records.reached & (records.strain <= settings.strain_limit)
+
+    G = nx.Graph()
+    G.add_node(-1)  # the rest pose
+    reached = np.flatnonzero(records.reached)
+    G.add_nodes_from(reached.tolist())
+    G.add_edges_from((int(i), int(parent[i])) for i in reached)
+    tested = passed = 0
+    if settings.continuity:
+        pairs = []
+        for ra, rb in grid.neighbour_rays():
+            ia, ib = grid.ray_points(ra), grid.ray_points(rb)
+            common = np.intersect1d(grid.index[ia], grid.index[ib])
+            for step in common:
+                a = int(ia[grid.index[ia] == step][0])
+                b = int(ib[grid.index[ib] == step][0])
+                if records.reached[a] and records.reached[b]:
+                    pairs.append((a, b))
+        pose = lambda i: np.concatenate([goals[i], rest[3:]])  # noqa: E731
+        edge_tasks = [
+            EdgeTask(spec, settings, records.motors_deg[[a for a, _ in ch]], np.array([pose(a) for a, _ in ch]),
+                     np.array([pose(b) for _, b in ch]))
+            for ch in (pairs[i:i + edges_per_unit] for i in range(0, len(pairs), edges_per_unit))
+        ]
+        oks = cache.map(executor, test_paths, edge_tasks, progress=lambda d, n: progress("continuity", d, n))
+        flags = np.concatenate(oks) if oks else np.zeros(0, bool)
+        tested, passed = len(pairs), int(flags.sum())
+        G.add_edges_from(p for p, ok in zip(pairs, flags) if ok)
+    comps = sorted(nx.connected_components(G), key=lambda c: (-1 not in c, -len(c), min(c)))
+    component = np.full(len(grid), -1)
+    for c_id, comp in enumerate(comps):
+        for i in comp:
+            if i >= 0:
+                component[i] = c_id
+    n_comp = sum(1 for c in comps if any(i >= 0 for i in c))
+    return WorkspaceResult(goals, cls, records, valid, component, n_comp, tested, passed, settings)

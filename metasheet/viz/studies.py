@@ -1,0 +1,185 @@
+"""Pictures of the studies: workspace (paper Fig. 5), motor ranges (Fig. 6), anisotropy
+sweep (Fig. 7) and the maze. Functions take plain arrays and return PNG bytes (matplotlib,
+Agg); the stage layer writes them.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+CLASS_COLOURS = {3: "#1f5fbf", 2: "#2ca02c", 1: "#ff7f0e", 0: "#d62728", -1: "#c8c8c8"}
+CLASS_LABELS = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
+#: (title, horizontal axis, vertical axis) of the three views; the rod runs along x
+VIEWS = (("front (along the rod)", 1, 2), ("side", 0, 2), ("top", 0, 1))
+AXIS = ("x [mm]", "y [mm]", "z [mm]")
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight", metadata={"Software": None})
+    _plt().close(fig)
+    return buf.getvalue()
+
+
+def _depth_order(points: np.ndarray, h: int, v: int) -> np.ndarray:
+    """Draw far points first so the near ones stay visible (depth = the third axis)."""
+    d = 3 - h - v
+    return np.argsort(points[:, d], kind="stable")
+
+
+def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: float, title: str = "") -> bytes:
+    """Three rows (class, max principal strain, smallest singular value) x three views.
+
+    points : (n, 3) [mm]; cls : (n,) int class (-1 unreachable); strain, sigma_min : (n,)
+    (NaN where unreachable); valid : (n,) bool, strain within ``strain_limit``.
+    """
+    plt = _plt()
+    P = np.asarray(points, float)
+    cls = np.asarray(cls, int)
+    ok = cls >= 0
+    fig, axes = plt.subplots(3, 3, figsize=(15, 14.5), squeeze=False)
+    for j, (name, h, v) in enumerate(VIEWS):
+        order = _depth_order(P, h, v)
+        ax = axes[0, j]
+        for c in (-1, 0, 1, 2, 3):
+            sel = order[cls[order] == c]
+            if len(sel):
+                if c >= 0:
+                    ax.scatter(P[sel, h], P[sel, v], s=10, c=CLASS_COLOURS[c], label=f"{CLASS_LABELS[c]} ({len(sel)})",
+                               alpha=0.9, lw=0)
+                else:
+                    ax.scatter(P[sel, h], P[sel, v], s=9, c="#909090", marker="x", lw=0.6, alpha=0.6,
+                               label=f"{CLASS_LABELS[c]} ({len(sel)})")
+        ax.set_title(f"{name}: class")
+        sel = order[ok[order]]
+        for row, values, cmap, label in ((1, strain, "viridis", "max principal strain [-]"),
+                                         (2, sigma_min, "magma", "smallest Jacobian singular value")):
+            ax2 = axes[row, j]
+            ax2.scatter(P[~ok, h], P[~ok, v], s=3, c=CLASS_COLOURS[-1], alpha=0.3, lw=0)
+            if len(sel):
+                sc = ax2.scatter(P[sel, h], P[sel, v], s=10, c=np.asarray(values)[sel], cmap=cmap, lw=0)
+                fig.colorbar(sc, ax=ax2, shrink=0.8, label=label)
+            if row == 1:
+                bad = sel[~np.asarray(valid, bool)[sel]]
+                if len(bad):
+                    ax2.scatter(P[bad, h], P[bad, v], s=22, facecolors="none", edgecolors="red", lw=0.8,
+                                label=f"strain > {strain_limit:g} ({len(bad)})")
+                    ax2.legend(loc="upper right", fontsize=8)
+            ax2.set_title(f"{name}: {label}")
+        for row in range(3):
+            axes[row, j].set_xlabel(AXIS[h])
+            axes[row, j].set_ylabel(AXIS[v])
+            axes[row, j].set_aspect("equal")
+            axes[row, j].grid(alpha=0.3)
+    axes[0, 0].legend(loc="upper right", fontsize=8, markerscale=1.5)
+    fig.suptitle(title or "Workspace (paper Fig. 5)", fontsize=14)
+    fig.tight_layout()
+    return _png(fig)
+
+
+def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
+    """Nested reachable sets for each motor range (Fig. 6): points (n, 3), reached (r, n), ranges (r, 2)."""
+    plt = _plt()
+    P = np.asarray(points, float)
+    R = np.asarray(reached, bool)
+    widths = np.asarray(ranges, float)[:, 1] - np.asarray(ranges, float)[:, 0]
+    order_r = np.argsort(-widths, kind="stable")  # widest first, narrower drawn on top
+    colours = plt.get_cmap("plasma")(np.linspace(0.1, 0.85, len(order_r)))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5), squeeze=False)
+    for j, (name, h, v) in enumerate(VIEWS):
+        ax = axes[0, j]
+        ax.scatter(P[:, h], P[:, v], s=3, c=CLASS_COLOURS[-1], alpha=0.3, lw=0)
+        for k, r in enumerate(order_r):
+            sel = np.flatnonzero(R[r])
+            sel = sel[_depth_order(P[sel], h, v)] if len(sel) else sel
+            lo, hi = ranges[r]
+            ax.scatter(P[sel, h], P[sel, v], s=12 - 3 * k, color=colours[k], lw=0,
+                       label=f"{lo:g}-{hi:g} deg ({len(sel)} points)")
+        ax.set_title(name)
+        ax.set_xlabel(AXIS[h])
+        ax.set_ylabel(AXIS[v])
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    fig.suptitle(title or "Reachable workspace for several motor ranges (paper Fig. 6)")
+    fig.tight_layout()
+    return _png(fig)
+
+
+def anisotropy_picture(alpha, rod_rotation_deg, lateral_mm, *, pull_deg: float, push_deg: float,
+                       title: str = "") -> bytes:
+    """Rod rotation and lateral translation against alpha (Fig. 7); (a,) and (a, 2) arrays."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), squeeze=False)
+    for j, lab in enumerate((f"pull {pull_deg:.3g} deg", f"push {push_deg:.3g} deg")):
+        axes[0, 0].plot(alpha, np.asarray(rod_rotation_deg)[:, j], "o-", label=lab)
+        axes[0, 1].plot(alpha, np.asarray(lateral_mm)[:, j], "s-", label=lab)
+    axes[0, 0].set_ylabel("rotation about the rod [deg]")
+    axes[0, 1].set_ylabel("lateral translation of the effector [mm]")
+    for ax in axes[0]:
+        ax.set_xlabel("alpha = 100 - 100 E_l / E_t [%]")
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.suptitle(title or "Anisotropy sweep: all motors together (paper Fig. 7)")
+    fig.tight_layout()
+    return _png(fig)
+
+
+def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segment_ok_silicone,
+                 motor_range, *, title: str = "") -> bytes:
+    """Maze path with feasible / impossible segments (foam vs silicone), the motor series and
+    the replay's tracking error. path (m, 2) [mm]; time (T,); motors_deg (T, 6)."""
+    plt = _plt()
+    P = np.asarray(path, float)
+    fig, axes = plt.subplots(1, 3, figsize=(17, 5), squeeze=False)
+    ax = axes[0, 0]
+    for i in range(len(P) - 1):
+        for ok_arr, off, name in ((segment_ok, 0.0, "foam"), (segment_ok_silicone, 1.2, "silicone")):
+            ok = bool(ok_arr[i])
+            ax.plot(P[i:i + 2, 0], P[i:i + 2, 1] + off, "-" if ok else ":", lw=3 if name == "foam" else 1.5,
+                    color=("#1f77b4" if name == "foam" else "#9467bd") if ok else "#d62728")
+        mid = P[i:i + 2].mean(axis=0)
+        ax.annotate(str(i), mid, fontsize=8, xytext=(3, 3), textcoords="offset points")
+    ax.plot(*P[0], "ko")
+    ax.plot([], [], "-", color="#1f77b4", lw=3, label="foam: feasible")
+    ax.plot([], [], "-", color="#9467bd", lw=1.5, label="silicone: feasible (offset)")
+    ax.plot([], [], ":", color="#d62728", lw=2, label="impossible")
+    ax.set_aspect("equal")
+    ax.set_xlabel("maze u = rod axis [mm]")
+    ax.set_ylabel("maze v [mm]")
+    ax.legend(fontsize=8)
+    ax.set_title("path and segment feasibility")
+    ax.grid(alpha=0.3)
+    ax = axes[0, 1]
+    for k in range(np.asarray(motors_deg).shape[1]):
+        ax.plot(time, np.asarray(motors_deg)[:, k], label=f"motor {k}")
+    for lim in motor_range:
+        ax.axhline(lim, color="k", ls="--", lw=0.8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("motor angle [deg]")
+    ax.set_title("open-loop motor series (foam)")
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    ax = axes[0, 2]
+    ax.plot(time, track_mm, label="position [mm]")
+    ax.plot(time, track_deg, label="orientation [deg]")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("replay tracking error")
+    ax.set_title("forward replay vs command (foam)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.suptitle(title or "Maze: tilt commands solved open loop")
+    fig.tight_layout()
+    return _png(fig)

@@ -1,0 +1,182 @@
+"""Study logic on the analytic stand-in robot (fast): grid, classes, ranges, anisotropy, maze, resume."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from metasheet.errors import ConfigError
+from metasheet.executor import Executor
+from metasheet.studies.anisotropy import anisotropy_sweep
+from metasheet.studies.grid import star_grid
+from metasheet.studies.maze import MazeSettings, maze_commands, solve_maze
+from metasheet.studies.model import RobotModel, get_model, pose_errors
+from metasheet.studies.ranges import motor_range_study
+from metasheet.studies.resume import UnitCache
+from metasheet.studies.standin import StandInSpec
+from metasheet.studies.workspace import WorkspaceSettings, classify, explore_workspace
+
+SMALL = dict(n_azimuth=6, n_elevation=3, n_steps=8, extent_axial=40.0, extent_lateral=50.0)
+
+
+@pytest.fixture(scope="module")
+def ws():
+    return explore_workspace(StandInSpec(), star_grid(**SMALL), WorkspaceSettings(substeps=2))
+
+
+def test_default_grid_is_the_papers_size_and_thinned():
+    g = star_grid()
+    assert 1700 <= len(g) <= 1900
+    t = np.linalg.norm(g.points / np.array([20.0, 20.0, 20.0]), axis=1)  # ellipsoidal radius in [0, 1]
+    inner, outer = (t < 0.35).sum(), (t >= 0.35).sum()
+    # per ray: 12 of 37 steps lie below 0.35 and every third is kept (4); 25 lie above
+    assert inner == 62 * 4 and outer == 62 * 25
+    assert np.allclose(np.linalg.norm(g.directions, axis=1), 1.0)
+    # every ray is collinear with its direction
+    for r in range(len(g.directions)):
+        p = g.points[g.ray_points(r)]
+        assert np.allclose(np.cross(p / np.array([20.0, 20.0, 20.0]), g.directions[r]), 0.0, atol=1e-12)
+
+
+def test_grid_rejects_bad_input():
+    with pytest.raises(ConfigError, match="n_steps"):
+        star_grid(n_steps=0)
+    with pytest.raises(ConfigError, match="thin_below"):
+        star_grid(thin_below=1.5)
+
+
+def test_standin_satisfies_protocol_and_has_five_dof_when_isotropic():
+    m = get_model(StandInSpec())
+    assert isinstance(m, RobotModel)
+    sv = np.linalg.svd(get_model(StandInSpec(alpha=0.0)).J, compute_uv=False)
+    assert sv[-1] < 1e-12 * sv[0] and np.linalg.svd(m.J, compute_uv=False)[-1] > 1e-3
+
+
+def test_classes_consistent_with_recorded_errors(ws):
+    r, s = ws.records, ws.settings
+    reached = r.error_mm <= s.tol_mm
+    assert np.array_equal(r.reached, np.nan_to_num(reached, nan=0).astype(bool) & r.tried & r.converged)
+    ok = (r.rot_error_mm <= s.tol_mm) & (r.rot_error_deg <= s.tol_rot_deg)
+    axes_ok = ok.reshape(-1, 3, 2).all(axis=2)
+    expect = np.where(r.reached, axes_ok.sum(axis=1), -1)
+    assert np.array_equal(ws.cls, expect)
+    assert np.array_equal(classify(r.reached, axes_ok), ws.cls)
+    # every class occurs on this grid, and the centre keeps all three rotations
+    assert set(np.unique(ws.cls)) >= {3, 0, -1}
+    centre = np.argmin(np.linalg.norm(ws.goals, axis=1))
+    assert ws.cls[centre] == 3
+    # the recorded motor angles really put the effector within tolerance (forward check)
+    m = get_model(StandInSpec())
+    for i in np.flatnonzero(r.reached)[:20]:
+        pose, _ = m.equilibrium(r.motors_deg[i])
+        assert pose_errors(np.concatenate([ws.goals[i], np.zeros(3)]), pose)[0] <= s.tol_mm + 1e-9
+
+
+def test_validity_and_loss_of_control_recorded(ws):
+    r = ws.records
+    assert np.all(np.isfinite(r.strain[r.reached])) and np.all(np.isnan(r.strain[~r.reached]))
+    assert np.array_equal(ws.valid, r.reached & (r.strain <= ws.settings.strain_limit))
+    # the stand-in's strain is 0.004 per degree of the largest motor offset
+    i = np.flatnonzero(r.reached)[5]
+    assert r.strain[i] == pytest.approx(0.004 * np.abs(r.motors_deg[i] - 30.0).max(), rel=1e-12)
+    # saturation: control authority falls towards the rim
+    radius = np.linalg.norm(ws.goals, axis=1)
+    inner = r.reached & (radius < 20)
+    outer = r.reached & (radius > 30)
+    assert np.nanmean(r.sigma_min[outer]) < np.nanmean(r.sigma_min[inner])
+
+
+def test_continuity_components(ws):
+    assert ws.edges_tested > 0 and ws.edges_passed <= ws.edges_tested
+    assert ws.n_components == 1  # the stand-in's workspace is star-convex around rest
+    assert np.all(ws.component[ws.records.reached] == 0) and np.all(ws.component[~ws.records.reached] == -1)
+
+
+def test_motor_range_workspaces_nest():
+    res = motor_range_study(StandInSpec(), star_grid(**SMALL), [(0, 90), (10, 80), (20, 70)])
+    counts = res.counts()
+    assert counts[0] > counts[1] > counts[2] > 0
+    assert res.nested and not res.violations
+    assert np.all(res.reached[2] <= res.reached[1]) and np.all(res.reached[1] <= res.reached[0])
+
+
+def test_range_excluding_rest_starts_inside_it():
+    res = motor_range_study(StandInSpec(), star_grid(**SMALL), [(0, 90), (35, 90)])  # rest is 30 deg
+    assert 0 < res.counts()[1] < res.counts()[0] and res.nested
+
+
+def test_anisotropy_sweep_zero_at_isotropic_and_growing():
+    spec = StandInSpec()
+    res = anisotropy_sweep(spec, np.linspace(0, spec.design_alpha, 5))
+    rot = res.rod_rotation_deg
+    assert np.all(np.abs(rot[0]) < 1e-9)  # alpha = 0: no rod rotation
+    assert np.all(np.diff(np.abs(rot[:, 1])) > 0) and np.all(np.diff(np.abs(rot[:, 0])) > 0)
+    assert np.sign(rot[-1, 0]) == -np.sign(rot[-1, 1])  # pull and push turn the rod opposite ways
+    assert res.lateral_mm[0, 1] > 1.0 and res.lateral_mm[-1, 1] < 1e-9  # isotropic sheets buckle sideways
+    # analytic check at small amplitude: all motors together give c_rod * alpha/alpha_max * 6 rad/deg
+    small = anisotropy_sweep(spec, [spec.design_alpha / 2], pull_deg=0.01, push_deg=0.01)
+    assert small.rod_rotation_deg[0, 1] == pytest.approx(np.degrees(6 * 0.01 * 0.5 * 0.01), rel=1e-3)
+    with pytest.raises(ConfigError, match="alphas"):
+        anisotropy_sweep(spec, [120.0])
+
+
+def test_maze_commands_tilt_the_segment_downhill():
+    cmd = maze_commands([[0, 0], [10, 0], [10, 10], [0, 0]], np.zeros(6), MazeSettings(tilt_deg=8.0))
+    for i, d in enumerate(cmd.directions):
+        w = cmd.poses[(cmd.segment == i) & cmd.hold][0, 3:]
+        down = Rotation.from_rotvec(w).apply(d)
+        assert down[2] == pytest.approx(-np.sin(np.radians(8.0)), abs=1e-12)  # rolls downhill along d
+        assert np.linalg.norm(w) == pytest.approx(np.radians(8.0))
+    assert abs(cmd.directions[1] @ [0, 1, 0]) == pytest.approx(1.0)
+    w1 = cmd.poses[(cmd.segment == 1) & cmd.hold][0, 3:]
+    assert abs(w1[0]) == pytest.approx(np.radians(8.0))  # across the rod: a rotation about the rod
+    assert np.allclose(cmd.poses[-1, 3:], 0.0)  # back to level
+    assert np.all(np.diff(cmd.time) > 0)
+    with pytest.raises(ConfigError, match="path"):
+        maze_commands([[0, 0]], np.zeros(6))
+
+
+def test_maze_respects_limits_tracks_and_fails_with_silicone():
+    path = [[0, 0], [20, 0], [20, 15], [-10, 15]]
+    spec = StandInSpec()
+    s = MazeSettings(dt=0.2)
+    foam = solve_maze(spec, path, s)
+    lo, hi = foam.motor_range
+    assert foam.motors_deg.min() >= lo and foam.motors_deg.max() <= hi
+    assert foam.segment_ok.all()
+    assert np.nanmax(foam.track_mm) <= s.tol_mm and np.nanmax(foam.track_deg) <= s.tol_deg
+    sil = solve_maze(spec.with_alpha(0.0), path, s)
+    # only the segment across the rod needs the rod rotation
+    assert sil.segment_ok.tolist() == [True, False, True]
+
+
+def test_resume_after_interruption_gives_same_result(tmp_path):
+    spec, grid = StandInSpec(), star_grid(**SMALL)
+    settings = WorkspaceSettings(continuity=False)
+    full = explore_workspace(spec, grid, settings)
+
+    class Stop(Exception):
+        pass
+
+    def interrupt(desc, done, total):
+        if desc == "workspace rays" and done >= 6:
+            raise Stop
+
+    cache = UnitCache(tmp_path / "units")
+    with pytest.raises(Stop):
+        explore_workspace(spec, grid, settings, cache=cache, progress=interrupt)
+    stored = len(list((tmp_path / "units").glob("*.pkl")))
+    assert 0 < stored < len(grid.directions)
+    seen = []
+    again = explore_workspace(spec, grid, settings, cache=UnitCache(tmp_path / "units"),
+                              progress=lambda d, i, n: seen.append(i))
+    assert seen[0] == stored  # the finished units were not recomputed
+    assert np.array_equal(again.cls, full.cls)
+    assert np.array_equal(again.records.motors_deg, full.records.motors_deg, equal_nan=True)
+
+
+def test_process_pool_equals_serial():
+    spec, grid = StandInSpec(), star_grid(n_azimuth=4, n_elevation=1, n_steps=5)
+    a = explore_workspace(spec, grid, WorkspaceSettings(substeps=1))
+    b = explore_workspace(spec, grid, WorkspaceSettings(substeps=1), executor=Executor(workers=2))
+    assert np.array_equal(a.cls, b.cls) and np.array_equal(a.component, b.component)
+    assert np.array_equal(a.records.error_mm, b.records.error_mm, equal_nan=True)

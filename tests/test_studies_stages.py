@@ -1,0 +1,218 @@
+"""The study stages end to end through the pipeline runner (stand-in robot, and a coarse FEM robot)."""
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from metasheet.errors import StageError
+from metasheet.pipeline.config import load_pipeline
+from metasheet.pipeline.runner import run_pipeline
+
+GRID = """n_azimuth = 6
+n_elevation = 3
+n_steps = 6
+extent_axial = 40
+extent_lateral = 50
+"""
+
+STANDIN = f"""[pipeline]
+name = "st"
+stages = ["workspace", "ranges", "anisotropy", "maze", "report"]
+[workspace]
+model = "standin"
+substeps = 2
+{GRID}
+[ranges]
+model = "standin"
+ranges = [[0, 90], [10, 80], [20, 70]]
+{GRID}
+[anisotropy]
+model = "standin"
+n_alpha = 4
+[maze]
+model = "standin"
+path = [[0, 0], [20, 0], [20, 15], [0, 0]]
+"""
+
+
+def project(tmp_path: Path, text: str, name: str) -> Path:
+    (tmp_path / "cells").mkdir(exist_ok=True)
+    (tmp_path / "pipelines").mkdir(exist_ok=True)
+    p = tmp_path / "pipelines" / f"{name}.toml"
+    p.write_text(text)
+    return p
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def non_blank_png(path: Path) -> None:
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(path)
+    assert img.shape[0] > 200 and img.shape[1] > 200
+    assert img[..., :3].std() > 0.05  # not a flat picture
+
+
+@pytest.fixture(scope="module")
+def standin_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("st")
+    run_pipeline(load_pipeline(project(root, STANDIN, "st")))
+    return root / "outputs" / "st"
+
+
+def test_stage_outputs_written_and_pictures_non_blank(standin_run):
+    for stage, files in {"workspace": ("workspace.csv", "workspace.vtp", "workspace.png"),
+                         "ranges": ("ranges.csv", "ranges.png"), "anisotropy": ("anisotropy.csv", "anisotropy.png"),
+                         "maze": ("maze.csv", "maze_silicone.csv", "maze.png"), "report": ("report.md",)}.items():
+        for f in files:
+            assert (standin_run / stage / f).stat().st_size > 0, f
+    for png in standin_run.glob("*/*.png"):
+        non_blank_png(png)
+    assert not list(standin_run.glob(".*.units"))  # the resume cache is dropped after success
+
+
+def test_workspace_csv_classes_match_errors(standin_run):
+    rows = read_csv(standin_run / "workspace" / "workspace.csv")
+    assert len(rows) == 20 * 4  # 20 rays x 4 of 6 steps (t >= 0.35; no multiple of 3 below)
+    for r in rows:
+        reached = r["error_mm"] != "nan" and float(r["error_mm"]) <= 1.0
+        reached = reached and r["converged"] == "1"
+        assert int(r["reached"]) == int(reached)
+        if not reached:
+            assert r["class"] == "-1" and r["component"] == "-1"
+            continue
+        n_ok = 0
+        for ax in "xyz":
+            ok = all(float(r[f"rot{s}{ax}_error_deg"]) <= 2.0 and float(r[f"rot{s}{ax}_error_mm"]) <= 1.0
+                     for s in "+-")
+            assert int(r[f"rot_{ax}_ok"]) == int(ok)
+            n_ok += ok
+        assert int(r["class"]) == n_ok
+    import pyvista as pv
+
+    cloud = pv.read(standin_run / "workspace" / "workspace.vtp")
+    assert cloud.n_points == len(rows)
+    assert np.array_equal(cloud.point_data["class"], [int(r["class"]) for r in rows])
+
+
+def test_report_labels_figures_and_links_pictures(standin_run):
+    text = (standin_run / "report" / "report.md").read_text()
+    for label in ("Fig. 5", "Fig. 6", "Fig. 7", "Maze", "Differences from the paper", "stand-in"):
+        assert label in text
+    for pic in ("workspace.png", "ranges.png", "anisotropy.png", "maze.png"):
+        assert f"]({pic})" in text and (standin_run / "report" / pic).exists()
+
+
+def test_maze_and_anisotropy_csv(standin_run):
+    rows = read_csv(standin_run / "maze" / "maze.csv")
+    q = np.array([[float(r[f"motor{k}_deg"]) for k in range(6)] for r in rows])
+    assert q.min() >= 0 and q.max() <= 90
+    assert list(rows[0])[:7] == ["time_s"] + [f"motor{k}_deg" for k in range(6)]
+    a = read_csv(standin_run / "anisotropy" / "anisotropy.csv")
+    assert float(a[0]["alpha_percent"]) == 0 and abs(float(a[0]["push_rod_rotation_deg"])) < 1e-9
+    assert abs(float(a[-1]["push_rod_rotation_deg"])) > 1.0
+
+
+def test_fresh_run_is_byte_identical(standin_run, tmp_path):
+    out = run_pipeline(load_pipeline(project(tmp_path, STANDIN, "st")))
+    assert all(o.status == "ran" for o in out)
+    for f in ("workspace/workspace.csv", "ranges/ranges.csv", "maze/maze.csv", "anisotropy/anisotropy.csv",
+              "workspace/workspace.png"):
+        assert (tmp_path / "outputs" / "st" / f).read_bytes() == (standin_run / f).read_bytes(), f
+
+
+def test_interrupted_stage_resumes(tmp_path, standin_run):
+    text = STANDIN.replace('stages = ["workspace", "ranges", "anisotropy", "maze", "report"]', 'stages = ["workspace"]')
+    pipe = load_pipeline(project(tmp_path, text, "st"))
+
+    def factory(stage):
+        def update(desc, done, total):
+            if desc == "workspace rays" and done >= 10:
+                raise KeyboardInterrupt
+
+        return update
+
+    with pytest.raises(KeyboardInterrupt):
+        run_pipeline(pipe, progress_factory=factory)
+    units = tmp_path / "outputs" / "st" / ".workspace.units"
+    stored = len(list(units.glob("*.pkl")))
+    assert 0 < stored < 20
+    seen = []
+    run_pipeline(pipe, progress_factory=lambda s: (lambda d, i, n: seen.append((d, i))))
+    assert seen[0] == ("workspace rays", stored)  # the finished rays were loaded, not recomputed
+    a = (tmp_path / "outputs" / "st" / "workspace" / "workspace.csv").read_bytes()
+    assert a == (standin_run / "workspace" / "workspace.csv").read_bytes()
+
+
+def test_robot_model_needs_orient(tmp_path):
+    text = '[pipeline]\nname = "bad"\nstages = ["anisotropy"]\n[anisotropy]\nmodel = "robot"\n'
+    with pytest.raises(StageError, match="orient"):
+        run_pipeline(load_pipeline(project(tmp_path, text, "bad")))
+
+
+ROBOT = """[pipeline]
+name = "rb"
+stages = ["material", "orient", "anisotropy", "maze", "report"]
+[material]
+source = "config"
+[orient]
+mesh_size = 14
+[anisotropy]
+model = "robot"
+n_alpha = 3
+servo_radius = 71.6
+[maze]
+model = "robot"
+servo_radius = 71.6
+path = [[0, 0], [10, 0], [10, 10]]
+tilt_deg = 5
+dt = 0.5
+ramp_s = 0.5
+speed = 10
+"""
+
+
+def test_stages_on_coarse_fem_robot(tmp_path):
+    run_pipeline(load_pipeline(project(tmp_path, ROBOT, "rb")))
+    out = tmp_path / "outputs" / "rb"
+    a = read_csv(out / "anisotropy" / "anisotropy.csv")
+    rot = np.array([abs(float(r["push_rod_rotation_deg"])) for r in a])
+    assert rot[0] < 0.03 * rot[-1] and np.all(np.diff(rot) > 0)
+    m = read_csv(out / "maze" / "maze.csv")
+    q = np.array([[float(r[f"motor{k}_deg"]) for k in range(6)] for r in m])
+    assert q.min() >= 0 and q.max() <= 90
+    assert max(float(r["track_mm"]) for r in m) <= 1.0
+    s = read_csv(out / "maze" / "maze_silicone.csv")
+    held = [r for r in s if r["hold"] == "1" and r["segment"] == "1"]
+    assert held and not all(r["reached"] == "1" for r in held)  # silicone cannot tilt across the rod
+    non_blank_png(out / "maze" / "maze.png")
+    assert "Fig. 7" in (out / "report" / "report.md").read_text()
+
+
+def test_bad_study_params_name_the_field(tmp_path):
+    from metasheet.errors import ConfigError
+
+    text = '[pipeline]\nname = "bad"\nstages = ["workspace"]\n[workspace]\nmodel = "standin"\nn_steps = 0\n'
+    with pytest.raises(ConfigError, match="n_steps"):
+        load_pipeline(project(tmp_path, text, "bad"))
+
+
+def test_report_lists_differences_from_the_numbers():
+    from metasheet.studies.report import build_report
+
+    ranges = {"reachable": {"0-90": 10, "20-70": 12}, "nested": False,
+              "violations": [{"wide": "0-90", "narrow": "20-70", "points": 2}], "model": "robot"}
+    maze = {"segments": 2, "samples": 10, "duration_s": 2.0, "foam_impossible_segments": [1],
+            "silicone_impossible_segments": [], "motor_min_deg": 10.0, "motor_max_deg": 80.0,
+            "within_motor_limits": True, "max_track_mm": 0.1, "max_track_deg": 0.1, "model": "robot"}
+    text = build_report({"ranges": ranges, "maze": maze}, {"ranges": "ranges.png"})
+    diffs = text.split("## Differences from the paper")[1]
+    assert "do not nest" in diffs and "infeasible even with the foam" in diffs and "silicone sheets solved" in diffs
+    assert "stand-in" not in diffs
+    clean = dict(ranges, nested=True, violations=[])
+    assert "none found" in build_report({"ranges": clean}, {}).split("## Differences from the paper")[1]
