@@ -22,10 +22,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .conventions import MANDEL_SCALE
+from .conventions import VOIGT_PAIRS
 from .errors import ConfigError
-
-_MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)
+from .voigt import (  # noqa: F401  (re-exported: the rotations belong to the material API)
+    MANDEL as _MANDEL,
+    frames_from_axes,
+    mandel_rotation,
+    rotate_stiffness,
+    stiffness_along,
+)
 
 
 def _finite_positive(name: str, value: float) -> float:
@@ -206,85 +211,6 @@ class TransverseFit:
     C_fit: np.ndarray  # (6, 6) the fitted tensor in the global frame [MPa]
 
 
-# --------------------------------------------------------------------------- rotations
-
-
-def _symmetric_basis() -> np.ndarray:
-    """(6, 3, 3) orthonormal Mandel basis of symmetric tensors, Voigt order."""
-    B = np.zeros((6, 3, 3))
-    r = 1.0 / np.sqrt(2.0)
-    for I, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))):
-        if i == j:
-            B[I, i, i] = 1.0
-        else:
-            B[I, i, j] = B[I, j, i] = r
-    return B
-
-
-_BASIS = _symmetric_basis()
-
-
-def mandel_rotation(R: np.ndarray) -> np.ndarray:
-    """(n, 6, 6) orthogonal Mandel matrices of rotations ``R`` (n, 3, 3).
-
-    For a symmetric tensor ``s`` with Mandel vector ``m``, ``Q @ m`` is the Mandel
-    vector of ``R s R^T``.
-    """
-    R = np.asarray(R, float)
-    RB = np.einsum("nik,Jkl,njl->nJij", R, _BASIS, R, optimize=True)
-    return np.einsum("Iij,nJij->nIJ", _BASIS, RB, optimize=True)
-
-
-def frames_from_axes(axes: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotations whose third column is the unit vector ``axes`` (n, 3).
-
-    The first two columns complete a right-handed orthonormal frame; which one does
-    not matter for transverse isotropy.
-    """
-    a = np.asarray(axes, float)
-    a = a / np.linalg.norm(a, axis=1, keepdims=True)
-    # Cross with the global axis least aligned with a, for a well-conditioned e1.
-    helper = np.zeros_like(a)
-    helper[np.arange(len(a)), np.argmin(np.abs(a), axis=1)] = 1.0
-    e1 = np.cross(helper, a)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    e2 = np.cross(a, e1)
-    return np.stack([e1, e2, a], axis=2)
-
-
-def rotate_stiffness(C: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Rotate a Voigt (6, 6) tensor from the local frame to global frames.
-
-    Parameters
-    ----------
-    C : (6, 6) stiffness in the local frame [MPa], engineering-shear Voigt.
-    R : (n, 3, 3) rotations, columns = local axes expressed in global coordinates.
-
-    Returns
-    -------
-    (n, 6, 6) global Voigt stiffnesses [MPa].
-    """
-    Cm = np.asarray(C, float) * _MANDEL
-    Q = mandel_rotation(R)
-    Cg = np.einsum("nIK,KL,nJL->nIJ", Q, Cm, Q, optimize=True)
-    return Cg / _MANDEL
-
-
-def stiffness_along(C: np.ndarray, fibers: np.ndarray) -> np.ndarray:
-    """(n, 6, 6) global stiffness of a material whose local axis 3 follows ``fibers`` (n, 3).
-
-    A zero fibre is an error; fibres need not be unit length.
-    """
-    f = np.asarray(fibers, float)
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise ConfigError(f"fibers: shape is {f.shape} and should be (n, 3)")
-    norms = np.linalg.norm(f, axis=1)
-    if np.any(~np.isfinite(norms)) or np.any(norms < 1e-12):
-        bad = int(np.flatnonzero(~(norms >= 1e-12))[0])
-        raise ConfigError(f"fibers[{bad}]: {f[bad].tolist()}: must be a non-zero finite vector")
-    return rotate_stiffness(C, frames_from_axes(f))
-
-
 # --------------------------------------------------------------------------- fitting
 
 
@@ -360,22 +286,40 @@ def _sphere_grid(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
+def _invariant_axes(C: np.ndarray) -> list[np.ndarray]:
+    """Eigenvectors (3, 3) of the dilatational and Voigt second-order tensors of ``C``."""
+    C4 = np.zeros((3, 3, 3, 3))
+    for I, (i, j) in enumerate(VOIGT_PAIRS):
+        for J, (k, l) in enumerate(VOIGT_PAIRS):
+            for a, b in {(i, j), (j, i)}:
+                for c, d in {(k, l), (l, k)}:
+                    C4[a, b, c, d] = C[I, J]
+    dil = np.einsum("ijkk->ij", C4)
+    voi = np.einsum("ikjk->ij", C4)
+    return [np.linalg.eigh(dil)[1].T, np.linalg.eigh(voi)[1].T]
+
+
 def _fit_axis_search(C: np.ndarray) -> TransverseFit:
     Cm = C * _MANDEL
-    candidates = np.vstack([np.eye(3), _sphere_grid(400)])
-    errs = [_misfit_about(Cm, a)[0] for a in candidates]
-    best = candidates[int(np.argmin(errs))]
+    # The symmetry axis of a transverse-isotropic tensor is an eigenvector of its
+    # dilatational (C_ijkk) and Voigt (C_ikjk) tensors: exact candidates, plus a grid.
+    candidates = np.vstack([np.eye(3), *_invariant_axes(C), _sphere_grid(400)])
+    errs = np.array([_misfit_about(Cm, a)[0] for a in candidates])
 
     def f(angles):
         th, ph = angles
         a = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
         return _misfit_about(Cm, a)[0]
 
-    th0 = np.arccos(np.clip(best[2], -1, 1))
-    ph0 = np.arctan2(best[1], best[0])
-    res = minimize(f, [th0, ph0], method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-14})
-    th, ph = res.x
-    a = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    best_err, a = np.inf, candidates[0]
+    for start in candidates[np.argsort(errs)[:4]]:  # a few starts: the misfit has local minima
+        th0 = np.arccos(np.clip(start[2], -1, 1))
+        ph0 = np.arctan2(start[1], start[0])
+        res = minimize(f, [th0, ph0], method="Nelder-Mead", options={"xatol": 1e-10, "fatol": 1e-15})
+        if res.fun < best_err:
+            th, ph = res.x
+            best_err = res.fun
+            a = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
     # Snap to a coordinate axis when it is as good: cleaner numbers for users.
     for e in np.eye(3):
         if _misfit_about(Cm, e)[0] <= _misfit_about(Cm, a)[0] * (1 + 1e-9) + 1e-14:
