@@ -1,0 +1,31 @@
+"""Periodic unit cells: seeds, metrics, Voronoi foams as distance fields, voxels, checks.
+
+- :mod:`.seeds`: periodic seed samplers (uniform, jittered grid, Poisson disk) and images.
+- :mod:`.metrics`: stretched Euclidean and polyhedral (k-gon) distances.
+- :mod:`.foam`: :class:`Foam`, its level set :func:`foam_field`, :func:`voxelize`, and the
+  strut radius / wall thickness solver.
+- :mod:`.connectivity`: periodic connectivity and percolation (:func:`check_percolation`).
+- :mod:`.design`: the ``cells/*.toml`` designs and :func:`design_cell`.
+- :mod:`.surface`, :mod:`.tetmesh`: watertight surfaces and periodic tet meshes (imported
+  on use: they pull in trimesh and gmsh).
+"""
+
+from .connectivity import ConnectivityReport, check_percolation
+from .design import CellDesign, CellResult, design_cell, parse_design
+from .foam import Foam, foam_field, solve_thickness, voxelize
+from .metrics import PolyhedralMetric, StretchedMetric
+
+__all__ = [
+    "CellDesign",
+    "CellResult",
+    "ConnectivityReport",
+    "Foam",
+    "PolyhedralMetric",
+    "StretchedMetric",
+    "check_percolation",
+    "design_cell",
+    "foam_field",
+    "parse_design",
+    "solve_thickness",
+    "voxelize",
+]

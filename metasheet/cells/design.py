@@ -1,0 +1,355 @@
+"""Cell designs (the ``cells/*.toml`` catalogue) and :func:`design_cell`, which builds one.
+
+A design is a plain mapping (a parsed TOML file) validated into one of three frozen models,
+told apart by ``kind``:
+
+- ``foam``: a periodic Voronoi foam (:mod:`metasheet.cells.foam`) whose strut radius or
+  wall thickness is solved for a relative density;
+- ``laminate``: layers of isotropic materials stacked along ``axis`` (exact Backus
+  averages downstream);
+- ``solid``: the bulk base material.
+
+Units: lengths in mm, moduli in MPa, angles in degrees. ``axis`` is the longitudinal
+axis ``l`` numbered 1, 2, 3 (x, y, z) as in the paper; code works with 0-based indices.
+Reading the file is the stage's job (no file I/O here).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from ..errors import ConfigError, InfeasibleError
+from ..material import Isotropic
+from .connectivity import ConnectivityReport, check_percolation, keep_largest
+from .foam import Foam, SkeletonIndex, ThicknessSolution, foam_field, solve_thickness, voxel_centres
+from .measure import mean_chord_lengths
+from .metrics import PolyhedralMetric, StretchedMetric
+from .seeds import make_seeds
+
+Length = Annotated[float, Field(gt=0)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class MaterialSpec(_Model):
+    """An isotropic base material. ``E`` [MPa] > 0, ``nu`` [-] in (-1, 0.5)."""
+
+    name: str = "TPU NinjaFlex"
+    E: float = Field(12.0, gt=0)
+    nu: float = Field(0.3, gt=-1.0, lt=0.5)
+
+    def material(self) -> Isotropic:
+        return Isotropic(self.E, self.nu)
+
+
+class SeedSpec(_Model):
+    """Seed points: ``sampler`` uniform | jittered | poisson, ``count`` N, RNG ``seed``,
+    ``jitter`` [-] (jittered grid), ``min_distance`` [mm in the metric's scaled space]
+    (Poisson disk; default fills a quarter of the box with disks)."""
+
+    sampler: Literal["uniform", "jittered", "poisson"] = "poisson"
+    count: int = Field(64, ge=1, le=4096)
+    seed: int = Field(0, ge=0)
+    jitter: float = Field(0.5, ge=0.0, le=1.0)
+    min_distance: float | None = Field(None, gt=0)
+
+
+class StretchedSpec(_Model):
+    """:class:`~metasheet.cells.metrics.StretchedMetric`: ``stretch`` s >= 1 [-] and ``mode``
+    axial (cells elongated along the axis) | transverse (elongated across it)."""
+
+    kind: Literal["stretched"] = "stretched"
+    stretch: float = Field(1.0, ge=1.0, le=1000.0)
+    mode: Literal["axial", "transverse"] = "axial"
+
+    def build(self, axis: int) -> StretchedMetric:
+        return StretchedMetric(self.stretch, axis, self.mode)
+
+
+class PolyhedralSpec(_Model):
+    """:class:`~metasheet.cells.metrics.PolyhedralMetric`: ``k`` [-], ``height`` [-],
+    ``x_shrink`` [-], ``angle`` [deg]."""
+
+    kind: Literal["polyhedral"]
+    k: int = Field(6, ge=3, le=64)
+    height: float = Field(1.0, gt=0.0, le=1000.0)
+    x_shrink: float = Field(1.0, gt=0.0, le=1.0)
+    angle: float = Field(0.0, ge=-360.0, le=360.0)
+
+    def build(self, axis: int) -> PolyhedralMetric:
+        return PolyhedralMetric(self.k, self.height, self.x_shrink, self.angle, axis)
+
+
+class _CellBase(_Model):
+    name: str
+    description: str = ""
+    size: tuple[Length, Length, Length] = (10.0, 10.0, 10.0)  # [mm]
+    axis: int = Field(3, ge=1, le=3)
+    resolution: int = Field(64, ge=16, le=128)
+
+
+class FoamDesign(_CellBase):
+    """A periodic Voronoi foam; see ``cells/paper_foam.toml`` for every field documented."""
+
+    kind: Literal["foam"] = "foam"
+    topology: Literal["open", "closed"] = "open"
+    relative_density: float = Field(0.15, gt=0.0, lt=1.0)
+    tolerance: float = Field(0.005, gt=0.0, lt=1.0)
+    min_voxels: float = Field(2.0, ge=1.0, le=16.0)
+    max_island_fraction: float = Field(0.01, ge=0.0, le=1.0)
+    seeds: SeedSpec = SeedSpec()
+    metric: Annotated[StretchedSpec | PolyhedralSpec, Field(discriminator="kind")] = StretchedSpec()
+    material: MaterialSpec = MaterialSpec()
+
+
+class Layer(_Model):
+    """One laminate layer: its volume ``fraction`` [-] and its material."""
+
+    fraction: float = Field(gt=0.0, lt=1.0)
+    material: MaterialSpec
+
+
+class LaminateDesign(_CellBase):
+    """Layers stacked along ``axis`` (layer normal = axis), phases 1, 2, ... in order."""
+
+    kind: Literal["laminate"]
+    layers: list[Layer] = Field(min_length=2, max_length=8)
+
+
+class SolidDesign(_CellBase):
+    """The bulk base material filling the box (phase 1)."""
+
+    kind: Literal["solid"]
+    material: MaterialSpec = MaterialSpec()
+
+
+CellDesign = FoamDesign | LaminateDesign | SolidDesign
+_METRIC_KINDS = ("stretched", "polyhedral")
+_KINDS = {"foam": FoamDesign, "laminate": LaminateDesign, "solid": SolidDesign}
+
+
+def _config_error(err: ValidationError, prefix: str) -> ConfigError:
+    lines = []
+    for e in err.errors():
+        parts = [str(p) for p in e["loc"]]
+        # a discriminated union puts its tag in the path (metric.stretched.stretch): drop it
+        parts = [p for i, p in enumerate(parts) if not (i and parts[i - 1] == "metric" and p in _METRIC_KINDS)]
+        loc = ".".join(parts)
+        field = f"{prefix}.{loc}" if loc else prefix
+        value = e.get("input")
+        shown = "" if isinstance(value, dict) else f" {value!r}:"
+        lines.append(f"{field}:{shown} {e['msg']}")
+    return ConfigError("; ".join(lines))
+
+
+def parse_design(data: Mapping[str, Any], *, overrides: Mapping[str, Any] | None = None,
+                 source: str = "design") -> CellDesign:
+    """Validate a design mapping (a parsed ``cells/*.toml``), with optional overrides.
+
+    ``overrides`` may set ``resolution``, ``seed`` (the seeds' RNG seed) and
+    ``relative_density``; ``None`` values are ignored. Errors are :class:`ConfigError`
+    naming the field as ``{source}.field.subfield``.
+    """
+    data = dict(data)
+    kind = data.get("kind", "foam")
+    if kind not in _KINDS:
+        raise ConfigError(f"{source}.kind: {kind!r}: expected one of {', '.join(_KINDS)}")
+    for key, value in (overrides or {}).items():
+        if value is None:
+            continue
+        if key == "seed":
+            if kind != "foam":
+                raise ConfigError(f"seed: {value!r}: only foam designs have seeds (this is a {kind})")
+            data["seeds"] = {**dict(data.get("seeds", {})), "seed": value}
+        elif key == "relative_density":
+            if kind != "foam":
+                raise ConfigError(f"relative_density: {value!r}: only foam designs have one (this is a {kind})")
+            data[key] = value
+        elif key == "resolution":
+            data[key] = value
+        else:
+            raise ConfigError(f"overrides: {key!r}: expected resolution, seed or relative_density")
+    if isinstance(data.get("metric"), Mapping) and "kind" not in data["metric"]:
+        data["metric"] = {"kind": "stretched", **data["metric"]}
+    try:
+        return _KINDS[kind].model_validate(data)
+    except ValidationError as err:
+        raise _config_error(err, source) from None
+
+
+@dataclass(frozen=True, eq=False)
+class CellResult:
+    """A built unit cell.
+
+    Attributes
+    ----------
+    design : the validated design.
+    phases : (n, n, n) uint8, 0 void, 1.. material phases; ``[i, j, k]`` along x, y, z.
+    size : (3,) [mm] the periodic box.
+    axis : longitudinal axis index (0, 1, 2).
+    materials : phase -> :class:`~metasheet.material.Isotropic`.
+    relative_density : solid voxels / all voxels [-].
+    foam : the :class:`Foam` (foam designs), else None.
+    solution : the thickness solve (foam designs), else None.
+    connectivity : report of the final phases.
+    removed_voxels : solid voxels of small islands dropped after voxelisation.
+    chords : (3,) mean void chord lengths along x, y, z [mm] (NaN without void).
+    layer_fractions : achieved volume fraction of each phase (laminates), else ().
+    """
+
+    design: CellDesign
+    phases: np.ndarray
+    size: np.ndarray
+    axis: int
+    materials: dict[int, Isotropic]
+    relative_density: float
+    foam: Foam | None
+    solution: ThicknessSolution | None
+    connectivity: ConnectivityReport
+    removed_voxels: int = 0
+    chords: np.ndarray | None = None
+    layer_fractions: tuple[float, ...] = ()
+
+    @property
+    def resolution(self) -> int:
+        return int(self.phases.shape[0])
+
+    @property
+    def axis_vector(self) -> np.ndarray:
+        """(3,) unit vector of the longitudinal axis."""
+        return np.eye(3)[self.axis]
+
+    @property
+    def field(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """The foam's level set (:func:`foam_field`), None for laminates and solids."""
+        return None if self.foam is None else foam_field(self.foam)
+
+    def summary(self) -> dict:
+        """JSON-able description (no arrays): what ``cell.json`` holds besides the design."""
+        out: dict[str, Any] = {
+            "name": self.design.name,
+            "kind": self.design.kind,
+            "size_mm": [float(v) for v in self.size],
+            "axis": int(self.axis) + 1,
+            "axis_vector": self.axis_vector.tolist(),
+            "resolution": self.resolution,
+            "voxel_mm": [float(v) for v in self.size / self.resolution],
+            "relative_density": float(self.relative_density),
+            "materials": {str(k): {"E": m.E, "nu": m.nu} for k, m in sorted(self.materials.items())},
+            "connectivity": self.connectivity.to_dict(),
+        }
+        if self.foam is not None and self.solution is not None:
+            s = self.solution
+            key = "strut_radius_mm" if self.foam.topology == "open" else "wall_thickness_mm"
+            out.update({
+                "topology": self.foam.topology,
+                key: s.thickness,
+                "target_relative_density": s.target,
+                "volume_estimate": s.volume_estimate,
+                "reachable_relative_density": list(s.reachable),
+                "removed_island_voxels": int(self.removed_voxels),
+                "seed_count": int(len(self.foam.seeds)),
+                "metric": self.foam.metric.describe(),
+                "mean_void_chord_mm": [float(v) for v in self.chords],
+            })
+        if self.layer_fractions:
+            out["layer_fractions"] = list(self.layer_fractions)
+        return out
+
+
+def design_cell(design: CellDesign, resolution: int | None = None) -> CellResult:
+    """Build the unit cell of ``design`` on an ``n^3`` voxel grid.
+
+    Parameters
+    ----------
+    design : a validated design (:func:`parse_design`).
+    resolution : voxels per side; default ``design.resolution``.
+
+    Raises
+    ------
+    InfeasibleError : the density is out of reach at this resolution, or the foam does not
+        hold together (several large pieces) or does not percolate along x, y and z.
+    """
+    n = design.resolution if resolution is None else int(resolution)
+    if not 4 <= n <= 512:
+        raise ConfigError(f"resolution: {resolution!r}: expected an integer in [4, 512]")
+    size = np.asarray(design.size, dtype=float)
+    axis = design.axis - 1
+    if isinstance(design, FoamDesign):
+        return _design_foam(design, n, size, axis)
+    if isinstance(design, LaminateDesign):
+        return _design_laminate(design, n, size, axis)
+    phases = np.ones((n, n, n), dtype=np.uint8)
+    return CellResult(design, phases, size, axis, {1: design.material.material()}, 1.0, None, None,
+                      check_percolation(phases))
+
+
+def _design_foam(design: FoamDesign, n: int, size: np.ndarray, axis: int) -> CellResult:
+    metric = design.metric.build(axis)
+    sd = design.seeds
+    seeds = make_seeds(sd.sampler, sd.count, size, sd.seed, scale=metric.scale, jitter=sd.jitter,
+                       min_distance=sd.min_distance)
+    sk = SkeletonIndex(seeds, size, metric).distances(voxel_centres(size, n))
+    dist = sk.strut if design.topology == "open" else sk.wall
+    sol = solve_thickness(seeds, size, metric, design.topology, design.relative_density, n,
+                          min_voxels=design.min_voxels, distances=dist)
+    foam = Foam(seeds, size, metric, design.topology, sol.thickness, axis)
+    offset = foam.thickness if foam.topology == "open" else 0.5 * foam.thickness
+    phases = ((dist - offset) < 0.0).astype(np.uint8).reshape(n, n, n)  # == voxelize(foam, n)
+    where = f"design {design.name!r} ({design.topology}-cell, resolution {n})"
+    report = check_percolation(phases)
+    removed = 0
+    if report.components > 1:
+        if 1.0 - report.largest_fraction > design.max_island_fraction:
+            raise InfeasibleError(
+                f"relative_density: {design.relative_density:g}: {where}: {'; '.join(report.problems())}"
+                f" (more than max_island_fraction = {design.max_island_fraction:g}); raise "
+                "relative_density or resolution"
+            )
+        phases, removed = keep_largest(phases)
+        report = check_percolation(phases)
+    if not report.ok:
+        raise InfeasibleError(
+            f"relative_density: {design.relative_density:g}: {where}: {'; '.join(report.problems())};"
+            " raise relative_density or resolution, or lower the stretch"
+        )
+    rho = float(np.count_nonzero(phases)) / phases.size
+    if abs(rho - design.relative_density) > design.tolerance:
+        raise InfeasibleError(
+            f"relative_density: {design.relative_density:g}: {where}: reached {rho:.4f}, outside "
+            f"tolerance {design.tolerance:g} after dropping {removed} island voxels"
+        )
+    return CellResult(
+        design=design, phases=phases, size=size, axis=axis,
+        materials={1: design.material.material()}, relative_density=rho, foam=foam, solution=sol,
+        connectivity=report, removed_voxels=removed, chords=mean_chord_lengths(phases == 0, size),
+    )
+
+
+def _design_laminate(design: LaminateDesign, n: int, size: np.ndarray, axis: int) -> CellResult:
+    fractions = np.array([layer.fraction for layer in design.layers])
+    if abs(fractions.sum() - 1.0) > 1e-9:
+        raise ConfigError(
+            f"design.layers: fractions {fractions.tolist()} sum to {fractions.sum():g}: they must sum to 1"
+        )
+    bounds = np.rint(np.concatenate([[0.0], np.cumsum(fractions)]) * n).astype(int)
+    counts = np.diff(bounds)
+    if np.any(counts < 1):
+        raise ConfigError(
+            f"design.layers: fractions {fractions.tolist()}: a layer gets no voxel at resolution {n}; "
+            "raise the resolution"
+        )
+    profile = np.repeat(np.arange(1, len(counts) + 1, dtype=np.uint8), counts)
+    shape = [1, 1, 1]
+    shape[axis] = n
+    phases = np.broadcast_to(profile.reshape(shape), (n, n, n)).copy()
+    materials = {i + 1: layer.material.material() for i, layer in enumerate(design.layers)}
+    return CellResult(design, phases, size, axis, materials, 1.0, None, None, check_percolation(phases),
+                      layer_fractions=tuple(float(c) / n for c in counts))

@@ -1,0 +1,192 @@
+"""Voronoi foams as distance fields: exactness, metrics, density solve (issue 3, items 2-4)."""
+
+import numpy as np
+import pytest
+
+from metasheet.cells.foam import (
+    Foam,
+    SkeletonIndex,
+    cell_labels,
+    foam_field,
+    solve_thickness,
+    voxel_centres,
+    voxelize,
+)
+from metasheet.cells.measure import mean_chord_lengths
+from metasheet.cells.metrics import PolyhedralMetric, StretchedMetric
+from metasheet.cells.seeds import grid_seeds, poisson_disk_seeds, uniform_seeds
+from metasheet.errors import ConfigError, InfeasibleError
+
+CUBE = np.array([6.0, 6.0, 6.0])
+
+
+def _lattice_distances(p, spacing):
+    """Distances to the faces and edges of the simple cubic Voronoi lattice (cubes of side h
+    with faces at multiples of h)."""
+    q = np.mod(p, spacing)
+    q = np.sort(np.minimum(q, spacing - q), axis=1)  # per-axis distance to the nearest face plane
+    return q[:, 0], np.hypot(q[:, 0], q[:, 1])
+
+
+@pytest.mark.parametrize("topology", ["open", "closed"])
+def test_one_seed_per_cubic_site_gives_the_simple_cubic_lattice_exactly(topology):
+    h = 2.0
+    seeds = grid_seeds((3, 3, 3), CUBE)  # centres of 2 mm cubes: Voronoi cells are those cubes
+    foam = Foam(seeds, CUBE, StretchedMetric(), topology, 0.3)
+    p = np.random.default_rng(1).random((5000, 3)) * CUBE
+    wall, strut = _lattice_distances(p, h)
+    expected = strut - 0.3 if topology == "open" else wall - 0.15
+    assert np.allclose(foam_field(foam)(p), expected, atol=1e-12)
+    # struts run along the axes: the voxel solid is exactly the analytic one
+    n = 30
+    c = voxel_centres(CUBE, n)
+    wall, strut = _lattice_distances(c, h)
+    analytic = (strut < 0.3) if topology == "open" else (wall < 0.15)
+    assert np.array_equal(voxelize(foam, n).ravel().astype(bool), analytic)
+
+
+def test_one_seed_lattice_with_images_only():
+    # a single seed: all its neighbours are its own periodic images
+    foam = Foam(np.array([[1.0, 1.0, 1.0]]), [2.0, 2.0, 2.0], StretchedMetric(), "open", 0.2)
+    p = np.random.default_rng(2).random((2000, 3)) * 2.0
+    _, strut = _lattice_distances(p, 2.0)  # the cell is the box: faces at multiples of 2
+    assert np.allclose(foam_field(foam)(p), strut - 0.2, atol=1e-12)
+
+
+def test_field_has_unit_slope_near_the_solid():
+    foam = Foam(uniform_seeds(20, CUBE, 4), CUBE, StretchedMetric(1.5, 2, "axial"), "open", 0.3)
+    f = foam_field(foam)
+    rng = np.random.default_rng(3)
+    p = rng.random((20000, 3)) * CUBE
+    v = f(p)
+    band = p[np.abs(v) < 0.15][:500]
+    eps = 1e-5
+    grad = np.stack([(f(band + eps * e) - f(band - eps * e)) / (2 * eps) for e in np.eye(3)], axis=1)
+    slope = np.linalg.norm(grad, axis=1)
+    assert np.median(np.abs(slope - 1.0)) < 1e-6
+    assert np.mean(np.abs(slope - 1.0) < 1e-3) > 0.97
+
+
+@pytest.mark.parametrize("topology", ["open", "closed"])
+def test_field_is_continuous_where_it_decides_the_solid(topology):
+    seeds = uniform_seeds(20, CUBE, 5)
+    foam = Foam(seeds, CUBE, StretchedMetric(2.0, 2, "transverse"), topology, 0.3)
+    f = foam_field(foam)
+    rng = np.random.default_rng(6)
+    p = rng.random((50000, 3)) * CUBE
+    d = rng.normal(size=p.shape)
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    step = 5e-3
+    a, b = f(p), f(p + step * d)
+    slope = np.abs(a - b) / step
+    cells = SkeletonIndex(seeds, CUBE, foam.metric).distances(np.vstack([p, p + step * d])).cell
+    crossing = cells[: len(p)] != cells[len(p):]
+    near = np.minimum(a, b) < 0.0  # one end in the solid
+    assert (crossing & near).sum() > 20  # the pairs do cross cell walls there
+    assert slope[crossing & near].max() <= 1.0 + 1e-6  # across walls: 1-Lipschitz
+    inside = np.maximum(a, b) < 0.0
+    assert slope[inside].max() <= 1.0 + 1e-6  # within the solid
+    # the field never jumps across its zero level: the surface has no cracks
+    assert not np.any((np.sign(a) != np.sign(b)) & (slope > 1.0 + 1e-6))
+
+
+@pytest.mark.parametrize("topology,target", [("open", 0.15), ("closed", 0.35)])
+def test_density_solver_hits_its_target(topology, target):
+    seeds = poisson_disk_seeds(16, CUBE, 1)
+    n = 48
+    sol = solve_thickness(seeds, CUBE, StretchedMetric(), topology, target, n)
+    assert abs(sol.relative_density - target) < 1.0 / n**3 + 1e-12
+    foam = Foam(seeds, CUBE, StretchedMetric(), topology, sol.thickness)
+    assert voxelize(foam, n).mean() == pytest.approx(sol.relative_density, abs=1e-12)
+    # the sub-voxel volume estimate agrees with the voxel count
+    assert sol.volume_estimate == pytest.approx(target, rel=0.03)
+
+
+def test_unreachable_density_names_the_field_and_the_range():
+    seeds = poisson_disk_seeds(64, CUBE, 1)
+    with pytest.raises(InfeasibleError, match=r"relative_density: 0.01: .*reachable range is \[0\.\d+, "):
+        solve_thickness(seeds, CUBE, StretchedMetric(), "open", 0.01, 24)
+    with pytest.raises(ConfigError, match="relative_density"):
+        solve_thickness(seeds, CUBE, StretchedMetric(), "open", 1.2, 24)
+
+
+def _label_chords(labels, size):
+    n = np.array(labels.shape)
+    return np.array([labels.size * size[a] / n[a] / (labels != np.roll(labels, 1, axis=a)).sum() for a in range(3)])
+
+
+@pytest.mark.parametrize("s,mode", [(2.0, "axial"), (3.0, "axial"), (2.0, "transverse")])
+def test_stretching_by_s_scales_cell_extents_by_s(s, mode):
+    size = np.array([10.0, 10.0, 10.0])
+    metric = StretchedMetric(s, 2, mode)
+    seeds = poisson_disk_seeds(100, size, 0, scale=metric.scale)
+    expected = s if mode == "axial" else 1.0 / s  # extent along z over extent across
+    # cells themselves: mean intercept of the Voronoi cells along each axis
+    c = _label_chords(cell_labels(seeds, size, metric, 48), size)
+    assert c[2] / c[:2].mean() == pytest.approx(expected, rel=0.05)
+    assert c[0] == pytest.approx(c[1], rel=0.05)
+    # the foam's geometry: void chords of a thin-walled closed foam
+    sol = solve_thickness(seeds, size, metric, "closed", 0.35, 48, min_voxels=1.0)
+    phases = voxelize(Foam(seeds, size, metric, "closed", sol.thickness), 48)
+    v = mean_chord_lengths(phases == 0, size)
+    assert v[2] / v[:2].mean() == pytest.approx(expected, rel=0.12)
+
+
+def test_isotropic_foam_has_equal_chords():
+    size = np.array([10.0, 10.0, 10.0])
+    seeds = poisson_disk_seeds(100, size, 0)
+    c = _label_chords(cell_labels(seeds, size, StretchedMetric(), 48), size)
+    assert c.max() / c.min() < 1.05
+
+
+def test_polyhedral_gauge_is_a_norm_within_its_bounds():
+    m = PolyhedralMetric(k=6, height=2.0, x_shrink=0.7, angle=10.0, axis=1)
+    rng = np.random.default_rng(0)
+    u, v = rng.normal(size=(2, 5000, 3))
+    assert np.all(m.distance(u + v) <= m.distance(u) + m.distance(v) + 1e-12)
+    assert np.allclose(m.distance(3.0 * u), 3.0 * m.distance(u))
+    w = np.linalg.norm(u * m.scale, axis=1)
+    assert np.all(m.distance(u) >= m.lower * w - 1e-12)
+    assert np.all(m.distance(u) <= m.upper * w + 1e-12)
+    # the gradient is the active facet: N(v) = grad . v (positively homogeneous of degree 1)
+    assert np.allclose(np.einsum("ij,ij->i", m.gradient(u), u), m.distance(u))
+
+
+def test_polyhedral_walls_are_parallel_to_the_axis():
+    # seeds in one z-plane and a tall prism: the foam is a k-gon Voronoi pattern extruded along z
+    size = np.array([8.0, 8.0, 2.0])
+    seeds = uniform_seeds(12, size, 2) * [1.0, 1.0, 0.0] + [0.0, 0.0, 1.0]
+    foam = Foam(seeds, size, PolyhedralMetric(k=6, height=50.0), "closed", 0.2)
+    f = foam_field(foam)
+    xy = np.random.default_rng(1).random((1000, 2)) * size[:2]
+    # (right above and below a seed, within height / |z - z_seed| of it, a horizontal wall
+    # parts it from its own periodic image along z: leave those points out)
+    d = xy[:, None, :] - seeds[None, :, :2]
+    d -= size[:2] * np.round(d / size[:2])
+    xy = xy[np.linalg.norm(d, axis=2).min(axis=1) > 0.1]
+    values = [f(np.column_stack([xy, np.full(len(xy), z)])) for z in (0.1, 0.7, 1.3, 1.9)]
+    for v in values[1:]:
+        assert np.allclose(v, values[0], atol=1e-9)
+
+
+def test_polyhedral_foam_solves_and_matches_its_voxelisation():
+    size = np.array([8.0, 8.0, 8.0])
+    m = PolyhedralMetric(k=5, height=1.5, x_shrink=0.8)
+    seeds = poisson_disk_seeds(16, size, 4, scale=m.scale)
+    sol = solve_thickness(seeds, size, m, "open", 0.2, 32)
+    assert abs(sol.relative_density - 0.2) < 1e-4
+    phases = voxelize(Foam(seeds, size, m, "open", sol.thickness), 32)
+    assert phases.mean() == pytest.approx(sol.relative_density, abs=1e-12)
+
+
+def test_foam_validates_its_fields():
+    with pytest.raises(ConfigError, match="topology"):
+        Foam(np.zeros((1, 3)), CUBE, StretchedMetric(), "foamy", 0.1)
+    with pytest.raises(ConfigError, match="thickness"):
+        Foam(np.zeros((1, 3)), CUBE, StretchedMetric(), "open", -0.1)
+    with pytest.raises(ConfigError, match="seeds"):
+        Foam(np.zeros((4, 2)), CUBE, StretchedMetric(), "open", 0.1)
+    with pytest.raises(ConfigError, match="metric.stretch"):
+        StretchedMetric(0.5)
+    with pytest.raises(ConfigError, match="metric.x_shrink"):
+        PolyhedralMetric(x_shrink=1.5)
