@@ -27,8 +27,12 @@ from ..errors import ConfigError, ConvergenceError
 
 #: Largest system solved by SuperLU under "auto" (splu fill-in grows fast in 3D).
 DIRECT_MAX_DOF = 12_000
-#: Largest system solved by CHOLMOD under "auto" (AMG wins above, see SOLVERS.md).
-CHOLMOD_MAX_DOF = 150_000
+#: Largest system solved by CHOLMOD under "auto". Measured on the open-cell 15 % foam
+#: (benchmarks/bench_homogenize.py, 2 shared cores, 1 BLAS thread): CHOLMOD 8 s at 105k
+#: dofs, 12 s / 1.5 GB at 215k, 103 s / 4.5 GB at 614k, where this AMG-CG needs 40-100
+#: iterations per load case (thin voxel struts): 38 s, 57 s, 310 s (224k, 3:1 voxels).
+#: Above, the factor's memory (~ n^(4/3)) would pass 6 GB: AMG.
+CHOLMOD_MAX_DOF = 700_000
 SOLVERS = ("auto", "direct", "amg")
 
 try:  # optional: needs SuiteSparse from the system (SOLVERS.md)
@@ -147,6 +151,14 @@ def _amg_cg(A, B, rtol, coords, maxiter, t0):
     nullspace = rigid_body_modes(coords)
     # A small coarsest level: pyamg's default (500 unknowns, dense pinv) costs more per
     # V-cycle than the fine level on elasticity; splu on <= 100 unknowns is negligible.
+    # Variants measured on 15 % voxel foams (28k-105k dofs, iterations per load case):
+    # BSR 3x3 input: same iterations, 1.5-3x slower V-cycles; Jacobi x2 / Chebyshev 2 /
+    # forward-backward GS smoothers: 30-110 % more iterations, no faster overall;
+    # strength theta 0.1 / 0.25 / "evolution": fewer iterations but operator complexity
+    # 7-27 instead of 1.3 (3-40x slower); rigid-body modes unwrapped per aggregate across
+    # the periodic seam: no change; pyamg's own CG: same time as scipy's. Kept: CSR, block
+    # Gauss-Seidel, theta 0, scipy CG. The 40-100 iterations come from the thin voxel
+    # struts (edge-connected voxels act as soft hinges), not from the set-up.
     ml = pyamg.smoothed_aggregation_solver(A, B=nullspace, symmetry="hermitian", max_coarse=100,
                                            coarse_solver="splu")
     t1 = time.perf_counter()
