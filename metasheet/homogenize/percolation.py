@@ -12,17 +12,12 @@ occur for cells that repeat with the box's period).
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy import ndimage
-from scipy.sparse.csgraph import connected_components
 
+from ..cells.connectivity import periodic_labels
 from ..errors import InfeasibleError
 
-_FACES = ndimage.generate_binary_structure(3, 1)
-
-
 def periodic_label(mask: np.ndarray) -> tuple[np.ndarray, int]:
-    """Face-connected parts of a periodic boolean grid.
+    """Face-connected parts of a periodic boolean grid (the cell stage's labelling).
 
     Parameters
     ----------
@@ -33,25 +28,8 @@ def periodic_label(mask: np.ndarray) -> tuple[np.ndarray, int]:
     labels : (nx, ny, nz) int, 0 outside ``mask``, 1..n inside.
     n : number of parts.
     """
-    lab, n = ndimage.label(mask, structure=_FACES)
-    if n == 0:
-        return lab, 0
-    rows, cols = [], []
-    for d in range(3):
-        a = np.take(lab, 0, axis=d).ravel()
-        b = np.take(lab, -1, axis=d).ravel()
-        both = (a > 0) & (b > 0)
-        rows.append(a[both])
-        cols.append(b[both])
-    r = np.concatenate(rows + [np.arange(1, n + 1)])
-    c = np.concatenate(cols + [np.arange(1, n + 1)])
-    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(n + 1, n + 1))
-    _, merged = connected_components(G, directed=False)
-    # relabel 1..k in order of first appearance, void stays 0
-    roots = merged[1:]
-    uniq, relabel = np.unique(roots, return_inverse=True)
-    table = np.concatenate([[0], relabel + 1])
-    return table[lab], len(uniq)
+    labels, n, _, _ = periodic_labels(mask)
+    return labels, n
 
 
 def percolating_solid(solid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
