@@ -32,6 +32,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fem.hex8 import strain_operator
+from ..fem.tet4 import tet4_gradients
+
 try:  # numba is a declared dependency; the numpy path stays as a fallback and reference.
     import numba
 
@@ -44,7 +47,7 @@ except ImportError:  # pragma: no cover
 
 
 def shape_gradients(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rest-state gradients of the four linear shape functions.
+    """Rest-state gradients of the four linear shape functions (shared P1 kernel, :mod:`metasheet.fem.tet4`).
 
     Parameters
     ----------
@@ -55,38 +58,16 @@ def shape_gradients(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, n
     -------
     grads : (m, 4, 3) float [1/mm], ``grads[e, a] = grad N_a``; rows sum to zero.
     volumes : (m,) float [mm^3], unsigned.
-    dm_inv : (m, 3, 3) float [1/mm], inverse of ``Dm = [X1-X0, X2-X0, X3-X0]`` (columns).
+    dm_inv : (m, 3, 3) float [1/mm], inverse of ``Dm = [X1-X0, X2-X0, X3-X0]`` (columns);
+        its row ``a - 1`` is ``grad N_a``.
     """
-    X = points[tets]  # (m, 4, 3)
-    Dm = np.transpose(X[:, 1:] - X[:, :1], (0, 2, 1))  # columns = edges
-    det = np.linalg.det(Dm)
-    dm_inv = np.linalg.inv(Dm)
-    grads = np.empty((len(tets), 4, 3))
-    grads[:, 1:] = dm_inv  # row a-1 of Dm^-1 is grad N_a
-    grads[:, 0] = -dm_inv.sum(axis=1)
-    return grads, np.abs(det) / 6.0, dm_inv
-
-
-def strain_matrices(grads: np.ndarray) -> np.ndarray:
-    """(m, 6, 12) strain-displacement matrices B (Voigt, engineering shear) from ``grads`` (m, 4, 3)."""
-    m = len(grads)
-    B = np.zeros((m, 6, 12))
-    gx, gy, gz = grads[..., 0], grads[..., 1], grads[..., 2]  # (m, 4)
-    B[:, 0, 0::3] = gx
-    B[:, 1, 1::3] = gy
-    B[:, 2, 2::3] = gz
-    B[:, 3, 1::3] = gz  # gamma_23 = du_y/dz + du_z/dy
-    B[:, 3, 2::3] = gy
-    B[:, 4, 0::3] = gz  # gamma_13
-    B[:, 4, 2::3] = gx
-    B[:, 5, 0::3] = gy  # gamma_12
-    B[:, 5, 1::3] = gx
-    return B
+    grads, volumes = tet4_gradients(points, tets)
+    return grads, volumes, grads[:, 1:].copy()
 
 
 def element_stiffness(grads: np.ndarray, volumes: np.ndarray, C: np.ndarray) -> np.ndarray:
     """(m, 12, 12) linear element stiffness ``V B^T C B`` [N/mm]; ``C`` (m, 6, 6) or (6, 6) [MPa]."""
-    B = strain_matrices(grads)
+    B = strain_operator(grads)
     C = np.broadcast_to(C, (len(grads), 6, 6))
     Ke = np.einsum("mki,mkl,mlj->mij", B, C, B, optimize=True) * volumes[:, None, None]
     return 0.5 * (Ke + np.transpose(Ke, (0, 2, 1)))
