@@ -92,19 +92,22 @@ def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
 
 
 def _chart_lookup(ctx: StageContext):
-    """Hook for the homogenize design chart: (rho, alpha) -> TransverseIsotropic, or None.
+    """The design chart's inverse look-up as (rho [-], alpha [%]) -> TransverseIsotropic, or None.
 
-    Expects ``metasheet.homogenize.chart.lookup(chart_dir, density=rho, alpha=alpha)``;
-    when that is missing the stage falls back to scaling and says so in sheet.json.
+    Reads ``chart.csv`` of the chart stage; a target outside the chart is an error
+    (:class:`~metasheet.errors.InfeasibleError` from the look-up), not a silent fallback.
     """
     if "chart" not in ctx.inputs:
         return None, "no chart stage"
-    try:
-        from ...homogenize.chart import lookup
-    except ImportError as exc:
-        return None, f"chart lookup unavailable ({exc})"
-    chart_dir = ctx.inputs["chart"]
-    return (lambda rho, alpha: lookup(chart_dir, density=rho, alpha=alpha)), "chart"
+    from ...homogenize.chart import lookup, parse_csv
+
+    table = parse_csv((ctx.inputs["chart"] / "chart.csv").read_text())
+
+    def material_at(rho: float, alpha: float) -> TransverseIsotropic:
+        r = lookup(table, relative_density=rho, alpha=alpha)
+        return TransverseIsotropic(*(float(r[k]) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")))
+
+    return material_at, "design chart (homogenize)"
 
 
 def _vtu(path, sheet: geo.SheetMesh, cell_data: dict[str, np.ndarray]) -> None:
@@ -144,11 +147,8 @@ def run(ctx: StageContext) -> dict:
     if graded:
         lookup, how = _chart_lookup(ctx)
         if lookup is not None:
-            try:
-                consts = gr.element_constants(grading, lookup)
-            except (TypeError, AttributeError) as exc:  # the chart's API differs from the hook's
-                lookup, how = None, f"chart lookup failed ({exc}); scaling used"
-        if lookup is None:
+            consts = gr.element_constants(grading, lookup)
+        else:
             how = f"scaling (rho/{p.relative_density:g})^{p.rho_exponent:g} + interpolate; {how}"
     if lookup is None:
         base = gr.scaling_lookup(material, p.relative_density, p.rho_exponent)
