@@ -61,13 +61,17 @@ def test_rigid_jacobian_and_geometric_term_match_finite_differences(robot, rest)
 
 
 def test_servo_convention_and_rest_geometry(robot):
-    """Angle 0 = horizontal horn, 90 = vertical; pivots on the servo circle behind the sheet."""
+    """Angle 0 = horizontal horn, 90 = vertical; the rest angle places the pivots behind the sheet."""
     servos = robot.coupling.servos
+    assert np.allclose(np.degrees(robot.coupling.rest_angles), ServoGeometry().rest_angle, rtol=0, atol=1e-12)
     for k, s in enumerate(servos):
-        assert np.isclose(np.hypot(*s.pivot[:2]), 66.0, atol=0.5)  # tip box centre ~ on the arm axis
-        assert s.pivot[2] < 0  # below the sheet
         tip = robot.coupling.rest[s.nodes].mean(axis=0)
+        r_tip = np.hypot(*tip[:2])
+        # pivot = tip - horn (-cos 60 u + sin 60 n): 12.5 mm further out, 21.65 mm below
+        assert np.isclose(np.hypot(*s.pivot[:2]), r_tip + 25.0 * np.cos(np.radians(60.0)), atol=0.5)
+        assert np.isclose(s.pivot[2], tip[2] - 25.0 * np.sin(np.radians(60.0)), atol=1e-9)
         assert np.isclose(np.linalg.norm(tip - s.pivot), 25.0)
+        assert np.isclose(robot.info["servos"][k]["servo_radius_mm"], np.hypot(*s.pivot[:2]), atol=2e-3)
         for deg, expect_vertical in ((0.0, False), (90.0, True)):
             moved = robot.coupling.servo_positions(
                 [np.radians(deg) if i == k else t.rest_angle for i, t in enumerate(servos)])
@@ -76,9 +80,20 @@ def test_servo_convention_and_rest_geometry(robot):
                 assert np.isclose(horn[2], 25.0, atol=1e-9)
             else:
                 assert abs(horn[2]) < 1e-9 and np.dot(horn[:2], s.pivot[:2]) < 0  # points inwards
-    with pytest.raises(ConfigError, match="servo_radius"):
-        tripod(tripod_sheet(SheetParams(mesh_size=15.0)), Isotropic(0.25, 0.45).stiffness(),
-               geometry=ServoGeometry(servo_radius=200.0))
+    with pytest.raises(ConfigError, match="rest_angle"):
+        ServoGeometry(rest_angle=95.0)  # outside the 0-90 stroke
+
+
+def test_rest_angle_is_the_same_on_every_mesh():
+    """The rest angle is a design parameter: coarse and fine meshes (different tip-box centroids)
+    get the same rest angle, and the servo circle follows the tip box instead."""
+    geo = ServoGeometry(rest_angle=50.0)
+    radii = []
+    for h in (10.0, 15.0, 20.0):
+        rob = tripod(tripod_sheet(SheetParams(mesh_size=h)), Isotropic(0.25, 0.45).stiffness(), geometry=geo)
+        assert np.allclose(np.degrees(rob.coupling.rest_angles), 50.0, rtol=0, atol=1e-12)
+        radii.append(rob.info["servo_geometry"]["servo_radius_mm_derived"])
+    assert np.ptp(radii) > 0.05  # the tip boxes do differ between the meshes
 
 
 def test_gravity_sags_downwards_and_newton_converges(robot, rest):

@@ -15,7 +15,7 @@ from metasheet.robot.compare import PAPER_FOAM, build_six_dof
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.kinematics import kinematics
 from metasheet.robot.linsolve import SparseSolver, have_cholmod, resolve
-from metasheet.robot.rigid import rotation_matrix
+from metasheet.robot.rigid import rotation_matrix, rotation_vector
 from metasheet.robot.statics import Linearizer, solve_equilibrium
 from metasheet.sheet.fibers import spiral_fibers
 from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
@@ -136,3 +136,49 @@ def test_rigid_forces_equal_the_jacobian_transpose(foam_robot):
     r = np.random.default_rng(4).normal(size=moved.x.shape)
     ref = c.rigid_jacobian(moved.x, moved.p).T @ r[c.rigid_nodes].ravel()
     assert np.allclose(rigid_forces(c, moved.x, moved.p, r), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+
+
+def test_certified_pose_is_an_equilibrium_and_continuation_keeps_the_tangent(foam_robot):
+    """goto's reported pose is certified by the loop's own corrections: its residual is within
+    eq_tol, and it matches an independent 1e-10 Newton solve at the same motor angles."""
+    from dataclasses import replace
+
+    rob, rest, _ = foam_robot
+    s = InverseSettings(pos_tol=0.05, rot_tol_deg=0.1)
+    ctl = InverseController(rob, rest, s)
+    targets = [solve_equilibrium(rob, rest.angles + np.radians(d), state=rest).state
+               for d in ([3, -2, 1, 0, -3, 2], [5, -3, 2, 1, -5, 3])]
+    goals = [np.concatenate([t.p, np.degrees(t.pose[3:])]) for t in targets]
+    r1 = ctl.goto(goals[0])
+    assert r1.status == "reached", r1.to_dict()
+    assert r1.certified in ("chord", "newton") and r1.residual <= s.eq_tol * r1.reference
+    ref = solve_equilibrium(rob, r1.state.angles, state=r1.state, tol=1e-10).state
+    assert np.linalg.norm(ref.p - r1.state.p) < 1e-4  # [mm] (the one-Newton-step state is ~3e-3 off)
+    assert np.linalg.norm(rotation_vector(ref.R @ r1.state.R.T)) < 1e-5  # [rad]
+    assert np.isclose(r1.pos_error, np.linalg.norm(goals[0][:3] - r1.pose[:3]))
+    # continuation from our own result: no fresh linearisation forced...
+    assert ctl.owns(r1.state)
+    ctl.state = r1.state
+    assert not ctl.step(r1.state.p, r1.state.R).fresh
+    # ...but an equal state built outside the controller is not trusted
+    ctl.state = replace(r1.state)
+    assert ctl.step(r1.state.p, r1.state.R).fresh
+    r2 = ctl.goto(goals[1], state=r1.state)
+    assert r2.status == "reached" and r2.residual <= s.eq_tol * r2.reference
+    assert np.allclose(r2.angles_deg, np.degrees(targets[1].angles), atol=0.5)
+
+
+def test_certify_falls_back_to_newton_and_states_its_residual(foam_robot):
+    rob, rest, moved = foam_robot
+    s = InverseSettings(polish_iters=0, eq_tol=1e-7)
+    ctl = InverseController(rob, rest, s)
+    # a state off equilibrium: the motors moved, nothing else (a large residual)
+    from metasheet.robot.statics import RobotState
+
+    ctl.state = RobotState(rest.p, rest.R, moved.angles, rob.coupling.positions(rest.p, rest.R, moved.angles,
+                                                                                rest.x[rob.coupling.free]))
+    st, res, ref, how = ctl.certify(start=rest)
+    assert how == "newton" and res <= 1e-7 * ref
+    assert np.linalg.norm(st.p - moved.p) < 1e-4  # the same equilibrium as an independent solve
+    with pytest.raises(ConfigError, match="eq_tol"):
+        InverseSettings(eq_tol=0.0)

@@ -10,6 +10,7 @@ from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import robot as robot_stage
 from metasheet.robot.cli_support import format_result, goto, robot_from_orient
 from metasheet.robot.compare import PAPER_FOAM
+from metasheet.robot.inverse import InverseSettings
 from metasheet.sheet.fibers import spiral_fibers
 from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
 
@@ -42,6 +43,14 @@ def test_stage_writes_jacobian_vtu_and_picture(orient_dir, tmp_path):
                        {"orient": orient_dir, "material": mat}, tmp_path)
     summary = robot_stage.run(ctx)
     json.dumps(summary)
+    assert summary["rest_angles_deg"] == [60.0] * 6  # the design rest angle, whatever the mesh
+    # derived servo circle: tip box (~59-66 mm out on this mesh) + 25 cos 60 = 12.5 mm
+    assert 70.0 < summary["servo_radius_mm_derived"] < 80.0
+    from metasheet.errors import ConfigError
+
+    bad = StageContext("robot", robot_stage.RobotParams(rest_angle=95.0), work, ctx.inputs, tmp_path)
+    with pytest.raises(ConfigError, match="rest_angle"):
+        robot_stage.run(bad)
     data = json.loads((work / "jacobian.json").read_text())
     foam, sil = data["materials"]["foam"], data["materials"]["silicone"]
     assert np.array(foam["J_mm_per_rad_and_rad_per_rad"]).shape == (6, 6)
@@ -59,5 +68,6 @@ def test_goto_helper_reaches_a_small_offset(orient_dir):
     rob = robot_from_orient(orient_dir)
     res = goto(rob, [0.0, 0.0, 1.0, 2.0, 0.0, 0.0])
     assert res.status == "reached", format_result(res)
-    assert "motor angles" in format_result(res)
+    assert "motor angles" in format_result(res) and "certified by" in format_result(res)
+    assert res.residual <= InverseSettings().eq_tol * res.reference
     assert np.all(res.angles_deg >= 0) and np.all(res.angles_deg <= 90)

@@ -34,7 +34,7 @@ def test_workspace_on_dask_equals_serial(cluster):
 def test_fem_robot_rebuilt_in_dask_workers(cluster):
     from metasheet.studies.adapter import paper_robot_spec
 
-    spec = paper_robot_spec(mesh_size=16.0, rest_deg=75.0)
+    spec = paper_robot_spec(mesh_size=16.0)
     alphas = [0.0, spec.design_alpha]
     serial = anisotropy_sweep(spec, alphas, ramp_deg=10.0)
     dask = anisotropy_sweep(spec, alphas, ramp_deg=10.0, executor=Executor(scheduler=cluster.scheduler_address))

@@ -1,6 +1,7 @@
 """The study stages end to end through the pipeline runner (stand-in robot, and a coarse FEM robot)."""
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -165,10 +166,8 @@ mesh_size = 14
 [anisotropy]
 model = "robot"
 n_alpha = 3
-servo_radius = 71.6
 [maze]
 model = "robot"
-servo_radius = 71.6
 path = [[0, 0], [10, 0], [10, 10]]
 tilt_deg = 5
 dt = 0.5
@@ -216,3 +215,23 @@ def test_report_lists_differences_from_the_numbers():
     assert "stand-in" not in diffs
     clean = dict(ranges, nested=True, violations=[])
     assert "none found" in build_report({"ranges": clean}, {}).split("## Differences from the paper")[1]
+
+
+def test_study_mesh_size_remeshes_the_orient_sheet(tmp_path):
+    """``mesh_size`` rebuilds the sheet for the study only: same rest angle, far fewer tets,
+    and the per-element constants carried over from the orient mesh."""
+    from metasheet.pipeline.stages._studies import _remesh
+    from metasheet.robot.cli_support import read_sheet
+
+    text = '[pipeline]\nname = "om"\nstages = ["material", "orient"]\n[material]\nsource = "config"\n[orient]\nmesh_size = 10\n'
+    run_pipeline(load_pipeline(project(tmp_path, text, "om")))
+    o = tmp_path / "outputs" / "om" / "orient"
+    a, fa, ca = read_sheet(o / "sheet.vtu")
+    b, fb, cb = read_sheet(o / "sheet_mirrored.vtu")
+    info = json.loads((o / "sheet.json").read_text())
+    a2, fa2, ca2, b2, fb2, cb2 = _remesh(info, 16.0, a, ca, b, cb)
+    assert len(a2.tets) < 0.7 * len(a.tets) and len(b2.tets) == len(a2.tets)
+    assert np.allclose(np.linalg.norm(fa2, axis=1), 1.0) and fa2.shape == (len(a2.tets), 3)
+    # uniform design: every carried-over constant is one of the orient mesh's
+    assert ca2.shape == (len(a2.tets), 5) and np.allclose(ca2, ca[0])
+    assert set(np.unique(a2.attach)) == {0, 1, 2, 3, 4}

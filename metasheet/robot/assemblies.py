@@ -8,21 +8,33 @@ Geometry decisions (FACTS.md; documented here because the sources do not pin the
   servo base) with its axis ``a_k = n x u_k`` horizontal and perpendicular to the arm
   (``u_k`` the arm's outward radial direction). The horn points from the pivot to the arm's
   tip box: ``h(theta) = -cos(theta) u_k + sin(theta) n``, so motor angle 0 is a horizontal
-  horn reaching inwards and 90 degrees a vertical one (the paper's convention). The pivot lies
-  on the servo circle, ``|pivot| = servo_radius`` in the plane, and ``horn_length`` from the
-  tip box centre; the rest angle follows, ``cos(theta_0) = (servo_radius - r_tip) / horn``.
-  With the 6-DOF sheet (reach 66 mm, tip box centre at ~59 mm), servos on r = 66 mm and a
-  25 mm horn, theta_0 ~ 75 degrees: the flat sheet is the rest pose, pulling (towards 90,
-  the tip moves mostly outwards and stretches the arm) has ~15 degrees of travel and pushing
-  (towards 0, compressing the arm) ~75: the paper's "pull 15 / push 35" tests both fit.
+  horn reaching inwards and 90 degrees a vertical one (the paper's convention).
+* The design parameter is the REST ANGLE ``theta_0`` (the motor angle at which the flat,
+  unloaded sheet is the rest pose), not the servo position: the pivot is placed at
+  ``tip - horn_length * h(theta_0)`` from the arm's tip-box centre, so every mesh of the same
+  sheet has the same rest angle (placing the pivot on a fixed servo circle instead made the
+  rest angle depend on the mesh's tip-box centroid: ~75 deg on the 5 mm mesh, 84-88 deg on
+  coarse ones, leaving almost no pull travel). The servo circle's radius
+  ``|pivot| = r_tip + horn cos(theta_0)`` is reported (``info``) as a derived quantity.
+  Default ``theta_0 = 60 deg``. The paper's Fig. 7 tests (all motors pull 15 deg -> 75,
+  push 35 deg -> 25) both fit with >= 15 deg to spare; any rest angle in [35, 75] would.
+  Within that band the workspace decides: on the 6-DOF robot (14 mm mesh, 10 deg rotation
+  trials, tests/test_studies_robot.py) the rest pose keeps all six +-10 deg rotations for
+  theta_0 >= 60 but only 1-2 of them at 45 and 55, where tilting the rod drives the sheets
+  into a near-singular pose (smallest Jacobian singular value 0.34 against 8.3 mm/rad at
+  rest) long before a motor limit; above 65 the pull travel (25 deg or less) cuts the
+  workspace on the pull side and the rest pose sits near the stiff, stretched-arm end. 60 is
+  the lowest (most symmetric stroke: 60 down, 30 up) that gives the paper's "full 6-DOF
+  control around the centre". With the paper's sheet (tip box at r ~ 59 mm) and a 25 mm horn
+  the servo circle is then r ~ 71.5 mm.
 * 6-DOF robot: the rod runs along world x, gravity along -z. The sheets' mid-planes are at
   x = -L/2 and x = +L/2 (L = ``rod_length``, default 80 mm), normals pointing at each other,
   so the rod joins the two centres; the effector is the rod centre, the origin. Sheet A maps
   local (x, y, z) -> world (-z, y, x); sheet B is the same turned 180 degrees about world z and
   carries the mirrored (y -> -y) sheet and fibre field, which makes B the exact mirror image of
   A through x = 0. FACTS gives "tripods at +-90 mm, rod 80 mm": we read +-90 mm as the servo
-  bases; with theta_0 ~ 75 degrees the pivots are ~24 mm behind each sheet (|x| ~ 64 mm), which
-  leaves ~26 mm for the servo body down to the base plate at |x| = 90 mm.
+  bases; with theta_0 = 60 degrees the pivots are ~22 mm behind each sheet (|x| ~ 62 mm), which
+  leaves ~28 mm for the servo body down to the base plate at |x| = 90 mm.
 """
 
 from __future__ import annotations
@@ -45,21 +57,24 @@ class ServoGeometry:
 
     Attributes
     ----------
-    servo_radius : distance of each servo pivot from the sheet axis [mm].
+    rest_angle : motor angle of the undeformed rest pose [deg] (0 = horizontal horn, 90 =
+        vertical); the pivots are placed from it (see the module docstring). Must lie in
+        [angle_min, angle_max].
     horn_length : pivot -> tip-box centre [mm].
     angle_min, angle_max : motor stroke [deg], 0 = horizontal horn, 90 = vertical.
     """
 
-    servo_radius: float = 66.0
+    rest_angle: float = 60.0
     horn_length: float = 25.0
     angle_min: float = 0.0
     angle_max: float = 90.0
 
     def __post_init__(self):
-        check_range("servo_radius", self.servo_radius, 0.0, None, lo_open=True)
+        check_range("rest_angle", self.rest_angle, -180.0, 180.0)
         check_range("horn_length", self.horn_length, 0.0, None, lo_open=True)
         check_range("angle_min", self.angle_min, -180.0, 180.0)
         check_range("angle_max", self.angle_max, self.angle_min, 180.0, lo_open=True)
+        check_range("rest_angle", self.rest_angle, self.angle_min, self.angle_max)
 
 
 @dataclass(frozen=True)
@@ -136,18 +151,15 @@ def _servos(pts_world, att, arm_angles, Q, centre, geo: ServoGeometry, offset: i
         u = Q @ np.array([np.cos(phi), np.sin(phi), 0.0])
         tip = pts_world[nodes].mean(axis=0)
         r_tip = float(np.dot(tip - centre, u))
-        c0 = (geo.servo_radius - r_tip) / geo.horn_length
-        if not 0.0 <= c0 <= 1.0:
-            raise ConfigError(
-                f"servo_radius: {geo.servo_radius!r}: with horn_length {geo.horn_length} and the arm tip "
-                f"at r = {r_tip:.1f} mm the rest angle is undefined; allowed range "
-                f"[{r_tip:.1f}, {r_tip + geo.horn_length:.1f}] mm")
-        th0 = float(np.arccos(c0))
+        th0 = float(np.radians(geo.rest_angle))
         h0 = -np.cos(th0) * u + np.sin(th0) * n
         pivot = tip - geo.horn_length * h0
         servos.append(Servo(np.cross(n, u), pivot, geo.horn_length, th0, nodes + offset))
+        in_plane = (pivot - centre) - np.dot(pivot - centre, n) * n  # the derived servo circle's radius
         info.append({"sheet": label, "arm": k, "pivot_mm": pivot.round(3).tolist(),
-                     "axis": np.cross(n, u).round(6).tolist(), "rest_angle_deg": round(np.degrees(th0), 3)})
+                     "axis": np.cross(n, u).round(6).tolist(), "rest_angle_deg": round(np.degrees(th0), 3),
+                     "servo_radius_mm": round(float(np.linalg.norm(in_plane)), 3),
+                     "tip_radius_mm": round(r_tip, 3)})
     return servos, info
 
 
@@ -163,8 +175,10 @@ def _make_robot(name, pts, tets, C, eff_nodes, origin, servos, info, geo, gravit
         raise ConfigError(
             f"angle_min/angle_max: [{geo.angle_min}, {geo.angle_max}] deg: must contain the rest angles "
             f"{np.degrees(th0).round(2).tolist()} deg")
-    info = {"servo_geometry": {"servo_radius_mm": geo.servo_radius, "horn_length_mm": geo.horn_length,
-                               "angle_min_deg": geo.angle_min, "angle_max_deg": geo.angle_max},
+    radii = [sv["servo_radius_mm"] for sv in info]
+    info = {"servo_geometry": {"rest_angle_deg": geo.rest_angle, "horn_length_mm": geo.horn_length,
+                               "angle_min_deg": geo.angle_min, "angle_max_deg": geo.angle_max,
+                               "servo_radius_mm_derived": round(float(np.mean(radii)), 3)},
             "servos": info, **info_extra(pts, tets, eff_nodes, density)}
     return Robot(name, body, coupling, np.asarray(gravity, float), lo, hi, np.asarray(axis, float), info)
 

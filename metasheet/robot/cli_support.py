@@ -79,13 +79,13 @@ class GotoConfig:
     orient_dir: str | None = None
     mesh_size: float = 8.0
     rod_length: float = 80.0
-    servo_radius: float = 66.0
+    rest_angle: float = 60.0  # [deg] motor angle of the rest pose (places the servos)
     horn_length: float = 25.0
     density: float = 1.785e-10
 
 
 def _default_robot(cfg: GotoConfig) -> Robot:
-    geo = ServoGeometry(cfg.servo_radius, cfg.horn_length)
+    geo = ServoGeometry(rest_angle=cfg.rest_angle, horn_length=cfg.horn_length)
     if cfg.orient_dir is not None:
         return robot_from_orient(cfg.orient_dir, rod_length=cfg.rod_length, geometry=geo, density=cfg.density)
     from ..sheet.fibers import spiral_fibers
@@ -129,5 +129,7 @@ def format_result(res: InverseResult) -> str:
              "motor angles [deg]: " + " ".join(f"{a:.2f}" for a in res.angles_deg),
              "pose reached: X Y Z [mm] " + " ".join(f"{v:.3f}" for v in res.pose[:3])
              + " | RX RY RZ [deg] " + " ".join(f"{v:.3f}" for v in res.pose[3:]),
-             f"remaining error: {res.pos_error:.3f} mm, {res.rot_error:.3f} deg"]
+             f"remaining error: {res.pos_error:.3f} mm, {res.rot_error:.3f} deg",
+             f"equilibrium: residual {res.residual:.2e} N = {res.residual / max(res.reference, 1e-300):.1e} x "
+             f"force scale (certified by {res.certified or '-'})"]
     return "\n".join(lines)

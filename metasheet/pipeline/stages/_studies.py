@@ -13,6 +13,7 @@ import csv
 import json
 import shutil
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Literal
 
 import numpy as np
@@ -22,7 +23,7 @@ from ...errors import ConfigError
 from ...studies.resume import UnitCache
 from ..registry import Params, StageContext
 
-ROBOT_KEYS = ("rod_length", "servo_radius", "horn_length", "angle_min", "angle_max")
+ROBOT_KEYS = ("rod_length", "rest_angle", "horn_length", "angle_min", "angle_max")
 
 
 class StudyRobotParams(Params):
@@ -31,17 +32,22 @@ class StudyRobotParams(Params):
     model: Literal["robot", "standin"] = Field(
         "robot", description="'robot': the FEM robot from orient + material; 'standin': the analytic test robot")
     rod_length: float | None = Field(None, gt=0, le=1000, description="rod length [mm]; None: the robot stage's or 80")
-    servo_radius: float | None = Field(None, gt=0, le=1000, description="servo pivot radius [mm]; None: robot stage's or 66")
+    rest_angle: float | None = Field(None, ge=-180, le=180,
+                                     description="motor angle of the rest pose [deg]; None: robot stage's or 60")
     horn_length: float | None = Field(None, gt=0, le=1000, description="servo horn length [mm]; None: robot stage's or 25")
     motor_min: float | None = Field(None, ge=-180, le=180, description="lower motor limit [deg]; None: robot stage's or 0")
     motor_max: float | None = Field(None, ge=-180, le=180, description="upper motor limit [deg]; None: robot stage's or 90")
+    mesh_size: float | None = Field(
+        None, ge=0.3, le=50, description="re-mesh the orient sheet at this tet size for this study only "
+        "(same geometry and fibre law; per-element constants carried over from the nearest orient "
+        "element); None: orient's mesh [mm]")
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
 
 
 def _robot_params(ctx: StageContext) -> dict:
-    """rod_length, servo_radius, horn_length, angle_min, angle_max from the robot stage's
+    """rod_length, rest_angle, horn_length, angle_min, angle_max from the robot stage's
     parameters (its manifest; the robot stage writes no file with them) when it ran."""
     out = {}
     if "robot" in ctx.inputs:
@@ -57,7 +63,7 @@ def _robot_params(ctx: StageContext) -> dict:
 def build_spec(ctx: StageContext):
     """The stage's robot recipe (:class:`RobotSpec` or :class:`StandInSpec`)."""
     p = ctx.params
-    up = {"rod_length": 80.0, "servo_radius": 66.0, "horn_length": 25.0, "angle_min": 0.0, "angle_max": 90.0,
+    up = {"rod_length": 80.0, "rest_angle": 60.0, "horn_length": 25.0, "angle_min": 0.0, "angle_max": 90.0,
           **_robot_params(ctx)}
     lo = up["angle_min"] if p.motor_min is None else p.motor_min
     hi = up["angle_max"] if p.motor_max is None else p.motor_max
@@ -86,10 +92,36 @@ def build_spec(ctx: StageContext):
         if getattr(p, k) is not None:
             geo[k] = float(getattr(p, k))
     graded = bool(info.get("graded", False)) and ca is not None and cb is not None
+    if p.mesh_size is not None:
+        a, fa, ca, b, fb, cb = _remesh(info, p.mesh_size, a, ca, b, cb)
     return RobotSpec(a.points, a.tets, a.attach, np.radians(info["arm_angles_deg"]), b.points, b.tets, b.attach,
                      fa, fb, consts, consts, motor_range=(lo, hi), density=float(mat.get("density", 1.785e-10)),
                      rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
                      consts=ca if graded else None, consts_m=cb if graded else None, **geo)
+
+
+def _remesh(info: dict, mesh_size: float, a, ca, b, cb):
+    """The orient sheet pair re-meshed at ``mesh_size`` [mm] from sheet.json's geometry and fibre
+    law; per-element constants (m, 5) or None carried over by nearest element centroid."""
+    from scipy.spatial import cKDTree
+
+    from ...sheet.fibers import spiral_fibers
+    from ...sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+
+    g = dict(info["geometry"], mesh_size=float(mesh_size))
+    g["tip_box"] = tuple(g["tip_box"])
+    fs = {k: info["fibers"][k] for k in ("law", "pitch_deg", "tilt_deg", "r_ref") if k in info.get("fibers", {})}
+    s = tripod_sheet(SheetParams(**g))
+    m = mirror_sheet(s)
+    out = []
+    for new, old, consts, mirrored in ((s, a, ca, False), (m, b, cb, True)):
+        fib = spiral_fibers(new.centroids(), mirrored=mirrored, **fs)
+        if consts is not None:
+            old_c = np.asarray(old.points)[np.asarray(old.tets)].mean(axis=1)
+            consts = consts[cKDTree(old_c).query(new.centroids())[1]]
+        sheet = SimpleNamespace(points=new.points, tets=new.tets, attach=new.attach, arm_angles=new.arm_angles)
+        out += [sheet, fib, consts]
+    return tuple(out)
 
 
 def unit_cache(ctx: StageContext) -> UnitCache:

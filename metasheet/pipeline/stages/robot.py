@@ -29,7 +29,8 @@ from ..registry import Params, Stage, StageContext, register
 
 class RobotParams(Params):
     rod_length: float = Field(80.0, gt=10, le=1000, description="rod joining the sheet centres [mm]")
-    servo_radius: float = Field(66.0, gt=0, le=1000, description="servo pivot distance from the sheet axis [mm]")
+    rest_angle: float = Field(60.0, ge=-180, le=180, description="motor angle of the undeformed rest pose; places "
+                              "the servo pivots (the servo radius is derived and reported) [deg]")
     horn_length: float = Field(25.0, gt=0, le=1000, description="servo horn length [mm]")
     angle_min: float = Field(0.0, ge=-180, le=180, description="motor stroke minimum [deg] (0 = horizontal horn)")
     angle_max: float = Field(90.0, ge=-180, le=180, description="motor stroke maximum [deg] (90 = vertical horn)")
@@ -65,7 +66,12 @@ def run(ctx: StageContext) -> dict:
         raise ConfigError(f"robot.angle_min/angle_max: ({p.angle_min:g}, {p.angle_max:g}) deg: need min < max")
     mat = json.loads((ctx.inputs["material"] / "material.json").read_text())
     density = float(mat.get("density", 1.785e-10))
-    geo = ServoGeometry(p.servo_radius, p.horn_length, p.angle_min, p.angle_max)
+    if not p.angle_min <= p.rest_angle <= p.angle_max:
+        from ...errors import ConfigError
+
+        raise ConfigError(f"robot.rest_angle: {p.rest_angle:g} deg: allowed range [angle_min, angle_max] = "
+                          f"[{p.angle_min:g}, {p.angle_max:g}] deg")
+    geo = ServoGeometry(p.rest_angle, p.horn_length, p.angle_min, p.angle_max)
     orient = ctx.inputs["orient"]
     ctx.progress("building robots", 0, 4)
     robots = {
@@ -100,7 +106,8 @@ def run(ctx: StageContext) -> dict:
                "rod_rotation_deg_per_deg": round(c.rod_rotation_per_degree, 5),
                "rod_rotation_finite_deg_per_deg": round(c.rod_rotation_finite, 5)}
         for name, c in cases.items()
-    } | {"n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist()}
+    } | {"n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
+       "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"]}
 
 
 register(Stage(

@@ -87,6 +87,7 @@ def run(ctx: StageContext) -> dict:
         "in_rest_component": int((res.component == 0).sum()),
         "wall_s": round(wall, 2), "s_per_point": round(wall / max(1, int(r.tried.sum())), 4),
         "executor": ctx.executor.kind, "model": p.model,
+        "n_tets_per_sheet": int(len(spec.tets)) if hasattr(spec, "tets") else None,
     }
     write_json_atomic(ctx.path("workspace.json"), summary)
     drop_cache(ctx)
