@@ -38,6 +38,8 @@ def run(ctx: StageContext) -> dict:
         if png.exists():
             shutil.copyfile(png, ctx.path(png.name))
             pictures[name] = png.name
+    if "homogenize" in ctx.inputs:
+        summaries["homogenize"] = json.loads((ctx.inputs["homogenize"] / "constants.json").read_text())
     if "material" in ctx.inputs:
         m = json.loads((ctx.inputs["material"] / "material.json").read_text())
         summaries["material"] = {**m["constants"], "alpha_percent": m["alpha_percent"], "source": m["source"]}
@@ -48,6 +50,6 @@ def run(ctx: StageContext) -> dict:
 
 register(Stage(
     name="report", params=ReportParams, run=run,
-    optional=("material", "robot", "workspace", "ranges", "anisotropy", "maze"),
+    optional=("homogenize", "material", "robot", "workspace", "ranges", "anisotropy", "maze"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))
