@@ -6,6 +6,7 @@ points, grid cells) to an :class:`Executor`; results come back in input order.
 
 from __future__ import annotations
 
+import multiprocessing
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -75,7 +76,10 @@ class Executor:
 
 def _map_pool(fn, items: Sequence, workers: int, progress) -> list:
     results: list = [None] * len(items)
-    with ProcessPoolExecutor(max_workers=min(workers, len(items))) as pool:
+    # "spawn", not fork: a forked child inherits the locks of BLAS, numba and gmsh threads
+    # held at fork time and can hang forever (seen with the design chart).
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=ctx) as pool:
         futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
         for done, fut in enumerate(as_completed(futures), 1):
             results[futures[fut]] = fut.result()
