@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from metasheet.cells import Foam, foam_field, solve_thickness, voxelize
 from metasheet.cells.connectivity import check_percolation
-from metasheet.cells.foam import Foam, foam_field, solve_thickness, voxelize
 from metasheet.cells.metrics import PolyhedralMetric, StretchedMetric
 from metasheet.cells.seeds import poisson_disk_seeds
 

@@ -26,7 +26,7 @@ def make_field(seeds: int, density: float):
     """(field, size, label, voxel density) of the benchmark cell."""
     size = np.array([10.0, 10.0, 10.0])
     try:
-        from metasheet.cells.foam import Foam, foam_field, solve_thickness, voxelize
+        from metasheet.cells import Foam, foam_field, solve_thickness, voxelize
         from metasheet.cells.metrics import StretchedMetric
         from metasheet.cells.seeds import make_seeds
     except ImportError:

@@ -108,7 +108,7 @@ def main():
     if args.one:
         print(json.dumps(one(int(args.one[0]), args.one[1], args.repeat, args.matched)))
         return
-    from metasheet.homogenize.solvers import HAVE_CHOLMOD
+    from metasheet.fem.solvers import HAVE_CHOLMOD
     from sfepy_reference import sfepy_available
 
     print(f"cholmod={HAVE_CHOLMOD} BLAS: {blas_info()} OPENBLAS_NUM_THREADS="

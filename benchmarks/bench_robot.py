@@ -40,7 +40,7 @@ def _blas() -> str:
 def _control_run(rob, rest, steps, **kw):
     """A moving goal (small circle + twist): every step does real work. Returns times, drift, ctl."""
     from metasheet.robot.inverse import InverseController, InverseSettings
-    from metasheet.robot.rigid import rotation_matrix
+    from metasheet.rotations import rotation_matrix
     from metasheet.robot.statics import solve_equilibrium
 
     ctl = InverseController(rob, rest, InverseSettings(max_step_deg=2.0, **kw))
@@ -61,18 +61,15 @@ def main():
     ap.add_argument("--mesh-size", type=float, default=5.0)
     ap.add_argument("--steps", type=int, default=40)
     a = ap.parse_args()
-    from metasheet.robot.compare import PAPER_FOAM, build_six_dof
-    from metasheet.robot.linsolve import have_cholmod
+    from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+    from metasheet.robot.builder import SheetPair, six_dof_robot
+    from metasheet.fem.solvers import available
     from metasheet.robot.statics import Linearizer, solve_equilibrium
-    from metasheet.sheet.fibers import spiral_fibers
-    from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+    from metasheet.sheet.geometry import SheetParams
 
-    s = tripod_sheet(SheetParams(mesh_size=a.mesh_size))
-    m = mirror_sheet(s)
-    rob = build_six_dof(s, m, PAPER_FOAM, fibers=spiral_fibers(s.centroids()),
-                        fibers_mirrored=spiral_fibers(m.centroids(), mirrored=True), density=1.785e-10)
+    rob = six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=a.mesh_size)), PAPER_FOAM, density=FOAM_DENSITY)
     solve_equilibrium(rob, rob.coupling.rest_angles)  # numba warm-up
-    solvers = ["superlu"] + (["cholmod"] if have_cholmod() else [])
+    solvers = ["superlu"] + (["cholmod"] if available("cholmod") else [])
     rows = []
     eqs = []
     t_eq = _median(lambda: eqs.append(solve_equilibrium(rob, rob.coupling.rest_angles)), 5)
@@ -102,7 +99,7 @@ def main():
     rows.append(("chord update: forces + 1 solve", _median(lambda: lz.update(lin, rest), 20), ""))
     variants = [("fresh tangent every step, superlu", dict(refactor_every=1)),
                 ("kept tangent (defaults), superlu", dict())]
-    if have_cholmod():
+    if available("cholmod"):
         variants.append(("kept tangent, cholmod (symmetric part)", dict(linear_solver="cholmod")))
     base = None
     for label, kw in variants:

@@ -23,7 +23,7 @@ import time
 from metasheet.executor import Executor
 from metasheet.studies.adapter import paper_robot_spec
 from metasheet.studies.grid import star_grid
-from metasheet.studies.model import get_model
+from metasheet.studies.model import MODELS
 from metasheet.studies.standin import StandInSpec
 from metasheet.studies.workspace import WorkspaceSettings, explore_workspace
 
@@ -67,7 +67,7 @@ def main():
         for workers in (1, 2):
             work = ""
             if workers == 1 and name != "stand-in":
-                m = get_model(spec)  # serial runs use this process's model: count its work
+                m = MODELS.get(spec)  # serial runs use this process's model: count its work
                 f0, st0 = m.lz.factorizations, m.ctrl.total_steps
             t, res = timed(spec, grid, s, Executor(workers=workers), a.repeats)
             if workers == 1 and name != "stand-in":

@@ -101,6 +101,62 @@ def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")
     Console().print(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}")
 
 
+@app.command()
+def diff(
+    a: Annotated[Path, typer.Argument(help="an output directory (e.g. outputs/quick)")],
+    b: Annotated[Path, typer.Argument(help="the output directory to compare it with")],
+    rtol: Annotated[float, typer.Option("--rtol", min=0.0, help="largest relative difference accepted")] = 1e-12,
+) -> None:
+    """Compare two output trees: identical bytes, numbers equal to RTOL, or different (exit 1)."""
+    from .errors import ConfigError
+    from .pipeline.outputs_diff import compare_trees
+
+    for d in (a, b):
+        if not d.is_dir():
+            raise ConfigError(f"{d}: not a directory")
+    rows = compare_trees(a, b)
+    table = Table("file", "result", "max relative difference", "note")
+    bad = 0
+    for r in rows:
+        ok = r.status == "identical" or (r.status == "numbers" and r.max_rel <= rtol)
+        bad += not ok
+        shown = "" if r.status in ("identical", "different") or r.status.startswith("missing") else f"{r.max_rel:.2e}"
+        table.add_row(r.path, r.status if ok else f"[red]{r.status}[/red]", shown, r.note)
+    Console().print(table)
+    Console().print(f"{len(rows) - bad} of {len(rows)} files identical or within rtol {rtol:g}")
+    if bad:
+        raise typer.Exit(1)
+
+
+def goto_robot(orient: Path | None = None, mesh_size: float = 8.0):
+    """The 6-DOF robot ``robot goto`` drives: from an orient stage's sheets (their own
+    per-element constants), else freshly meshed sheets (``mesh_size`` [mm]) with the paper's
+    foam along the default spiral; the paper's scene and foam density either way."""
+    from . import paper
+    from .robot.builder import SheetPair, six_dof_robot
+
+    if orient is not None:
+        from .pipeline.artefacts import read_orient
+
+        return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY)
+    from .sheet.geometry import SheetParams
+
+    return six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=mesh_size)), paper.PAPER_FOAM,
+                         density=paper.FOAM_DENSITY)
+
+
+def format_result(res) -> str:
+    """Human-readable lines of an :class:`~metasheet.robot.inverse.InverseResult`."""
+    lines = [f"status: {res.status} after {res.steps} control steps",
+             "motor angles [deg]: " + " ".join(f"{a:.2f}" for a in res.angles_deg),
+             "pose reached: X Y Z [mm] " + " ".join(f"{v:.3f}" for v in res.pose[:3])
+             + " | RX RY RZ [deg] " + " ".join(f"{v:.3f}" for v in res.pose[3:]),
+             f"remaining error: {res.pos_error:.3f} mm, {res.rot_error:.3f} deg",
+             f"equilibrium: residual {res.residual:.2e} N = {res.residual / max(res.reference, 1e-300):.1e} x "
+             f"force scale (certified by {res.certified or '-'})"]
+    return "\n".join(lines)
+
+
 @robot_app.command("goto")
 def robot_goto(
     pose: Annotated[list[float], typer.Argument(help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
@@ -109,12 +165,12 @@ def robot_goto(
 ) -> None:
     """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles."""
     from .errors import ConfigError
-    from .robot.cli_support import GotoConfig, format_result, goto
+    from .robot.inverse import InverseController
 
     if len(pose) != 6:
         raise ConfigError(f"pose: {len(pose)} numbers given: expected 6 (X Y Z RX RY RZ)")
-    cfg = GotoConfig(orient_dir=str(orient) if orient else None, mesh_size=mesh_size)
-    typer.echo(format_result(goto(cfg, pose)))
+    robot = goto_robot(orient, mesh_size)
+    typer.echo(format_result(InverseController(robot).goto(pose)))
 
 
 def main() -> None:

@@ -22,15 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from . import voigt  # the Voigt/Mandel rotations live there only (not re-exported)
 from .conventions import VOIGT_PAIRS
 from .errors import ConfigError
-from .voigt import (  # noqa: F401  (re-exported: the rotations belong to the material API)
-    MANDEL as _MANDEL,
-    frames_from_axes,
-    mandel_rotation,
-    rotate_stiffness,
-    stiffness_along,
-)
+from .voigt import MANDEL as _MANDEL
+
+
+#: The five independent transverse-isotropic constants, in the order of every table and file.
+CONSTANT_NAMES = ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")
 
 
 def _finite_positive(name: str, value: float) -> float:
@@ -116,7 +115,7 @@ class TransverseIsotropic:
     mu_l: float
 
     def __post_init__(self):
-        for name in ("E_t", "E_l", "mu_l"):
+        for name in ("E_t", "E_l", "mu_l"):  # the moduli among CONSTANT_NAMES
             _finite_positive(name, getattr(self, name))
         for name in ("nu_t", "nu_tl"):
             if not np.isfinite(float(getattr(self, name))):
@@ -166,7 +165,23 @@ class TransverseIsotropic:
 
     def to_dict(self) -> dict:
         """The five constants [MPa, -] as a plain dict."""
-        return {k: float(getattr(self, k)) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")}
+        return {k: float(getattr(self, k)) for k in CONSTANT_NAMES}
+
+    def as_tuple(self) -> tuple[float, float, float, float, float]:
+        """The five constants in :data:`CONSTANT_NAMES` order [MPa, -]."""
+        return tuple(float(getattr(self, k)) for k in CONSTANT_NAMES)
+
+    @classmethod
+    def from_mapping(cls, data, *, where: str = "constants") -> "TransverseIsotropic":
+        """From a mapping holding the five :data:`CONSTANT_NAMES` (a JSON table, a CSV row).
+
+        ``where`` names the source in the error when a constant is missing.
+        """
+        missing = [k for k in CONSTANT_NAMES if k not in data]
+        if missing:
+            raise ConfigError(f"{where}: missing {', '.join(missing)}: expected the five constants "
+                              f"{', '.join(CONSTANT_NAMES)}")
+        return cls(*(float(data[k]) for k in CONSTANT_NAMES))
 
     @classmethod
     def from_compliance(cls, S: np.ndarray) -> "TransverseIsotropic":
@@ -260,8 +275,8 @@ def _project_local(Cm_local: np.ndarray) -> np.ndarray:
 
 
 def _misfit_about(Cm: np.ndarray, axis: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    R = frames_from_axes(axis[None, :])
-    Q = mandel_rotation(R)[0]
+    R = voigt.frames_from_axes(axis[None, :])
+    Q = voigt.mandel_rotation(R)[0]
     local = Q.T @ Cm @ Q
     proj = _project_local(local)
     return float(np.linalg.norm(local - proj)), proj, Q

@@ -14,8 +14,6 @@ from .errors import ConfigError
 
 #: Element-wise factor turning a Voigt (6, 6) stiffness into Mandel form.
 MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)
-_MANDEL = MANDEL
-
 
 
 def _symmetric_basis() -> np.ndarray:
@@ -73,10 +71,10 @@ def rotate_stiffness(C: np.ndarray, R: np.ndarray) -> np.ndarray:
     -------
     (n, 6, 6) global Voigt stiffnesses [MPa].
     """
-    Cm = np.asarray(C, float) * _MANDEL
+    Cm = np.asarray(C, float) * MANDEL
     Q = mandel_rotation(R)
     Cg = np.einsum("nIK,KL,nJL->nIJ", Q, Cm, Q, optimize=True)
-    return Cg / _MANDEL
+    return Cg / MANDEL
 
 
 def stiffness_along(C: np.ndarray, fibers: np.ndarray) -> np.ndarray:

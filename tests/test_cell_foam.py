@@ -1,21 +1,18 @@
-"""Voronoi foams as distance fields: exactness, metrics, density solve (issue 3, items 2-4)."""
+"""Voronoi foams as distance fields: exactness, slope, continuity, stretched and polyhedral cells
+(issue 3, items 2-4). The density solve is tested in ``test_cell_thickness.py``, the
+polyhedral gauge itself in ``test_cell_metrics.py``.
+"""
 
 import numpy as np
 import pytest
 
-from metasheet.cells.foam import (
-    Foam,
-    SkeletonIndex,
-    cell_labels,
-    foam_field,
-    solve_thickness,
-    voxel_centres,
-    voxelize,
-)
+from metasheet.cells.foam import Foam, cell_labels, foam_field, voxel_centres, voxelize
 from metasheet.cells.measure import mean_chord_lengths
 from metasheet.cells.metrics import PolyhedralMetric, StretchedMetric
 from metasheet.cells.seeds import grid_seeds, poisson_disk_seeds, uniform_seeds
-from metasheet.errors import ConfigError, InfeasibleError
+from metasheet.cells.skeleton import SkeletonIndex
+from metasheet.cells.thickness import solve_thickness
+from metasheet.errors import ConfigError
 
 CUBE = np.array([6.0, 6.0, 6.0])
 
@@ -90,26 +87,6 @@ def test_field_is_continuous_where_it_decides_the_solid(topology):
     assert not np.any((np.sign(a) != np.sign(b)) & (slope > 1.0 + 1e-6))
 
 
-@pytest.mark.parametrize("topology,target", [("open", 0.15), ("closed", 0.35)])
-def test_density_solver_hits_its_target(topology, target):
-    seeds = poisson_disk_seeds(16, CUBE, 1)
-    n = 48
-    sol = solve_thickness(seeds, CUBE, StretchedMetric(), topology, target, n)
-    assert abs(sol.relative_density - target) < 1.0 / n**3 + 1e-12
-    foam = Foam(seeds, CUBE, StretchedMetric(), topology, sol.thickness)
-    assert voxelize(foam, n).mean() == pytest.approx(sol.relative_density, abs=1e-12)
-    # the sub-voxel volume estimate agrees with the voxel count
-    assert sol.volume_estimate == pytest.approx(target, rel=0.03)
-
-
-def test_unreachable_density_names_the_field_and_the_range():
-    seeds = poisson_disk_seeds(64, CUBE, 1)
-    with pytest.raises(InfeasibleError, match=r"relative_density: 0.01: .*reachable range is \[0\.\d+, "):
-        solve_thickness(seeds, CUBE, StretchedMetric(), "open", 0.01, 24)
-    with pytest.raises(ConfigError, match="relative_density"):
-        solve_thickness(seeds, CUBE, StretchedMetric(), "open", 1.2, 24)
-
-
 def _label_chords(labels, size):
     n = np.array(labels.shape)
     return np.array([labels.size * size[a] / n[a] / (labels != np.roll(labels, 1, axis=a)).sum() for a in range(3)])
@@ -139,19 +116,6 @@ def test_isotropic_foam_has_equal_chords():
     assert c.max() / c.min() < 1.05
 
 
-def test_polyhedral_gauge_is_a_norm_within_its_bounds():
-    m = PolyhedralMetric(k=6, height=2.0, x_shrink=0.7, angle=10.0, axis=1)
-    rng = np.random.default_rng(0)
-    u, v = rng.normal(size=(2, 5000, 3))
-    assert np.all(m.distance(u + v) <= m.distance(u) + m.distance(v) + 1e-12)
-    assert np.allclose(m.distance(3.0 * u), 3.0 * m.distance(u))
-    w = np.linalg.norm(u * m.scale, axis=1)
-    assert np.all(m.distance(u) >= m.lower * w - 1e-12)
-    assert np.all(m.distance(u) <= m.upper * w + 1e-12)
-    # the gradient is the active facet: N(v) = grad . v (positively homogeneous of degree 1)
-    assert np.allclose(np.einsum("ij,ij->i", m.gradient(u), u), m.distance(u))
-
-
 def test_polyhedral_walls_are_parallel_to_the_axis():
     # seeds in one z-plane and a tall prism: the foam is a k-gon Voronoi pattern extruded along z
     size = np.array([8.0, 8.0, 2.0])
@@ -167,16 +131,6 @@ def test_polyhedral_walls_are_parallel_to_the_axis():
     values = [f(np.column_stack([xy, np.full(len(xy), z)])) for z in (0.1, 0.7, 1.3, 1.9)]
     for v in values[1:]:
         assert np.allclose(v, values[0], atol=1e-9)
-
-
-def test_polyhedral_foam_solves_and_matches_its_voxelisation():
-    size = np.array([8.0, 8.0, 8.0])
-    m = PolyhedralMetric(k=5, height=1.5, x_shrink=0.8)
-    seeds = poisson_disk_seeds(16, size, 4, scale=m.scale)
-    sol = solve_thickness(seeds, size, m, "open", 0.2, 32)
-    assert abs(sol.relative_density - 0.2) < 1e-4
-    phases = voxelize(Foam(seeds, size, m, "open", sol.thickness), 32)
-    assert phases.mean() == pytest.approx(sol.relative_density, abs=1e-12)
 
 
 def test_foam_validates_its_fields():

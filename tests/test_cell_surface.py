@@ -6,7 +6,8 @@ import pytest
 from metasheet.cells.surface import check_surface, periodic_isosurface
 from metasheet.cells.tetmesh import periodic_mismatch
 from metasheet.errors import ConfigError, MeshError
-from test_cell_surface_fields import (
+
+from cell_fields import (
     bcc_struts,
     gyroid,
     strut_lattice,

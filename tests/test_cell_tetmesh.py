@@ -7,7 +7,8 @@ import pytest
 from metasheet.cells.surface import check_surface, periodic_isosurface
 from metasheet.cells.tetmesh import periodic_mismatch, periodic_tet_mesh, tet_volumes
 from metasheet.errors import ConfigError, MeshError
-from test_cell_surface_fields import gyroid, strut_lattice, strut_lattice_volume
+
+from cell_fields import gyroid, strut_lattice, strut_lattice_volume
 
 L = 1.0
 BOX = np.array([L, L, L])
@@ -129,13 +130,14 @@ def test_to_meshio(gyroid_mesh):
 
 @pytest.mark.slow
 def test_foam_mesh_of_200k_tets():
-    foam_mod = pytest.importorskip("metasheet.cells.foam")
-    seeds_mod = pytest.importorskip("metasheet.cells.seeds")
+    from metasheet.cells import Foam, StretchedMetric, foam_field, solve_thickness
+    from metasheet.cells.seeds import make_seeds
+
     size = np.array([10.0, 10.0, 10.0])
-    seeds = seeds_mod.make_seeds("poisson", 64, size, 0)
-    sol = foam_mod.solve_thickness(seeds, size, foam_mod.StretchedMetric(), "open", 0.15, 64)
-    foam = foam_mod.Foam(seeds, size, topology="open", thickness=sol.thickness)
-    m = periodic_tet_mesh(foam_mod.foam_field(foam), size, 0.25)
+    seeds = make_seeds("poisson", 64, size, 0)
+    sol = solve_thickness(seeds, size, StretchedMetric(), "open", 0.15, 64)
+    foam = Foam(seeds, size, topology="open", thickness=sol.thickness)
+    m = periodic_tet_mesh(foam_field(foam), size, 0.25)
     assert 1e5 < len(m.tets) < 4e5
     assert m.max_mismatch < 1e-9 * 10
     assert np.all(tet_volumes(m.points, m.tets) > 0)

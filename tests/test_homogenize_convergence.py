@@ -11,8 +11,9 @@ import pytest
 from scipy.optimize import brentq
 
 from metasheet.homogenize import homogenize_voxels
-from metasheet.homogenize.samples import edge_foam
 from metasheet.material import Isotropic
+
+from homogenize_samples import edge_foam
 
 TPU = Isotropic(12.0, 0.3)
 

@@ -5,10 +5,11 @@ import pytest
 
 from metasheet.errors import ConfigError, InfeasibleError, MeshError
 from metasheet.homogenize import homogenize_mesh, homogenize_voxels, voxels_to_tets
-from metasheet.homogenize.bounds import backus_laminate
 from metasheet.homogenize.periodic import periodic_masters, projection
-from metasheet.homogenize.samples import cubic_lattice, edge_foam, laminate
 from metasheet.material import Isotropic, TransverseIsotropic
+
+from homogenize_bounds import backus_laminate
+from homogenize_samples import cubic_lattice, edge_foam, laminate
 
 TPU = Isotropic(12.0, 0.3)
 SOFT = Isotropic(1.5, 0.45)

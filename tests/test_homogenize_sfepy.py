@@ -15,10 +15,10 @@ import pytest
 
 from metasheet.homogenize import homogenize_voxels
 from metasheet.homogenize.percolation import percolating_solid
-from metasheet.homogenize.samples import edge_foam
 from metasheet.material import Isotropic, TransverseIsotropic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from homogenize_samples import edge_foam  # noqa: E402
 from sfepy_reference import faces_match, sfepy_available, sfepy_stiffness  # noqa: E402
 
 pytestmark = pytest.mark.skipif(not sfepy_available(),

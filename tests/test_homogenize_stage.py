@@ -6,11 +6,12 @@ import meshio
 import numpy as np
 import pytest
 
-from metasheet.homogenize.bounds import backus_laminate
-from metasheet.homogenize.samples import laminate
 from metasheet.material import Isotropic
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import homogenize as stage
+
+from homogenize_bounds import backus_laminate
+from homogenize_samples import laminate
 
 
 def _cell_dir(tmp_path, phases, size, materials):

@@ -5,9 +5,9 @@ import pytest
 
 from metasheet.errors import ConfigError, ConvergenceError
 from metasheet.material import Isotropic
-from metasheet.robot.assemblies import ServoGeometry, tripod
+from metasheet.robot.robots import ServoGeometry, tripod
 from metasheet.robot.kinematics import kinematics_at
-from metasheet.robot.rigid import rotation_matrix, rotation_vector
+from metasheet.rotations import rotation_matrix, rotation_vector
 from metasheet.robot.statics import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet
 

@@ -3,14 +3,17 @@
 import numpy as np
 import pytest
 
+from metasheet.errors import ConfigError
 from metasheet.material import Isotropic
-from metasheet.robot.assemblies import tripod
-from metasheet.robot.compare import PAPER_FOAM, SILICONE, build_six_dof, evaluate
-from metasheet.robot.inverse import InverseController, InverseSettings, solve_step_qp
-from metasheet.robot.rigid import rotation_vector
+from metasheet.paper import PAPER_FOAM, SILICONE
+from metasheet.robot.builder import SheetPair, six_dof_robot
+from metasheet.robot.compare import evaluate
+from metasheet.robot.robots import tripod
+from metasheet.robot.inverse import InverseController, InverseSettings
+from metasheet.robot.qp import solve_step_qp
+from metasheet.rotations import rotation_vector
 from metasheet.robot.statics import solve_equilibrium
-from metasheet.sheet.fibers import spiral_fibers
-from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+from metasheet.sheet.geometry import SheetParams, tripod_sheet
 
 
 @pytest.fixture(scope="module")
@@ -25,15 +28,24 @@ def test_qp_stays_in_the_stroke_for_any_goal(seed):
     q = rng.uniform(0, np.pi / 2, size=3)
     lo, hi = np.zeros(3), np.full(3, np.pi / 2)
     s = InverseSettings(max_step_deg=3.0)
+    D = np.array([1.0, 1.0, 1.0] + [s.rot_weight] * 3)
     for e in (rng.normal(size=6) * 1e4, rng.normal(size=6) * 1e-3):
-        dq, ok = solve_step_qp(J, e, q, lo, hi, s)
+        step = solve_step_qp(J, e, q, lo, hi, s)
+        dq, ok = step.dq, step.ok
         assert ok
         assert np.all(q + dq >= lo - 1e-15) and np.all(q + dq <= hi + 1e-15)
         assert np.all(np.abs(dq) <= np.radians(3.0) + 1e-15)
+        # the solution's own checks: feasible, and no worse than not moving (dq = 0 is feasible)
+        assert step.solver == s.solver and step.primal_residual <= 1e-12
+        assert step.objective <= 0.5 * np.sum((D * e) ** 2) * (1 + 1e-12)
     # an interior optimum is the regularised least-squares solution
     dq_true = np.radians([0.5, -0.3, 0.2])
-    dq, _ = solve_step_qp(J, J @ dq_true, np.full(3, 0.7), lo, hi, InverseSettings(rot_weight=1.0))
+    step = solve_step_qp(J, J @ dq_true, np.full(3, 0.7), lo, hi, InverseSettings(rot_weight=1.0))
+    dq = step.dq
     assert np.allclose(dq, dq_true, atol=1e-6)
+    eps = InverseSettings().regularization * np.linalg.eigvalsh(J.T @ J)[-1]  # D = I with rot_weight 1
+    # optimal, and no worse than dq_true, whose cost is the regularisation's alone [mm^2]
+    assert step.is_optimal(1e-8) and step.objective <= 0.5 * eps * (dq_true @ dq_true) * (1 + 1e-9)
 
 
 def test_reaches_a_pose_the_forward_model_produced(robot):
@@ -47,6 +59,30 @@ def test_reaches_a_pose_the_forward_model_produced(robot):
     assert res.status == "reached", res.to_dict()
     assert res.pos_error <= 0.02 and res.rot_error <= 0.05
     assert np.allclose(res.angles_deg, np.degrees(target_angles), atol=0.5)
+
+
+def test_per_call_settings_leave_the_controller_unchanged(robot):
+    """goto(settings=...) takes exactly the steps of a controller whose settings were replaced."""
+    from dataclasses import replace
+
+    rest = solve_equilibrium(robot, robot.coupling.rest_angles).state
+    goal_state = solve_equilibrium(robot, rest.angles + np.radians([-4.0, 3.0, -6.0]), state=rest).state
+    goal = np.concatenate([goal_state.p, np.degrees(rotation_vector(goal_state.R))])
+    base = InverseSettings()
+    per_goal = replace(base, rot_weight=20.0, pos_tol=0.05, rot_tol_deg=0.1, max_steps=40)
+    mutated = InverseController(robot, rest, base)
+    mutated.settings = per_goal  # the old way: overwrite the controller's settings
+    ref = mutated.goto(goal)
+    ctl = InverseController(robot, rest, base)
+    res = ctl.goto(goal, settings=per_goal)
+    assert ctl.settings is base
+    assert res.status == ref.status == "reached" and res.steps == ref.steps
+    assert np.array_equal(res.state.x, ref.state.x) and res.residual == ref.residual
+    assert ctl.refresh_reasons == mutated.refresh_reasons and ctl.refreshes == mutated.refreshes
+    info = ctl.step(goal[:3], goal_state.R, settings=per_goal)
+    assert info.qp is not None and info.qp.ok == info.qp_ok and np.array_equal(info.qp.dq, info.dq_a)
+    with pytest.raises(ConfigError, match="settings"):
+        ctl.goto(goal, settings={"pos_tol": 0.05})
 
 
 def test_unreachable_goal_returns_closest_pose_inside_limits(robot):
@@ -69,13 +105,10 @@ def test_unreachable_goal_returns_closest_pose_inside_limits(robot):
 
 @pytest.fixture(scope="module")
 def six_dof_cases():
-    sheet = tripod_sheet(SheetParams(mesh_size=15.0))
-    mirrored = mirror_sheet(sheet)
-    fa = spiral_fibers(sheet.centroids())
-    fb = spiral_fibers(mirrored.centroids(), mirrored=True)
+    sheets = SheetPair.spiral(SheetParams(mesh_size=15.0))
     out = {}
     for name, mat in (("silicone", SILICONE), ("foam", PAPER_FOAM)):
-        rob = build_six_dof(sheet, mirrored, mat, fibers=fa, fibers_mirrored=fb, density=1.1e-9)
+        rob = six_dof_robot(sheets, mat, density=1.1e-9)
         out[name] = evaluate(rob, name, delta_deg=-5.0)
     return out
 

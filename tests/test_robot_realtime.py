@@ -10,17 +10,17 @@ import scipy.sparse as sp
 
 from metasheet.errors import ConfigError
 from metasheet.material import Isotropic
-from metasheet.robot.assemblies import tripod
-from metasheet.robot.compare import PAPER_FOAM, build_six_dof
+from metasheet.paper import PAPER_FOAM
+from metasheet.robot.builder import SheetPair, six_dof_robot
+from metasheet.robot.robots import tripod
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.kinematics import kinematics
-from metasheet.robot.linsolve import SparseSolver, have_cholmod, resolve
-from metasheet.robot.rigid import rotation_matrix, rotation_vector
+from metasheet.fem.solvers import SparseSolver, available, resolve
+from metasheet.rotations import rotation_matrix, rotation_vector
 from metasheet.robot.statics import Linearizer, solve_equilibrium
-from metasheet.sheet.fibers import spiral_fibers
-from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+from metasheet.sheet.geometry import SheetParams, tripod_sheet
 
-needs_cholmod = pytest.mark.skipif(not have_cholmod(), reason="scikit-sparse (CHOLMOD) not installed")
+needs_cholmod = pytest.mark.skipif(not available("cholmod"), reason="scikit-sparse (CHOLMOD) not installed")
 
 
 def _spd(n, asym, seed):
@@ -65,10 +65,7 @@ def test_bad_solver_name_is_a_config_error():
 
 @pytest.fixture(scope="module")
 def foam_robot():
-    sheet = tripod_sheet(SheetParams(mesh_size=15.0))
-    mirrored = mirror_sheet(sheet)
-    rob = build_six_dof(sheet, mirrored, PAPER_FOAM, fibers=spiral_fibers(sheet.centroids()),
-                        fibers_mirrored=spiral_fibers(mirrored.centroids(), mirrored=True), density=1.1e-9)
+    rob = six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=15.0)), PAPER_FOAM, density=1.1e-9)
     rest = solve_equilibrium(rob, rob.coupling.rest_angles).state
     moved = solve_equilibrium(rob, rest.angles + np.radians([8, -4, 6, 2, -8, 4]), state=rest).state
     return rob, rest, moved
@@ -116,12 +113,24 @@ def test_state_set_from_outside_forces_a_fresh_linearisation(foam_robot):
     assert ctl.step(rest.p, rest.R).fresh
 
 
+def test_another_user_of_the_shared_linearizer_forces_a_fresh_linearisation(foam_robot):
+    """The kept tangent's factor is the linearizer's: a refactorisation by another user (the
+    kinematics, an equilibrium solve) is seen through the linearizer's factorisation count."""
+    rob, rest, _ = foam_robot
+    ctl = InverseController(rob, rest, InverseSettings())
+    assert ctl.step(rest.p, rest.R).fresh
+    assert not ctl.step(rest.p, rest.R).fresh  # kept: nothing moved
+    ctl.linearizer.linearize(ctl.state)  # e.g. the Jacobian at this point: K_ff refactorised
+    assert ctl.step(rest.p, rest.R).fresh
+    assert ctl.refreshes == 2 and not ctl.refresh_reasons  # not counted as a dropped tangent
+
+
 def test_isotropic_tripod_reaches_with_cholmod_or_superlu():
     rob = tripod(tripod_sheet(SheetParams(mesh_size=15.0)), Isotropic(0.25, 0.45).stiffness(), density=1.07e-9)
     rest = solve_equilibrium(rob, rob.coupling.rest_angles).state
     target = solve_equilibrium(rob, rest.angles + np.radians([-5.0, -2.0, -8.0]), state=rest).state
     goal = np.concatenate([target.p, np.degrees(target.pose[3:])])
-    for name in ["superlu"] + (["cholmod"] if have_cholmod() else []):
+    for name in ["superlu"] + (["cholmod"] if available("cholmod") else []):
         res = InverseController(rob, rest, InverseSettings(pos_tol=0.02, rot_tol_deg=0.05, linear_solver=name)).goto(goal)
         assert res.status == "reached", (name, res.to_dict())
         assert np.allclose(res.angles_deg, np.degrees(target.angles), atol=0.5)

@@ -6,11 +6,13 @@ import meshio
 import numpy as np
 import pytest
 
+from metasheet.cli import format_result, goto_robot
+from metasheet.errors import ConfigError
+from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.pipeline.artefacts import write_material
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import robot as robot_stage
-from metasheet.robot.cli_support import format_result, goto, robot_from_orient
-from metasheet.robot.compare import PAPER_FOAM
-from metasheet.robot.inverse import InverseSettings
+from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.sheet.fibers import spiral_fibers
 from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
 
@@ -18,7 +20,7 @@ from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
 def _write_orient(d, mesh_size=15.0):
     s = tripod_sheet(SheetParams(mesh_size=mesh_size))
     m = mirror_sheet(s)
-    consts = {k: np.full(len(s.tets), getattr(PAPER_FOAM, k)) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")}
+    consts = {k: np.full(len(s.tets), v) for k, v in PAPER_FOAM.to_dict().items()}
     for name, sh, mir in (("sheet.vtu", s, False), ("sheet_mirrored.vtu", m, True)):
         fib = spiral_fibers(sh.centroids(), mirrored=mir)
         meshio.write(d / name, meshio.Mesh(sh.points, [("tetra", sh.tets)], point_data={"attach": sh.attach},
@@ -36,7 +38,7 @@ def orient_dir(tmp_path_factory):
 def test_stage_writes_jacobian_vtu_and_picture(orient_dir, tmp_path):
     mat = tmp_path / "material"
     mat.mkdir()
-    (mat / "material.json").write_text(json.dumps({"density": 1.785e-10}))
+    write_material(mat / "material.json", PAPER_FOAM, density=FOAM_DENSITY, source="config")
     work = tmp_path / "work"
     work.mkdir()
     ctx = StageContext("robot", robot_stage.RobotParams(delta_deg=-10.0), work,
@@ -46,8 +48,6 @@ def test_stage_writes_jacobian_vtu_and_picture(orient_dir, tmp_path):
     assert summary["rest_angles_deg"] == [60.0] * 6  # the design rest angle, whatever the mesh
     # derived servo circle: tip box (~59-66 mm out on this mesh) + 25 cos 60 = 12.5 mm
     assert 70.0 < summary["servo_radius_mm_derived"] < 80.0
-    from metasheet.errors import ConfigError
-
     bad = StageContext("robot", robot_stage.RobotParams(rest_angle=95.0), work, ctx.inputs, tmp_path)
     with pytest.raises(ConfigError, match="rest_angle"):
         robot_stage.run(bad)
@@ -65,8 +65,8 @@ def test_stage_writes_jacobian_vtu_and_picture(orient_dir, tmp_path):
 
 
 def test_goto_helper_reaches_a_small_offset(orient_dir):
-    rob = robot_from_orient(orient_dir)
-    res = goto(rob, [0.0, 0.0, 1.0, 2.0, 0.0, 0.0])
+    rob = goto_robot(orient_dir)
+    res = InverseController(rob).goto([0.0, 0.0, 1.0, 2.0, 0.0, 0.0])
     assert res.status == "reached", format_result(res)
     assert "motor angles" in format_result(res) and "certified by" in format_result(res)
     assert res.residual <= InverseSettings().eq_tol * res.reference

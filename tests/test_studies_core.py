@@ -9,7 +9,7 @@ from metasheet.executor import Executor
 from metasheet.studies.anisotropy import anisotropy_sweep
 from metasheet.studies.grid import star_grid
 from metasheet.studies.maze import MazeSettings, maze_commands, solve_maze
-from metasheet.studies.model import RobotModel, get_model, pose_errors
+from metasheet.studies.model import MODELS, ModelCache, RobotModel, pose_errors
 from metasheet.studies.ranges import motor_range_study
 from metasheet.studies.resume import UnitCache
 from metasheet.studies.standin import StandInSpec
@@ -45,10 +45,25 @@ def test_grid_rejects_bad_input():
 
 
 def test_standin_satisfies_protocol_and_has_five_dof_when_isotropic():
-    m = get_model(StandInSpec())
+    m = MODELS.get(StandInSpec())
     assert isinstance(m, RobotModel)
-    sv = np.linalg.svd(get_model(StandInSpec(alpha=0.0)).J, compute_uv=False)
+    sv = np.linalg.svd(MODELS.get(StandInSpec(alpha=0.0)).J, compute_uv=False)
     assert sv[-1] < 1e-12 * sv[0] and np.linalg.svd(m.J, compute_uv=False)[-1] > 1e-3
+
+
+def test_model_cache_builds_once_per_spec_and_is_bounded():
+    cache = ModelCache(max_size=2)
+    specs = [StandInSpec(alpha=a) for a in (0.0, 10.0, 20.0)]
+    m0 = cache.get(specs[0])
+    assert cache.get(StandInSpec(alpha=0.0)) is m0 and len(cache) == 1  # equal key: no rebuild
+    cache.get(specs[1])
+    cache.get(specs[2])  # full: the oldest built is dropped
+    assert len(cache) == 2 and specs[0] not in cache and specs[1] in cache and specs[2] in cache
+    assert cache.get(specs[0]) is not m0
+    cache.clear()
+    assert len(cache) == 0
+    with pytest.raises(ConfigError, match="max_size"):
+        ModelCache(max_size=0)
 
 
 def test_classes_consistent_with_recorded_errors(ws):
@@ -65,7 +80,7 @@ def test_classes_consistent_with_recorded_errors(ws):
     centre = np.argmin(np.linalg.norm(ws.goals, axis=1))
     assert ws.cls[centre] == 3
     # the recorded motor angles really put the effector within tolerance (forward check)
-    m = get_model(StandInSpec())
+    m = MODELS.get(StandInSpec())
     for i in np.flatnonzero(r.reached)[:20]:
         pose, _ = m.equilibrium(r.motors_deg[i])
         assert pose_errors(np.concatenate([ws.goals[i], np.zeros(3)]), pose)[0] <= s.tol_mm + 1e-9

@@ -9,7 +9,7 @@ from metasheet.material import Isotropic
 from metasheet.studies.anisotropy import anisotropy_sweep
 from metasheet.studies.grid import star_grid
 from metasheet.studies.maze import MazeSettings, solve_maze
-from metasheet.studies.model import RobotModel, get_model, pose_errors
+from metasheet.studies.model import MODELS, RobotModel, pose_errors
 from metasheet.studies.workspace import WorkspaceSettings, explore_workspace
 
 pytest.importorskip("metasheet.robot.inverse")
@@ -29,7 +29,7 @@ def spec():
 
 
 def test_adapter_is_a_robot_model_and_pickles(spec):
-    m = get_model(spec)
+    m = MODELS.get(spec)
     assert isinstance(m, RobotModel)
     assert m.rod_axis == 0 and np.allclose(m.rest_motors(), 60.0, rtol=0, atol=1e-9)
     back = pickle.loads(pickle.dumps(spec))
@@ -63,7 +63,7 @@ def test_workspace_on_fem_classes_consistent(spec):
     ok = ((r.rot_error_mm <= s.tol_mm) & (r.rot_error_deg <= s.tol_rot_deg)).reshape(-1, 3, 2).all(axis=2)
     assert np.array_equal(ws.cls, np.where(r.reached, ok.sum(axis=1), -1))
     assert r.reached.sum() >= 4  # the nearest points (3-4 mm) are reachable
-    m = get_model(spec)
+    m = MODELS.get(spec)
     lo, hi = m.motor_range
     reached = r.reached
     assert np.all((r.motors_deg[reached] >= lo - 1e-9) & (r.motors_deg[reached] <= hi + 1e-9))

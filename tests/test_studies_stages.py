@@ -1,7 +1,6 @@
 """The study stages end to end through the pipeline runner (stand-in robot, and a coarse FEM robot)."""
 
 import csv
-import json
 from pathlib import Path
 
 import numpy as np
@@ -220,16 +219,16 @@ def test_report_lists_differences_from_the_numbers():
 def test_study_mesh_size_remeshes_the_orient_sheet(tmp_path):
     """``mesh_size`` rebuilds the sheet for the study only: same rest angle, far fewer tets,
     and the per-element constants carried over from the orient mesh."""
-    from metasheet.pipeline.stages._studies import _remesh
-    from metasheet.robot.cli_support import read_sheet
+    from metasheet.pipeline.artefacts import read_orient
+    from metasheet.pipeline.stages._studies import remesh
 
     text = '[pipeline]\nname = "om"\nstages = ["material", "orient"]\n[material]\nsource = "config"\n[orient]\nmesh_size = 10\n'
     run_pipeline(load_pipeline(project(tmp_path, text, "om")))
     o = tmp_path / "outputs" / "om" / "orient"
-    a, fa, ca = read_sheet(o / "sheet.vtu")
-    b, fb, cb = read_sheet(o / "sheet_mirrored.vtu")
-    info = json.loads((o / "sheet.json").read_text())
-    a2, fa2, ca2, b2, fb2, cb2 = _remesh(info, 16.0, a, ca, b, cb)
+    orient = read_orient(o)
+    a, ca = orient.normal.mesh, orient.normal.constants
+    pair = remesh(orient, 16.0)
+    a2, fa2, ca2, b2 = pair.sheet, pair.fibers, pair.constants, pair.mirrored
     assert len(a2.tets) < 0.7 * len(a.tets) and len(b2.tets) == len(a2.tets)
     assert np.allclose(np.linalg.norm(fa2, axis=1), 1.0) and fa2.shape == (len(a2.tets), 3)
     # uniform design: every carried-over constant is one of the orient mesh's

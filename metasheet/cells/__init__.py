@@ -2,8 +2,10 @@
 
 - :mod:`.seeds`: periodic seed samplers (uniform, jittered grid, Poisson disk) and images.
 - :mod:`.metrics`: stretched Euclidean and polyhedral (k-gon) distances.
-- :mod:`.foam`: :class:`Foam`, its level set :func:`foam_field`, :func:`voxelize`, and the
-  strut radius / wall thickness solver.
+- :mod:`.skeleton`: distances to the Voronoi skeleton (walls, struts) and nearest seeds.
+- :mod:`.foam`: :class:`Foam`, its level set :func:`foam_field`, :func:`voxelize`.
+- :mod:`.thickness`: the strut radius / wall thickness for a relative density
+  (:func:`solve_thickness`).
 - :mod:`.connectivity`: periodic connectivity and percolation (:func:`check_percolation`).
 - :mod:`.design`: the ``cells/*.toml`` designs and :func:`design_cell`.
 - :mod:`.surface`, :mod:`.tetmesh`: watertight surfaces and periodic tet meshes (imported
@@ -12,8 +14,9 @@
 
 from .connectivity import ConnectivityReport, check_percolation
 from .design import CellDesign, CellResult, design_cell, parse_design
-from .foam import Foam, foam_field, solve_thickness, voxelize
+from .foam import Foam, foam_field, voxelize
 from .metrics import PolyhedralMetric, StretchedMetric
+from .thickness import solve_thickness
 
 __all__ = [
     "CellDesign",

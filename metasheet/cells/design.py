@@ -4,7 +4,7 @@ A design is a plain mapping (a parsed TOML file) validated into one of three fro
 told apart by ``kind``:
 
 - ``foam``: a periodic Voronoi foam (:mod:`metasheet.cells.foam`) whose strut radius or
-  wall thickness is solved for a relative density;
+  wall thickness is solved for a relative density (:mod:`metasheet.cells.thickness`);
 - ``laminate``: layers of isotropic materials stacked along ``axis`` (exact Backus
   averages downstream);
 - ``solid``: the bulk base material.
@@ -26,10 +26,12 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from ..errors import ConfigError, InfeasibleError
 from ..material import Isotropic
 from .connectivity import ConnectivityReport, check_percolation, keep_largest
-from .foam import Foam, SkeletonIndex, ThicknessSolution, foam_field, solve_thickness, voxel_centres
+from .foam import Foam, foam_field, voxel_centres
 from .measure import mean_chord_lengths
 from .metrics import PolyhedralMetric, StretchedMetric
 from .seeds import make_seeds
+from .skeleton import SkeletonIndex
+from .thickness import ThicknessSolution, solve_thickness
 
 Length = Annotated[float, Field(gt=0)]
 

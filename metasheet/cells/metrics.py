@@ -4,7 +4,7 @@ A metric here is a translation-invariant norm ``N(v)`` of the displacement ``v =
 [mm] between a point and a seed. Translation invariance keeps the foam periodic: the
 Voronoi diagram of periodic seeds under ``N`` is periodic with the same box.
 
-Every metric offers the same small interface, used by :mod:`metasheet.cells.foam`:
+Every metric offers the same small interface, used by :mod:`metasheet.cells.skeleton`:
 
 - ``distance(v)``: ``(..., 3) -> (...)`` the norm;
 - ``gradient(v)``: ``(..., 3) -> (..., 3)`` its gradient (for the polyhedral gauge, the
@@ -136,7 +136,7 @@ class PolyhedralMetric:
     - ``axis``: longitudinal axis index (0, 1, 2); local x, y are :func:`transverse_axes`.
 
     Bisectors of a polyhedral gauge are piecewise planar, so the foam's walls are flat
-    pieces; the field in :mod:`metasheet.cells.foam` measures distances to them with the
+    pieces; :mod:`metasheet.cells.skeleton` measures distances to them with the
     local facet normals, exact within each planar piece.
     """
 

@@ -2,7 +2,6 @@
 
 - :func:`homogenize_voxels`: voxel grids (trilinear hexahedra, void removed).
 - :func:`homogenize_mesh`: node-matched periodic tet meshes (explicit projection P).
-- :mod:`.bounds`: Voigt, Hashin-Shtrikman upper, exact Backus laminate.
 - :mod:`.chart`: design chart sweep and its inverse look-up.
 
 Voigt order 11, 22, 33, 23, 13, 12 with engineering shear; stiffness in MPa.

@@ -21,7 +21,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, InfeasibleError
 from ..material import Isotropic, TransverseIsotropic, TransverseFit
-from .solvers import SolveReport, solve_spd
+from ..fem.solvers import solve_spd
 
 
 def material_stiffness(phase: int, material) -> np.ndarray:
@@ -55,7 +55,7 @@ def solve_correctors(K: sp.csr_matrix, F: np.ndarray, c_vol: np.ndarray, volume:
     c_vol : (6, 6) ``sum_e V_e C_e`` [N mm].
     volume : |Y|, the box volume [mm^3].
     coords : (n / 3, 3) node coordinates [mm] (AMG near-null space).
-    solver, rtol : see :func:`~metasheet.homogenize.solvers.solve_spd`.
+    solver, rtol : see :func:`~metasheet.fem.solvers.solve_spd`.
 
     Returns
     -------

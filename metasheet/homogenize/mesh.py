@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from ..errors import ConfigError, InfeasibleError
-from ..fem.assembly import assemble_matrix, assemble_vectors
+from ..fem.assembly import SparsityPattern
 from ..fem.tet4 import tet4_matrices
 from .corrector import check_and_fit, material_stiffness, solve_correctors, symmetry_error
 from .localisation import localisation
@@ -78,9 +78,10 @@ def homogenize_mesh(points, tets, materials: dict, phase=None, *, size, origin=N
     elements = np.flatnonzero(keep)
     tk, kind = t[elements], kind_all[elements]
     Ke, Fe, B, vol = tet4_matrices(p, tk, Cs[kind])
-    dofs = (3 * tk[:, :, None] + np.arange(3)).reshape(-1, 12)
-    K = assemble_matrix(dofs, Ke, 3 * len(p))
-    F = assemble_vectors(dofs, Fe, 3 * len(p))
+    pattern = SparsityPattern.from_elements(tk, len(p))
+    dofs = pattern.dofs
+    K = pattern.assemble(Ke)
+    F = pattern.assemble_vector(Fe)
     P = projection(master, n_master)
     Kp = (P.T @ K @ P).tocsr()
     Fp = P.T @ F

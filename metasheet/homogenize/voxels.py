@@ -2,8 +2,9 @@
 
 Every voxel is the same box, so the 24 x 24 element stiffness, the 24 x 6 unit-strain
 forces and the mean strain operator are computed once per phase
-(:func:`~metasheet.fem.hex8.hex8_box_matrices`) and scattered in one vectorised COO
-pass. The grid is periodic by construction: voxel (i, j, k) uses the nodes
+(:func:`~metasheet.fem.hex8.hex8_box_matrices`) and scattered through the mesh's
+sparsity pattern (:class:`~metasheet.fem.assembly.SparsityPattern`, given one matrix per
+phase). The grid is periodic by construction: voxel (i, j, k) uses the nodes
 ((i + a) mod nx, ...), so no constraint is needed. Void voxels are removed (not made
 soft), and so are solid islands that do not wrap around the box
 (:mod:`.percolation`). The corrector problem is in :mod:`.corrector`.
@@ -19,7 +20,7 @@ import time
 import numpy as np
 
 from ..errors import ConfigError
-from ..fem.assembly import assemble_matrix, assemble_vectors
+from ..fem.assembly import SparsityPattern
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices
 from .corrector import check_and_fit, material_stiffness, solve_correctors, symmetry_error
 from .localisation import localisation
@@ -83,7 +84,7 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     size : (3,) float [mm], the box's edge lengths.
     materials : dict phase -> :class:`~metasheet.material.Isotropic` or
         :class:`~metasheet.material.TransverseIsotropic` (its axis 3 = global z).
-    solver : "auto", "direct" or "amg" (:mod:`.solvers`).
+    solver : "auto", "direct" or "amg" (:func:`metasheet.fem.solvers.solve_spd`).
     rtol : relative residual asked of the linear solver; ``C`` is computed in energy
         form, so its relative error is of the order of rtol squared times the condition.
     axis : (3,) the transverse-isotropic fit's axis, or None to search the best one.
@@ -111,10 +112,10 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     Ke = np.array([m[0] for m in mats])
     Fe = np.array([m[1] for m in mats])
     Bm = np.array([m[2] for m in mats])
-    dofs = (3 * nodes[:, :, None] + np.arange(3)).reshape(-1, 24)
-    ndof = 3 * len(grid_nodes)
-    K = assemble_matrix(dofs, Ke, ndof, kind)
-    F = assemble_vectors(dofs, Fe, ndof, kind)
+    pattern = SparsityPattern.from_elements(nodes, len(grid_nodes))
+    dofs = pattern.dofs
+    K = pattern.assemble(Ke, kind)
+    F = pattern.assemble_vector(Fe, kind)
     counts = np.bincount(kind, minlength=len(present))
     c_vol = np.einsum("p,pij->ij", counts * v_el, Cs)
     coords = np.stack(np.unravel_index(grid_nodes, ph.shape), axis=1) * h

@@ -1,6 +1,6 @@
 """Isotropic silicone vs the anisotropic foam (the paper's main claim, Fig. 4, 7, 8).
 
-Builds the 6-DOF robot with one material per case, and per case reports the Jacobian's
+Evaluates one robot per material (built by :func:`.builder.six_dof_robot`) and reports the Jacobian's
 singular values at the rest equilibrium and the rod-axis rotation per degree when all six
 motors move together (from J, and from a finite actuation solved to equilibrium). With an
 isotropic material each tripod has mirror planes that contain the rod, so that rotation
@@ -14,35 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..conventions import TPU_DENSITY
-from ..material import Isotropic, TransverseIsotropic, stiffness_along
-from .assemblies import Robot, ServoGeometry, six_dof
+from ..rotations import rotation_vector
 from .kinematics import Kinematics, kinematics
-from .rigid import rotation_vector
+from .robots import Robot
 from .statics import RobotState, solve_equilibrium
-
-#: the paper's foam (FACTS.md, kPa -> MPa) and the tutorial's silicone
-PAPER_FOAM = TransverseIsotropic(1.39, 0.09422, 0.26162, 0.4161, 0.01628215)
-SILICONE = Isotropic(0.25, 0.45)
-
-
-def sheet_stiffness(material, fibers=None) -> np.ndarray:
-    """(m, 6, 6) or (6, 6) sheet-frame stiffness [MPa]: isotropic, or axis 3 along ``fibers`` (m, 3)."""
-    C = material.stiffness()
-    if isinstance(material, Isotropic) or fibers is None:
-        return C
-    return stiffness_along(C, fibers)
-
-
-def build_six_dof(sheet, sheet_mirrored, material, *, fibers=None, fibers_mirrored=None, rod_length=80.0,
-                  geometry: ServoGeometry = ServoGeometry(), density: float = TPU_DENSITY) -> Robot:
-    """6-DOF robot from a sheet, its mirror image, one material and (for a transverse one) fibres.
-
-    ``fibers`` (m, 3) on ``sheet``'s elements, ``fibers_mirrored`` on ``sheet_mirrored``'s.
-    """
-    Ca = sheet_stiffness(material, fibers)
-    Cb = sheet_stiffness(material, fibers_mirrored)
-    return six_dof(sheet, Ca, sheet_mirrored, Cb, rod_length=rod_length, geometry=geometry, density=density)
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,9 @@
 Each control step, at the current (nearly equilibrated) state:
 
 1. linearise: tangent, condensation, ``J = W_ea W_aa^-1`` (eq. 6-7) and the effector motion
-   ``dq_e^0`` that the pending equilibrium correction alone would cause;
-2. solve the QP
+   ``dq_e^0`` that the pending equilibrium correction alone would cause (:mod:`.tangent`:
+   the linearisation is kept across steps while it stays good enough);
+2. solve the QP of eq. (8) (:func:`.qp.solve_step_qp`)
 
        min_dq  1/2 |D (J dq - e)|^2 + 1/2 eps |dq|^2
        s.t.    max(q_min - q, -dq_max) <= dq <= min(q_max - q, dq_max)
@@ -22,17 +23,13 @@ the motor limits become simple bounds, which the dense solvers (daqp, quadprog, 
 qpsolvers) handle directly.
 
 Real time (issue 6): a fresh linearisation (tangent, factorisation, Schur complement) costs
-several chord steps, so the controller keeps it across control steps and only re-evaluates
-the forces and one solve with the cached factor (a chord / modified-Newton step). It is
-never trusted blindly; a fresh one is taken when any of these holds (defaults in brackets):
-
-* it is ``refactor_every`` steps old [20];
-* the motors moved more than ``refresh_angle_deg`` from where it was taken [8 deg], or the
-  state was set from outside (another goal, a reset);
-* the pending equilibrium correction of the effector, ``dq_e^0`` (mm, with rotations
-  weighted by ``rot_weight``), exceeds ``drift_tol * pos_tol`` [0.5 * 0.1 mm]: the chord
-  iterate is then too far from equilibrium for the pose the QP sees;
-* the reduced residual exceeds ``chord_tol`` times the force scale [1.0] (divergence guard).
+several chord steps, so the loop keeps it across control steps and only re-evaluates the
+forces and one solve with the cached factor (a chord / modified-Newton step). It is never
+trusted blindly: :class:`.tangent.TangentCache` takes a fresh one when it is
+``refactor_every`` steps old [20], the motors moved more than ``refresh_angle_deg`` since it
+was taken [8 deg] (or the state was set from outside: another goal, a reset), the pending
+correction ``dq_e^0`` exceeds ``drift_tol * pos_tol`` [0.5 * 0.1 mm], or the reduced
+residual exceeds ``chord_tol`` times the force scale [1.0] (defaults in brackets).
 
 The sparse solver is SuperLU by default: CHOLMOD of the symmetric part (``linear_solver=
 "cholmod"``) factorises twice as fast, but on the deformed anisotropic tangent it is a poor
@@ -46,7 +43,7 @@ returned, never an exception), or "max_steps".
 
 The reported pose is always an equilibrium at the final motor angles within a stated
 residual tolerance: the reduced residual (the norm of :attr:`.statics.Linearization.
-residual_norm`) at most ``eq_tol`` times the force scale of :func:`.statics.solve_equilibrium`.
+residual_norm`) at most ``eq_tol`` times the force scale of :func:`.statics.force_scale`.
 :meth:`InverseController.certify` gets there with the loop's own kept tangent: chord
 (modified-Newton) corrections at fixed motor angles, each judged on the true residual, at
 most ``polish_iters`` of them (a few ms each), and only when they fail with the full Newton
@@ -61,31 +58,35 @@ state produced by this controller (a control step or a certification; the last
 ``OWN_STATES`` are remembered) may be set back as ``state`` without dropping the kept
 tangent: the refresh tests above (angle moved since the tangent, residual, drift) still
 run on it. Any other state set from outside forces a fresh linearisation.
+
+Settings: :attr:`InverseController.settings` are the defaults of every call; ``goto``,
+``step`` and ``certify`` take a per-call ``settings`` override (a study's tolerances for one
+goal) that leaves the controller's own unchanged.
 """
 
 from __future__ import annotations
 
 import time
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-import qpsolvers
 
 from ..errors import ConfigError, ConvergenceError, check_range
-from .kinematics import jacobian_from_schur
-from .linsolve import SOLVERS as LINEAR_SOLVERS
-from .linsolve import resolve
-from .rigid import rotation_matrix, rotation_vector
-from .statics import Linearizer, RobotState, _reference, apply_step, solve_equilibrium
-
-SOLVERS = ("daqp", "quadprog", "proxqp")  # QP solvers; sparse ones: LINEAR_SOLVERS
-OWN_STATES = 16  # states a controller remembers as its own (continuation without a refresh)
+from ..fem.solvers import resolve
+from ..rotations import rotation_matrix, rotation_vector
+from .qp import SOLVERS as QP_SOLVERS
+from .qp import QPStep, pose_error, solve_step_qp, weighted_norm
+from .statics import Linearizer, RobotState, apply_step, force_scale, solve_equilibrium
+from .tangent import TangentCache
 
 
 @dataclass(frozen=True)
 class InverseSettings:
-    """Settings of the inverse loop (units in brackets)."""
+    """Settings of the inverse loop (units in brackets).
+
+    ``solver``: the QP solver (:data:`.qp.SOLVERS`); ``linear_solver``: the sparse one
+    (:data:`metasheet.fem.solvers.FACTOR_SOLVERS`: "superlu", "cholmod", "auto").
+    """
 
     rot_weight: float = 50.0  # [mm/rad]
     regularization: float = 1e-6  # [-], relative to the largest eigenvalue of J^T D^2 J
@@ -123,13 +124,14 @@ class InverseSettings:
         check_range("polish_iters", self.polish_iters, 0, 1000)
         check_range("polish_rate", self.polish_rate, 0.0, 1.0, lo_open=True, hi_open=True)
         resolve(self.linear_solver)  # ConfigError naming linear_solver if unknown / not installed
-        if self.solver not in SOLVERS:
-            raise ConfigError(f"solver: {self.solver!r}: allowed {SOLVERS}")
+        if self.solver not in QP_SOLVERS:
+            raise ConfigError(f"solver: {self.solver!r}: allowed {QP_SOLVERS}")
 
 
 @dataclass(frozen=True)
 class StepInfo:
-    """One control step: motor increment [rad], residual before it [N], QP status, time [s]."""
+    """One control step: motor increment dq_a (na,) [rad], residual before it [N], weighted
+    pose error before it [mm], QP status, time [s], and the QP's own diagnostics."""
 
     dq_a: np.ndarray
     residual: float
@@ -137,6 +139,7 @@ class StepInfo:
     qp_ok: bool
     time: float
     fresh: bool = True  # whether this step took a fresh linearisation
+    qp: QPStep | None = None  # the step's QP solution with its residuals and objective
 
 
 @dataclass(frozen=True)
@@ -183,94 +186,70 @@ class InverseResult:
                 "certified": self.certified}
 
 
-def pose_error(p, R, goal_p, goal_R) -> np.ndarray:
-    """(6,) error (mm, rad) from (p, R) to the goal, rotation as a spatial rotation vector."""
-    return np.concatenate([goal_p - p, rotation_vector(goal_R @ R.T)])
-
-
-def solve_step_qp(J, e, q, q_min, q_max, settings: InverseSettings):
-    """The QP of eq. (8) in motor increments; returns (dq (na,) [rad], solver_ok)."""
-    D2 = np.array([1.0, 1.0, 1.0] + [settings.rot_weight**2] * 3)
-    H = J.T @ (D2[:, None] * J)
-    eps = settings.regularization * max(float(np.linalg.eigvalsh(H)[-1]), 1e-30)
-    H = H + eps * np.eye(len(q))
-    g = -J.T @ (D2 * e)
-    dmax = np.radians(settings.max_step_deg)
-    lb = np.maximum(q_min - q, -dmax)
-    ub = np.minimum(q_max - q, dmax)
-    lb = np.minimum(lb, 0.0)  # q may sit exactly on a limit
-    ub = np.maximum(ub, 0.0)
-    dq = qpsolvers.solve_qp(H, g, lb=lb, ub=ub, solver=settings.solver)
-    if dq is None or not np.all(np.isfinite(dq)):
-        return np.zeros_like(q), False
-    return np.clip(dq, lb, ub), True  # clip: solver tolerances must not leave the stroke
+def _within(e, s: InverseSettings) -> bool:
+    """Pose error ``e`` (6,) [mm, rad] inside ``pos_tol`` [mm] and ``rot_tol_deg`` [deg]."""
+    return bool(np.linalg.norm(e[:3]) <= s.pos_tol and np.degrees(np.linalg.norm(e[3:])) <= s.rot_tol_deg)
 
 
 class InverseController:
-    """The control loop of eq. (8) on one robot, starting from ``state`` (an equilibrium)."""
+    """The control loop of eq. (8) on one robot, starting from ``state`` (an equilibrium).
+
+    Composes the kept linearisation (:attr:`tangent`, a :class:`.tangent.TangentCache` on its
+    own :class:`.statics.Linearizer`) and the step QP (:func:`.qp.solve_step_qp`).
+
+    Attributes
+    ----------
+    robot : the robot. settings : the defaults of every call (each call may override them).
+    state : the current state. tangent : the kept linearisation and its refresh counts.
+    n_steps, total_steps : control steps taken (both count the same; ``n_steps`` is the one
+        a caller may reset). certified : how :meth:`certify` got there, counted.
+    """
 
     def __init__(self, robot, state: RobotState | None = None, settings: InverseSettings = InverseSettings()):
         self.robot = robot
         self.settings = settings
-        self.linearizer = Linearizer(robot, solver=settings.linear_solver)
+        self.tangent = TangentCache(Linearizer(robot, solver=settings.linear_solver))
         self.state = state if state is not None else solve_equilibrium(
             robot, robot.coupling.rest_angles, linearizer=self.linearizer).state
         self.n_steps = 0
-        self.total_steps = 0  # control steps over the controller's life (n_steps may be reset by callers)
+        self.total_steps = 0  # control steps over the controller's life
         self.certified = {"chord": 0, "newton": 0}  # how :meth:`certify` got there, counted
-        self.refreshes = 0  # fresh linearisations taken by :meth:`linearization`
-        self.refresh_reasons: dict = {}  # why kept tangents were dropped: age, angle, residual, drift
-        self._lin = None
-        self._since = 0
-        self._J = None
-        self._own = deque(maxlen=OWN_STATES)  # states this controller produced: anything else was set from outside
         if state is None:
-            self._own.append(self.state)  # our own rest equilibrium
-        self._factor = None
+            self.tangent.remember(self.state)  # our own rest equilibrium
 
-    def _keep(self, lin) -> bool:
-        """Whether the chord update ``lin`` (on a kept tangent) is still good enough (see module doc)."""
-        s = self.settings
-        moved = np.max(np.abs(self.state.angles - self._lin_angles), initial=0.0)
-        why = None
-        if self._since >= s.refactor_every:
-            why = "age"
-        elif moved > np.radians(s.refresh_angle_deg):
-            why = "angle"
-        elif lin.residual_norm > s.chord_tol * max(_reference(self.robot, lin), 1e-300):
-            why = "residual"
-        elif self._weighted(lin.newton_step(None)[0]) > s.drift_tol * s.pos_tol:
-            why = "drift"
-        if why is not None:
-            self.refresh_reasons[why] = self.refresh_reasons.get(why, 0) + 1
-        return why is None
+    @property
+    def linearizer(self) -> Linearizer:
+        """The :class:`.statics.Linearizer` in use (shared: the studies' forward solves use it too)."""
+        return self.tangent.linearizer
 
-    def linearization(self):
+    @property
+    def refreshes(self) -> int:
+        """Fresh linearisations taken."""
+        return self.tangent.refreshes
+
+    @property
+    def refresh_reasons(self) -> dict:
+        """Why kept tangents were dropped, counted: "age", "angle", "residual", "drift"."""
+        return self.tangent.reasons
+
+    def _settings(self, settings: InverseSettings | None) -> InverseSettings:
+        if settings is None:
+            return self.settings
+        if not isinstance(settings, InverseSettings):
+            raise ConfigError(f"settings: {type(settings).__name__}: expected InverseSettings")
+        return settings
+
+    def linearization(self, settings: InverseSettings | None = None):
         """The step's linearisation: the chord update on the kept tangent, or a fresh one.
 
-        The residual and the pending correction are evaluated at every step, never assumed.
+        A ``linear_solver`` (in ``settings``, default :attr:`settings`) other than the
+        linearizer's rebuilds the linearizer. The residual and the pending correction are
+        evaluated at every step, never assumed (:meth:`.tangent.TangentCache.linearization`).
         """
-        if resolve(self.settings.linear_solver) != self.linearizer.solver_name:  # settings replaced
-            self.linearizer = Linearizer(self.robot, solver=self.settings.linear_solver)
-            self._lin = None
-        lin = None
-        # keep only our own: a state set from outside, or a factor replaced by another user of
-        # the shared linearizer (solve_equilibrium, kinematics), forces a fresh linearisation
-        if self._lin is not None and self.owns(self.state) and self.linearizer.factor is self._factor:
-            lin = self.linearizer.update(self._lin, self.state)
-            if not self._keep(lin):
-                lin = None
-        if lin is None:
-            # modified Newton: the factor as it is (CHOLMOD: symmetric part), checked every step
-            lin = self.linearizer.linearize(self.state, exact=False)
-            self._J = jacobian_from_schur(lin.S)[1]
-            self._since = 0
-            self._lin_angles = self.state.angles.copy()
-            self._factor = self.linearizer.factor
-            self.refreshes += 1
-        self._lin, self._last_res = lin, lin.residual_norm
-        self._since += 1
-        return lin
+        s = self._settings(settings)
+        if resolve(s.linear_solver) != self.linearizer.solver_name:  # another sparse solver asked for
+            self.tangent.use(Linearizer(self.robot, solver=s.linear_solver))
+        return self.tangent.linearization(self.state, s)
 
     def refresh(self, state: RobotState | None = None):
         """A fresh linearisation at ``state`` (default: the current one), kept for the next steps.
@@ -280,39 +259,36 @@ class InverseController:
         """
         if state is not None:
             self.state = state
-        self._own.append(self.state)  # linearised right here: safe to continue from
-        self._lin = None
+        self.tangent.remember(self.state)  # linearised right here: safe to continue from
+        self.tangent.drop()
         return self.linearization()
 
     def owns(self, state) -> bool:
         """Whether ``state`` is one this controller produced recently (continuation keeps the tangent)."""
-        return any(s is state for s in self._own)
+        return self.tangent.owns(state)
 
     def _produce(self, state: RobotState) -> RobotState:
-        self._own.append(state)
+        self.tangent.remember(state)
         self.state = state
         return state
 
-    def _weighted(self, e) -> float:
-        w = self.settings.rot_weight
-        return float(np.sqrt(e[:3] @ e[:3] + w * w * (e[3:] @ e[3:])))
-
-    def step(self, goal_p, goal_R) -> StepInfo:
+    def step(self, goal_p, goal_R, *, settings: InverseSettings | None = None) -> StepInfo:
         """One control step towards the goal (p* (3,) [mm], R* (3, 3)); updates ``self.state``."""
         t0 = time.perf_counter()
-        s, rob = self.settings, self.robot
-        lin = self.linearization()
-        J = self._J
+        s, rob = self._settings(settings), self.robot
+        lin = self.linearization(s)
         dq_e0, _ = lin.newton_step(None)
         e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
-        dq, ok = solve_step_qp(J, e - dq_e0, self.state.angles, rob.angle_min, rob.angle_max, s)
-        dq_e, dx_f = lin.newton_step(dq)
-        self._produce(apply_step(rob, self.state, dq_e, dx_f, dq))
+        qp = solve_step_qp(self.tangent.J, e - dq_e0, self.state.angles, rob.angle_min, rob.angle_max, s)
+        dq_e, dx_f = lin.newton_step(qp.dq)
+        self._produce(apply_step(rob, self.state, dq_e, dx_f, qp.dq))
         self.n_steps += 1
         self.total_steps += 1
-        return StepInfo(dq, lin.residual_norm, self._weighted(e), ok, time.perf_counter() - t0, lin.fresh)
+        return StepInfo(qp.dq, lin.residual_norm, weighted_norm(e, s.rot_weight), qp.ok,
+                        time.perf_counter() - t0, lin.fresh, qp)
 
-    def certify(self, start: RobotState | None = None) -> tuple[RobotState, float, float, str]:
+    def certify(self, start: RobotState | None = None, *,
+                settings: InverseSettings | None = None) -> tuple[RobotState, float, float, str]:
         """Bring ``self.state`` to equilibrium at its motor angles within ``eq_tol``.
 
         Corrections at fixed motor angles on the loop's own linearisation, each judged on the
@@ -322,11 +298,11 @@ class InverseController:
         ``start``) only when even a fresh step does not contract, or after ``polish_iters``.
         Returns (state, residual [N], force scale [N], "chord" | "newton").
         """
-        s, rob = self.settings, self.robot
+        s, rob = self._settings(settings), self.robot
         prev, fresh_step = np.inf, False
         for _ in range(s.polish_iters + 1):
-            lin = self.linearization()
-            res, ref = lin.residual_norm, max(_reference(rob, lin), 1e-300)
+            lin = self.linearization(s)
+            res, ref = lin.residual_norm, max(force_scale(rob, lin), 1e-300)
             if res <= s.eq_tol * ref:
                 self.certified["chord"] += 1
                 return self.state, res, ref, "chord"
@@ -334,12 +310,12 @@ class InverseController:
                 if fresh_step:  # not even with a fresh tangent: needs the line search
                     break
                 if not lin.fresh:
-                    self._lin = None  # same state, fresh tangent: a Newton step
-                    lin = self.linearization()
+                    self.tangent.drop()  # same state, fresh tangent: a Newton step
+                    lin = self.linearization(s)
             prev, fresh_step = res, lin.fresh
             dq_e, dx_f = lin.newton_step(None)
             self._produce(apply_step(rob, self.state, dq_e, dx_f))
-        self._lin = None
+        self.tangent.drop()
         # the line search's tangent is kept on the same terms as the polish's (polish_rate)
         kw = dict(tol=s.eq_tol, linearizer=self.linearizer, reuse_ratio=s.polish_rate)
         try:
@@ -352,22 +328,20 @@ class InverseController:
         self.certified["newton"] += 1
         return eq.state, float(eq.residuals[-1]), eq.reference, "newton"
 
-    def _within(self, e) -> bool:
-        s = self.settings
-        return bool(np.linalg.norm(e[:3]) <= s.pos_tol and np.degrees(np.linalg.norm(e[3:])) <= s.rot_tol_deg)
-
-    def goto(self, pose, state: RobotState | None = None) -> InverseResult:
+    def goto(self, pose, state: RobotState | None = None, *,
+             settings: InverseSettings | None = None) -> InverseResult:
         """Drive the effector to ``pose`` (6,) = (x, y, z [mm], rotation vector [deg]).
 
         ``state`` : where to start (default: the current state); a state this controller
         produced keeps the kept tangent (see the module docstring on continuation).
+        ``settings`` : this call's settings (default :attr:`settings`, which stay unchanged).
         """
         pose = np.asarray(pose, dtype=float).reshape(-1)
         if pose.shape != (6,) or not np.all(np.isfinite(pose)):
             raise ConfigError(f"pose: {pose!r}: expected 6 finite numbers X Y Z [mm] RX RY RZ [deg]")
+        s = self._settings(settings)
         if state is not None:
             self.state = state
-        s = self.settings
         goal_p, goal_R = pose[:3], rotation_matrix(np.radians(pose[3:]))
         times, res = [], []
         start = self.state
@@ -375,14 +349,14 @@ class InverseController:
         status, cert = "max_steps", None
         for _ in range(s.max_steps):
             e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
-            if self._within(e):
+            if _within(e, s):
                 # confirm on a certified equilibrium, not on the one-Newton-step state
-                cert = self.certify(start)
+                cert = self.certify(start, settings=s)
                 e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
-                if self._within(e):
+                if _within(e, s):
                     status = "reached"
                     break
-            err = self._weighted(e)
+            err = weighted_norm(e, s.rot_weight)
             if err < best * (1.0 - 1e-3):
                 best, best_state, since = err, self.state, 0
             else:
@@ -390,17 +364,17 @@ class InverseController:
                 if since >= s.stall_steps:
                     status = "stalled"
                     break
-            info = self.step(goal_p, goal_R)
+            info = self.step(goal_p, goal_R, settings=s)
             times.append(info.time)
             res.append(info.residual)
         if status != "reached":
             if status == "stalled":
                 self.state = best_state
-            cert = self.certify(start)
+            cert = self.certify(start, settings=s)
         eq_state, r_norm, ref, how = cert
         e = pose_error(eq_state.p, eq_state.R, goal_p, goal_R)
         pos_err, rot_err = float(np.linalg.norm(e[:3])), float(np.degrees(np.linalg.norm(e[3:])))
-        status = "reached" if self._within(e) else ("stalled" if status == "reached" else status)
+        status = "reached" if _within(e, s) else ("stalled" if status == "reached" else status)
         out_pose = np.concatenate([eq_state.p, np.degrees(rotation_vector(eq_state.R))])
         return InverseResult(status, eq_state, np.degrees(eq_state.angles), out_pose, pose, pos_err,
                              rot_err, len(times), tuple(times), tuple(res), r_norm, ref, how)

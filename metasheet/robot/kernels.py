@@ -222,7 +222,7 @@ if HAVE_NUMBA:
         Parameters
         ----------
         x : (n, 3) current positions [mm]; tets (m, 4) int64; X_e (m, 4, 3) rest nodes;
-        grads (m, 4, 3); Ke (m, 12, 12); block_map (m, 144) int64 (see assembly.py).
+        grads (m, 4, 3); Ke (m, 12, 12); block_map (m, 144) int64 (:class:`metasheet.fem.assembly.SparsityPattern`).
         f_out : (3n,) zeroed and filled with forces [N].
         data_out : (nnz,) zeroed and filled with the tangent's CSR data if ``tangent``.
         """

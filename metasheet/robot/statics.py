@@ -8,7 +8,7 @@ eq. 2) and the reduced tangent is the e/f part of the paper's matrix ``A`` (eq. 
 
 The linear algebra is shared with the kinematics (:mod:`.kinematics`): the free block
 ``K_ff`` is extracted from the body's CSR tangent through cached index maps, factorised
-once (:mod:`.linsolve`: CHOLMOD of its symmetric part plus iterative refinement when
+once (:mod:`metasheet.fem.solvers`: CHOLMOD of its symmetric part plus iterative refinement when
 scikit-sparse is installed, else SuperLU), and solved exactly with all rigid columns
 (6 + n_act) and the residual at once; everything else is a small dense Schur complement
 ``S = A_rr - C K_ff^-1 B``. Chord updates reuse the factor (for CHOLMOD: of the symmetric
@@ -24,8 +24,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConfigError, ConvergenceError
-from .linsolve import SparseSolver
-from .rigid import rotation_matrix, rotation_vector
+from ..fem.assembly import submatrix_map
+from ..fem.solvers import SparseSolver
+from ..rotations import rotation_matrix, rotation_vector
 
 
 @dataclass(frozen=True)
@@ -71,19 +72,11 @@ class Equilibrium:
     time: float
 
 
-def _block_map(K: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> tuple:
-    """Index map giving ``K[rows][:, cols]`` as ``data[map]`` on a fixed CSR pattern."""
-    tag = sp.csr_matrix((np.arange(1, K.nnz + 1, dtype=float), K.indices, K.indptr), shape=K.shape)
-    sub = tag[rows][:, cols].tocsr()
-    sub.sort_indices()
-    return (sub.data.astype(np.int64) - 1, sub.indices.copy(), sub.indptr.copy(), sub.shape)
-
-
 class Linearizer:
     """Linearisation of a robot about a state, reusing index maps (and optionally LU).
 
     Built once per robot; :meth:`linearize` returns a :class:`Linearization`.
-    ``solver`` : "auto" | "cholmod" | "superlu" (:mod:`.linsolve`); :attr:`solver_name` is
+    ``solver`` : "auto" | "cholmod" | "superlu" (:mod:`metasheet.fem.solvers`); :attr:`solver_name` is
     what runs and ``self.solver.stats`` counts factorisations, fallbacks and refinement sweeps.
     """
 
@@ -111,12 +104,12 @@ class Linearizer:
     def _blocks(self, K):
         if self._maps is None or K.nnz != self._pattern[0] or not np.array_equal(K.indptr, self._pattern[1]):
             r, f = self.dof_r, self.dof_f
-            self._maps = {k: _block_map(K, a, b) for k, (a, b) in
+            self._maps = {k: submatrix_map(K, a, b) for k, (a, b) in
                           {"rr": (r, r), "rf": (r, f), "fr": (f, r), "ff": (f, f)}.items()}
             self._pattern = (K.nnz, K.indptr.copy())
         out = {}
-        for k, (m, ind, ptr, shape) in self._maps.items():
-            out[k] = sp.csr_matrix((K.data[m], ind, ptr), shape=shape)
+        for k, (sub, take) in self._maps.items():
+            out[k] = sp.csr_matrix((K.data[take], sub.indices, sub.indptr), shape=sub.shape)
         return out
 
     def _solve(self, rhs: np.ndarray) -> np.ndarray:
@@ -126,7 +119,7 @@ class Linearizer:
     def linearize(self, state: RobotState, *, exact: bool = True) -> "Linearization":
         """Fresh tangent, factor of K_ff, residual and Schur complement at ``state``.
 
-        ``exact`` (default) solves with K_ff itself (refined or SuperLU, see :mod:`.linsolve`):
+        ``exact`` (default) solves with K_ff itself (refined or SuperLU, see :mod:`metasheet.fem.solvers`):
         S and Y are then the true eq. (6) condensation, as the kinematics need. ``exact=False``
         uses the factor as it is: with CHOLMOD, the symmetric part of K_ff, which makes the
         Newton step a modified one (the control loop's choice: it checks the true residual
@@ -236,7 +229,7 @@ class Linearization:
 
     def newton_step(self, dq_a=None) -> tuple[np.ndarray, np.ndarray]:
         """Linearised step (dq_e (6,), dx_f (3nf,)) for a motor increment dq_a (na,) [rad]."""
-        S, na = self.S, self.S.shape[0] - 6
+        S = self.S
         rhs = -self.R_rigid[:6].copy()
         dx_f = -self.y_r.copy()
         if dq_a is not None and np.any(dq_a):
@@ -257,7 +250,9 @@ def apply_step(robot, state: RobotState, dq_e, dx_f, dq_a=None, alpha: float = 1
     return RobotState(p, R, angles, c.positions(p, R, angles, x_f))
 
 
-def _reference(robot, lin: Linearization) -> float:
+def force_scale(robot, lin: Linearization) -> float:
+    """Force scale [N] the equilibrium tolerances are relative to: the norm of the forces on
+    the rigid nodes plus that of the external loads (gravity) at ``lin``'s state."""
     f = lin.r + robot.f_ext
     return float(np.linalg.norm(f[robot.coupling.rigid_nodes]) + np.linalg.norm(robot.f_ext))
 
@@ -274,8 +269,10 @@ def solve_equilibrium(robot, angles, *, state=None, tol: float = 1e-8, max_iter:
     while each step cuts the residual by at least ``reuse_ratio`` (a chord step costs one
     force evaluation and one solve) and recomputed otherwise; ``reuse_ratio = 0`` gives plain
     Newton. Converged when the reduced residual is below ``tol`` times the force scale
-    (forces on the rigid nodes plus the external loads): the test is on the true residual,
-    whatever tangent was used.
+    (forces on the rigid nodes plus the external loads); when that scale is itself below the
+    body's round-off floor ``robot.body.force_floor`` (no loads, no motion), below the floor:
+    an unloaded rest state is an equilibrium as it stands, whatever BLAS evaluated its forces.
+    The test is on the true residual, whatever tangent was used.
 
     Raises :class:`ConvergenceError` (with the residual history) when an increment fails.
     """
@@ -293,14 +290,16 @@ def solve_equilibrium(robot, angles, *, state=None, tol: float = 1e-8, max_iter:
     jump = target - st.angles
     n_inc = max(1, int(np.ceil(np.max(np.abs(jump), initial=0.0) / max_angle_step - 1e-12)))
     history, iters, ref = [], 0, 0.0
+    floor = robot.body.force_floor
     for inc in range(n_inc):
         dq_a = jump / n_inc if np.any(jump) else None
         lin = lz.linearize(st)
         for it in range(max_iter + 1):
             res = lin.residual_norm
-            ref = max(_reference(robot, lin), 1e-300)
+            ref = max(force_scale(robot, lin), 1e-300)
             history.append(res)
-            if dq_a is None and (res <= tol * ref or res < 1e-13 * max(ref, 1.0)):
+            unloaded = ref <= floor  # the force scale itself is round-off: nothing to resolve
+            if dq_a is None and (res <= tol * ref or res < 1e-13 * max(ref, 1.0) or (unloaded and res <= floor)):
                 break
             if it == max_iter:
                 raise ConvergenceError(

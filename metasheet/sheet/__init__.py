@@ -1,1 +1,7 @@
 """The tripod sheet: geometry and tet mesh, spiral fibre field, grading, IceSL export."""
+
+from .fibers import spiral_fibers
+from .geometry import SheetMesh, SheetParams, mirror_sheet, tripod_sheet
+from .grading import Grading, grade
+
+__all__ = ["Grading", "SheetMesh", "SheetParams", "grade", "mirror_sheet", "spiral_fibers", "tripod_sheet"]

@@ -106,7 +106,7 @@ class SheetMesh:
     tets : (m, 4) int, positively oriented (det[p1-p0, p2-p0, p3-p0] > 0).
     attach : (n,) int node tags: 0 free, k + 1 tip box of arm k, 4 centre (effector).
     arm_angles : (3,) float [rad], arm k along 2 pi k / 3 from +x.
-    quality : :class:`MeshQuality`.
+    quality : :class:`MeshQuality`, or None for a sheet read back from a file.
     params : the :class:`SheetParams` it was built from.
     mirrored : True for the reflection y -> -y of the built sheet.
     """
@@ -115,7 +115,7 @@ class SheetMesh:
     tets: np.ndarray
     attach: np.ndarray
     arm_angles: np.ndarray
-    quality: MeshQuality
+    quality: MeshQuality | None = None
     params: SheetParams = field(default_factory=SheetParams)
     mirrored: bool = False
 

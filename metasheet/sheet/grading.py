@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from ..material import TransverseIsotropic, interpolate
+from ..material import CONSTANT_NAMES, TransverseIsotropic, interpolate
 from .geometry import ARM_ANGLES, SheetParams
 
 REGIONS = ("hub", "arms", "tips")
@@ -168,9 +168,6 @@ def scaling_lookup(material: TransverseIsotropic, rho_ref: float, exponent: floa
     return lookup
 
 
-CONSTANTS = ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")
-
-
 def element_constants(
     grading: Grading, lookup: Callable[[float, float], TransverseIsotropic]
 ) -> dict[str, np.ndarray]:
@@ -181,4 +178,4 @@ def element_constants(
     pairs = np.stack([grading.density, grading.alpha], axis=1)
     uniq, inv = np.unique(pairs, axis=0, return_inverse=True)
     mats = [lookup(float(r), float(a)) for r, a in uniq]
-    return {k: np.array([getattr(mt, k) for mt in mats], dtype=float)[inv.ravel()] for k in CONSTANTS}
+    return {k: np.array([getattr(mt, k) for mt in mats], dtype=float)[inv.ravel()] for k in CONSTANT_NAMES}

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, replace
-from types import SimpleNamespace
-
 import numpy as np
 
+from .. import paper
 from ..errors import ConfigError, ConvergenceError
 from ..material import Isotropic, TransverseIsotropic, interpolate
+from ..robot.builder import SheetPair
+from ..sheet.geometry import SheetMesh
 from .model import ReachResult, check_motor_range, pose_errors
 
 
@@ -30,7 +31,7 @@ class RobotSpec:
     fibers, fibers_m : (m, 3) unit fibre directions of each sheet (local axis 3).
     material : (E_t, E_l, nu_t, nu_tl, mu_l) [MPa, -] of the sheets (transverse isotropic).
     design : the design material's constants (the anisotropy sweep interpolates from it).
-    rod_length [mm]; rest_angle [deg] (places the servos, see :mod:`metasheet.robot.assemblies`);
+    rod_length [mm]; rest_angle [deg] (places the servos, see :mod:`metasheet.robot.robots`);
     horn_length [mm]; motor_range (lo, hi) [deg]; density [t/mm^3].
     consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
     stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
@@ -60,11 +61,11 @@ class RobotSpec:
     fibers_m: np.ndarray
     material: tuple
     design: tuple
-    rod_length: float = 80.0
-    rest_angle: float = 60.0
-    horn_length: float = 25.0
-    motor_range: tuple = (0.0, 90.0)
-    density: float = 1.19e-9 * 0.15
+    rod_length: float = paper.ROD_LENGTH
+    rest_angle: float = paper.REST_ANGLE
+    horn_length: float = paper.HORN_LENGTH
+    motor_range: tuple = (paper.ANGLE_MIN, paper.ANGLE_MAX)
+    density: float = paper.FOAM_DENSITY
     rot_weight: float = 50.0
     max_step_deg: float = 5.0
     stall_steps: int = 4
@@ -105,29 +106,35 @@ class RobotSpec:
 
     def with_alpha(self, alpha: float) -> "RobotSpec":
         m = interpolate(TransverseIsotropic(*self.design), float(alpha))
-        return replace(self, material=_consts(m), consts=None, consts_m=None)
+        return replace(self, material=m.as_tuple(), consts=None, consts_m=None)
 
     def with_material(self, material, density: float | None = None) -> "RobotSpec":
         """Another sheet material (and density [t/mm^3], default unchanged)."""
         if isinstance(material, Isotropic):
             material = material.as_transverse()
-        return replace(self, material=_consts(material), consts=None, consts_m=None,
+        return replace(self, material=material.as_tuple(), consts=None, consts_m=None,
                        density=self.density if density is None else float(density))
 
     @classmethod
-    def from_sheets(cls, sheet, sheet_m, fibers, fibers_m, material, **kw) -> "RobotSpec":
-        """From :class:`metasheet.sheet.geometry.SheetMesh` pairs and a material."""
+    def from_sheets(cls, sheets: SheetPair, material, **kw) -> "RobotSpec":
+        """From a :class:`~metasheet.robot.builder.SheetPair` and the design ``material``; the
+        pair's per-element constants (a graded design), when it has them, drive the robot."""
         if isinstance(material, Isotropic):
             material = material.as_transverse()
-        c = _consts(material)
-        return cls(np.asarray(sheet.points, float), np.asarray(sheet.tets), np.asarray(sheet.attach),
-                   np.asarray(sheet.arm_angles, float), np.asarray(sheet_m.points, float),
-                   np.asarray(sheet_m.tets), np.asarray(sheet_m.attach), np.asarray(fibers, float),
-                   np.asarray(fibers_m, float), c, kw.pop("design", c), **kw)
+        c = material.as_tuple()
+        a, b = sheets.sheet, sheets.mirrored
+        return cls(np.asarray(a.points, float), np.asarray(a.tets), np.asarray(a.attach),
+                   np.asarray(a.arm_angles, float), np.asarray(b.points, float), np.asarray(b.tets),
+                   np.asarray(b.attach), np.asarray(sheets.fibers, float), np.asarray(sheets.fibers_mirrored, float),
+                   c, kw.pop("design", c), consts=sheets.constants, consts_m=sheets.constants_mirrored, **kw)
 
-
-def _consts(m: TransverseIsotropic) -> tuple:
-    return tuple(float(v) for v in (m.E_t, m.E_l, m.nu_t, m.nu_tl, m.mu_l))
+    def sheets(self) -> SheetPair:
+        """The sheet pair again (per-element constants only when they drive the robot)."""
+        graded = self.consts is not None and self.consts_m is not None
+        return SheetPair(SheetMesh(self.points, self.tets, self.attach, self.arm_angles),
+                         SheetMesh(self.points_m, self.tets_m, self.attach_m, self.arm_angles),
+                         self.fibers, self.fibers_m, self.consts if graded else None,
+                         self.consts_m if graded else None)
 
 
 class FemRobot:
@@ -136,27 +143,17 @@ class FemRobot:
     pull_sign = 1.0  # towards 90 deg the horn lifts the arm tip outwards: it stretches the arm
 
     def __init__(self, spec: RobotSpec):
-        from ..robot.assemblies import ServoGeometry
-        from ..robot.compare import build_six_dof
+        from ..robot.builder import six_dof_robot
         from ..robot.inverse import InverseController, InverseSettings
+        from ..robot.robots import ServoGeometry
 
         self.spec = spec
-        mat = TransverseIsotropic(*spec.material)
-        if mat.alpha < 1e-9 and abs(mat.nu_tl - mat.nu_t) < 1e-12:
-            mat = Isotropic(mat.E_t, mat.nu_t)  # exactly isotropic: no fibre rotation needed
-        geo = ServoGeometry(spec.rest_angle, spec.horn_length, min(0.0, spec.rest_angle), max(90.0, spec.rest_angle))
-        a = SimpleNamespace(points=spec.points, tets=spec.tets, attach=spec.attach, arm_angles=spec.arm_angles)
-        b = SimpleNamespace(points=spec.points_m, tets=spec.tets_m, attach=spec.attach_m, arm_angles=spec.arm_angles)
-        if spec.consts is not None and spec.consts_m is not None:  # graded: per-element constants
-            from ..robot.assemblies import six_dof
-            from ..robot.cli_support import element_stiffness
-
-            self.robot = six_dof(a, element_stiffness(spec.fibers, spec.consts), b,
-                                 element_stiffness(spec.fibers_m, spec.consts_m), rod_length=spec.rod_length,
-                                 geometry=geo, density=spec.density)
-        else:
-            self.robot = build_six_dof(a, b, mat, fibers=spec.fibers, fibers_mirrored=spec.fibers_m,
-                                       rod_length=spec.rod_length, geometry=geo, density=spec.density)
+        sheets = spec.sheets()
+        # graded: the sheets' per-element constants; else the spec's material
+        mat = None if sheets.has_constants else TransverseIsotropic(*spec.material)
+        geo = ServoGeometry(spec.rest_angle, spec.horn_length, min(paper.ANGLE_MIN, spec.rest_angle),
+                            max(paper.ANGLE_MAX, spec.rest_angle))
+        self.robot = six_dof_robot(sheets, mat, rod_length=spec.rod_length, geometry=geo, density=spec.density)
         # the limits may exclude the rest angles (the motor-range study): set them after the build
         na = len(self.robot.angle_min)
         self.robot = replace(self.robot, angle_min=np.full(na, np.radians(spec.motor_range[0])),
@@ -187,19 +184,18 @@ class FemRobot:
         # rot_weight 0 (position only) becomes a tiny weight: the controller needs w > 0
         rw = self.settings.rot_weight if rot_weight is None else max(float(rot_weight), 1e-6)
         # a little inside the tolerance: the loop stops on its one-Newton-step state
-        self.ctrl.settings = replace(self.settings, rot_weight=rw, pos_tol=0.9 * tol_mm,
-                                     rot_tol_deg=180.0 if tol_deg is None else 0.9 * tol_deg,
-                                     max_steps=int(max_steps))
-        self.ctrl.n_steps = 0
+        settings = replace(self.settings, rot_weight=rw, pos_tol=0.9 * tol_mm,
+                           rot_tol_deg=180.0 if tol_deg is None else 0.9 * tol_deg, max_steps=int(max_steps))
         goal_deg = np.concatenate([goal[:3], np.degrees(goal[3:])])
         converged = True
+        steps0 = self.ctrl.total_steps
         try:
             # continuation: a state this controller produced (the previous point on a ray, the
             # point a rotation is tried from) keeps its tangent; the loop still checks it
-            r = self.ctrl.goto(goal_deg, state=self.rest if state is None else state)
+            r = self.ctrl.goto(goal_deg, state=self.rest if state is None else state, settings=settings)
             st, steps = r.state, r.steps
         except ConvergenceError:  # the final equilibrium failed: report the last control state
-            st, steps, converged = self.ctrl.state, self.ctrl.n_steps, False
+            st, steps, converged = self.ctrl.state, self.ctrl.total_steps - steps0, False
         pose = st.pose
         e_mm, e_deg = pose_errors(goal, pose)
         ok = converged and e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)
@@ -234,18 +230,13 @@ class FemRobot:
         return float(kinematics(lin).singular_values.min())
 
 
-def paper_robot_spec(*, mesh_size: float = 5.0, rest_angle: float = 60.0, material=None,
+def paper_robot_spec(*, mesh_size: float = 5.0, rest_angle: float = paper.REST_ANGLE, material=None,
                      pitch_deg: float = 45.0, **kw) -> RobotSpec:
     """The paper's robot built in memory (no pipeline): default sheet, spiral fibres, the
     paper's foam (or ``material``), motors at rest at ``rest_angle`` [deg] on every mesh.
     For tests and benchmarks; the stages build their spec from the orient stage's sheets.
     """
-    from ..robot.compare import PAPER_FOAM
-    from ..sheet.fibers import spiral_fibers
-    from ..sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+    from ..sheet.geometry import SheetParams
 
-    sh = tripod_sheet(SheetParams(mesh_size=mesh_size))
-    mi = mirror_sheet(sh)
-    fa = spiral_fibers(sh.centroids(), pitch_deg=pitch_deg)
-    fb = spiral_fibers(mi.centroids(), pitch_deg=pitch_deg, mirrored=True)
-    return RobotSpec.from_sheets(sh, mi, fa, fb, material or PAPER_FOAM, rest_angle=float(rest_angle), **kw)
+    sheets = SheetPair.spiral(SheetParams(mesh_size=mesh_size), pitch_deg=pitch_deg)
+    return RobotSpec.from_sheets(sheets, material or paper.PAPER_FOAM, rest_angle=float(rest_angle), **kw)

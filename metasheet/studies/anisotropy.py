@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import ConfigError, check_range
 from ..executor import Executor
-from .model import ModelSpec, get_model
+from .model import MODELS, ModelSpec
 from .resume import UnitCache
 
 
@@ -33,7 +33,7 @@ def sweep_point(task: SweepTask) -> np.ndarray:
     """Work unit: (2, 7) for (pull, push) of all motors: the pose change from rest (6,)
     [mm, rad] and the mean motor change actually applied [deg] (targets are clipped to the
     motor range)."""
-    model = get_model(task.spec)
+    model = MODELS.get(task.spec)
     q0 = model.rest_motors()
     lo, hi = model.motor_range
     rest = model.rest_pose()
@@ -92,7 +92,7 @@ def anisotropy_sweep(
     check_range("pull_deg", pull_deg, 0.0, 90.0)
     check_range("push_deg", push_deg, 0.0, 90.0)
     check_range("ramp_deg", ramp_deg, 0.0, 90.0, lo_open=True)
-    model = get_model(spec)
+    model = MODELS.get(spec)
     cache = cache or UnitCache(None)
     tasks = [SweepTask(spec.with_alpha(float(a)), float(pull_deg), float(push_deg), float(ramp_deg)) for a in alphas]
     out = np.array(cache.map(executor, sweep_point, tasks, progress=lambda d, n: progress("anisotropy", d, n)))

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import ConfigError, ConvergenceError, check_range
 from ..executor import Executor
-from .model import ModelSpec, get_model, pose_errors
+from .model import MODELS, ModelSpec, pose_errors
 from .resume import UnitCache
 
 
@@ -129,7 +129,7 @@ class SegmentResult:
 
 def solve_segment(task: SegmentTask) -> SegmentResult:
     """Work unit: open-loop inverse solution of a segment, then its forward replay."""
-    model = get_model(task.spec)
+    model = MODELS.get(task.spec)
     s = task.settings
     rest = model.rest_pose()
     state = None
@@ -188,7 +188,7 @@ def solve_maze(
     cache: UnitCache | None = None,
 ) -> MazeResult:
     """Commands, open-loop motor series and replay of ``path`` (m, 2) [mm] on ``spec``'s robot."""
-    model = get_model(spec)
+    model = MODELS.get(spec)
     cmd = maze_commands(path, model.rest_pose(), settings, plane_axes=plane_axes)
     n_seg = len(cmd.directions)
     cache = cache or UnitCache(None)

@@ -3,7 +3,7 @@
 A study talks to a :class:`RobotModel` (the live robot, with its factorisations) built
 from a :class:`ModelSpec` (a small picklable description: mesh arrays and parameters).
 Work units sent to other processes carry the spec, never the live model; each process
-builds the model once and keeps it in :func:`get_model`'s cache.
+builds the model once and keeps it in its :class:`ModelCache`, :data:`MODELS`.
 
 Poses are ``(6,)`` arrays ``[x, y, z, rx, ry, rz]``: the effector position [mm] and its
 rotation vector relative to the rest orientation [rad]. Motor angles are degrees.
@@ -17,6 +17,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigError
+from ..rotations import rotation_matrix
 
 
 @dataclass(frozen=True)
@@ -104,19 +105,50 @@ class ModelSpec(Protocol):
         """The same robot with another sheet material (e.g. silicone) and density [t/mm^3]."""
 
 
-_MODELS: dict[str, RobotModel] = {}
-_MAX_CACHED = 4  # a worker may see a few specs (motor ranges, alphas); a robot is big
+class ModelCache:
+    """Live models by spec, built on first use: one build per process per spec.
+
+    Study work units run in other processes (a process pool, dask workers) and receive a
+    picklable :class:`ModelSpec`; each process keeps the models it built in its own cache,
+    :data:`MODELS`, so the units that follow on the same spec reuse the model (its
+    factorisations, its controller's kept tangent). At most ``max_size`` models are kept; the
+    oldest built is dropped first (a robot is big). ``clear()`` empties it (tests, benchmarks).
+
+    Parameters
+    ----------
+    max_size : models kept [-], >= 1.
+    """
+
+    def __init__(self, max_size: int = 4):
+        if int(max_size) < 1:
+            raise ConfigError(f"max_size: {max_size!r}: allowed range is [1, inf)")
+        self.max_size = int(max_size)
+        self._models: dict[str, RobotModel] = {}  # by spec.key, in build order
+
+    def get(self, spec: ModelSpec) -> RobotModel:
+        """The model of ``spec``, built on the first call and kept by ``spec.key``."""
+        k = spec.key
+        m = self._models.get(k)
+        if m is None:
+            if len(self._models) >= self.max_size:
+                self._models.pop(next(iter(self._models)))
+            m = self._models[k] = spec.build()
+        return m
+
+    def clear(self) -> None:
+        """Drop every model (the next :meth:`get` of each spec builds it again)."""
+        self._models.clear()
+
+    def __len__(self) -> int:
+        return len(self._models)
+
+    def __contains__(self, spec: ModelSpec) -> bool:
+        return spec.key in self._models
 
 
-def get_model(spec: ModelSpec) -> RobotModel:
-    """The model of ``spec``, built once per process and cached by ``spec.key``."""
-    k = spec.key
-    m = _MODELS.get(k)
-    if m is None:
-        if len(_MODELS) >= _MAX_CACHED:
-            _MODELS.pop(next(iter(_MODELS)))
-        m = _MODELS[k] = spec.build()
-    return m
+#: This process's models (a worker process has its own): the studies' work units build
+#: through it. A worker may see a few specs (motor ranges, alphas), hence 4.
+MODELS = ModelCache(max_size=4)
 
 
 def check_motor_range(field: str, lo: float, hi: float) -> tuple[float, float]:
@@ -129,18 +161,10 @@ def check_motor_range(field: str, lo: float, hi: float) -> tuple[float, float]:
 
 def rotation_angle_deg(r_goal: np.ndarray, r_pose: np.ndarray) -> float:
     """Angle [deg] of the rotation taking orientation ``r_pose`` to ``r_goal`` (rotation vectors [rad])."""
-    Rg = _rotmat(np.asarray(r_goal, float))
-    Rp = _rotmat(np.asarray(r_pose, float))
+    Rg = rotation_matrix(np.asarray(r_goal, float))
+    Rp = rotation_matrix(np.asarray(r_pose, float))
     c = 0.5 * (np.trace(Rg @ Rp.T) - 1.0)
     return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
-
-
-def _rotmat(w: np.ndarray) -> np.ndarray:
-    t = float(np.linalg.norm(w))
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if t < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return np.eye(3) + np.sin(t) / t * K + (1.0 - np.cos(t)) / t**2 * K @ K
 
 
 def pose_errors(goal: np.ndarray, pose: np.ndarray) -> tuple[float, float]:

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..executor import Executor
 from .grid import StarGrid
-from .model import ModelSpec, check_motor_range, get_model
+from .model import MODELS, ModelSpec, check_motor_range
 from .resume import UnitCache
 from .workspace import RayTask, WorkspaceSettings, explore_ray
 
@@ -61,7 +61,7 @@ def motor_range_study(
     ranges = [check_motor_range(f"ranges[{i}]", *r) for i, r in enumerate(ranges)]
     s = replace(settings, rotations=False, continuity=False)
     cache = cache or UnitCache(None)
-    rest = get_model(spec).rest_pose()
+    rest = MODELS.get(spec).rest_pose()
     rays = [grid.ray_points(r) for r in range(len(grid.directions))]
     tasks = [RayTask(spec.with_motor_range(lo, hi), s, rest[:3] + grid.points[ids]) for lo, hi in ranges for ids in rays]
     parts = cache.map(executor, explore_ray, tasks, progress=lambda d, n: progress("motor ranges", d, n))

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ..paper import PAPER_FOAM
+
 
 def _table(rows: list[tuple[str, object]]) -> str:
     out = ["| quantity | value |", "|---|---|"]
@@ -27,8 +29,8 @@ def _fmt(v) -> str:
     return str(v)
 
 
-#: The paper's transverse-isotropic foam ("paramPaper", FACTS.md) [MPa, -].
-PAPER_CONSTANTS = {"E_t": 1.39, "E_l": 0.09422, "nu_t": 0.26162, "nu_tl": 0.4161, "mu_l": 0.01628}
+#: The paper's transverse-isotropic foam [MPa, -] (:data:`metasheet.paper.PAPER_FOAM`).
+PAPER_CONSTANTS = PAPER_FOAM.to_dict()
 
 
 def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, str], *,

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import ConvergenceError, check_range
 from ..executor import Executor
 from .grid import StarGrid
-from .model import ModelSpec, get_model, pose_errors
+from .model import MODELS, ModelSpec, pose_errors
 from .resume import UnitCache
 
 CLASS_NAMES = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
@@ -119,7 +119,7 @@ def _compose(w: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 def explore_ray(task: RayTask) -> PointRecords:
     """Work unit: continuation along one ray, then the rotation tests at every reached point."""
-    model = get_model(task.spec)
+    model = MODELS.get(task.spec)
     s = task.settings
     rest = model.rest_pose()
     k = len(task.goals)
@@ -196,7 +196,7 @@ class EdgeTask:
 def test_paths(task: EdgeTask) -> np.ndarray:
     """Work unit: (e,) bool, True where the inverse model walks from start to goal through
     ``substeps`` evenly spaced goals, each reached within ``tol_mm``."""
-    model = get_model(task.spec)
+    model = MODELS.get(task.spec)
     s = task.settings
     out = np.zeros(len(task.goals), bool)
     for e, (q, a, b) in enumerate(zip(task.starts_motors, task.starts_pose, task.goals)):
@@ -258,7 +258,7 @@ def explore_workspace(
 ) -> WorkspaceResult:
     """Run the workspace study of ``spec``'s robot on ``grid`` (see the module docstring)."""
     cache = cache or UnitCache(None)
-    rest = get_model(spec).rest_pose()
+    rest = MODELS.get(spec).rest_pose()
     order = np.concatenate([grid.ray_points(r) for r in range(len(grid.directions))])
     tasks = [RayTask(spec, settings, rest[:3] + grid.points[grid.ray_points(r)]) for r in range(len(grid.directions))]
     parts = cache.map(executor, explore_ray, tasks, progress=lambda d, n: progress("workspace rays", d, n))

@@ -12,7 +12,7 @@ import io
 
 import numpy as np
 
-from ..robot.rigid import rotation_vector
+from ..rotations import rotation_vector
 
 
 def _grid(points, tets, disp=None):

@@ -10,20 +10,22 @@ to its output directory.
 from __future__ import annotations
 
 import csv
-import json
 import shutil
+from dataclasses import asdict
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Literal
 
 import numpy as np
 from pydantic import Field
 
+from ... import paper
 from ...errors import ConfigError
 from ...studies.resume import UnitCache
+from ..artefacts import OrientFile, RobotScene, read_material, read_orient, read_robot_scene
 from ..registry import Params, StageContext
 
-ROBOT_KEYS = ("rod_length", "rest_angle", "horn_length", "angle_min", "angle_max")
+#: The scene a study runs on when no robot stage ran (the paper's, :mod:`metasheet.paper`).
+DEFAULT_SCENE = RobotScene(paper.ROD_LENGTH, paper.REST_ANGLE, paper.HORN_LENGTH, paper.ANGLE_MIN, paper.ANGLE_MAX)
 
 
 class StudyRobotParams(Params):
@@ -31,12 +33,16 @@ class StudyRobotParams(Params):
 
     model: Literal["robot", "standin"] = Field(
         "robot", description="'robot': the FEM robot from orient + material; 'standin': the analytic test robot")
-    rod_length: float | None = Field(None, gt=0, le=1000, description="rod length [mm]; None: the robot stage's or 80")
-    rest_angle: float | None = Field(None, ge=-180, le=180,
-                                     description="motor angle of the rest pose [deg]; None: robot stage's or 60")
-    horn_length: float | None = Field(None, gt=0, le=1000, description="servo horn length [mm]; None: robot stage's or 25")
-    motor_min: float | None = Field(None, ge=-180, le=180, description="lower motor limit [deg]; None: robot stage's or 0")
-    motor_max: float | None = Field(None, ge=-180, le=180, description="upper motor limit [deg]; None: robot stage's or 90")
+    rod_length: float | None = Field(None, gt=0, le=1000, description="rod length [mm]; None: the robot stage's "
+                                     f"or {paper.ROD_LENGTH:g}")
+    rest_angle: float | None = Field(None, ge=-180, le=180, description="motor angle of the rest pose [deg]; "
+                                     f"None: robot stage's or {paper.REST_ANGLE:g}")
+    horn_length: float | None = Field(None, gt=0, le=1000, description="servo horn length [mm]; None: robot "
+                                      f"stage's or {paper.HORN_LENGTH:g}")
+    motor_min: float | None = Field(None, ge=-180, le=180, description="lower motor limit [deg]; None: robot "
+                                    f"stage's or {paper.ANGLE_MIN:g}")
+    motor_max: float | None = Field(None, ge=-180, le=180, description="upper motor limit [deg]; None: robot "
+                                    f"stage's or {paper.ANGLE_MAX:g}")
     mesh_size: float | None = Field(
         None, ge=0.3, le=50, description="re-mesh the orient sheet at this tet size for this study only "
         "(same geometry and fibre law; per-element constants carried over from the nearest orient "
@@ -46,27 +52,17 @@ class StudyRobotParams(Params):
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
 
 
-def _robot_params(ctx: StageContext) -> dict:
-    """rod_length, rest_angle, horn_length, angle_min, angle_max from the robot stage's
-    parameters (its manifest; the robot stage writes no file with them) when it ran."""
-    out = {}
-    if "robot" in ctx.inputs:
-        man = ctx.inputs["robot"] / "manifest.json"
-        if man.exists():
-            params = json.loads(man.read_text()).get("params", {})
-            for k in ROBOT_KEYS:
-                if isinstance(params.get(k), (int, float)):
-                    out[k] = float(params[k])
-    return out
-
-
 def build_spec(ctx: StageContext):
-    """The stage's robot recipe (:class:`RobotSpec` or :class:`StandInSpec`)."""
+    """The stage's robot recipe (:class:`RobotSpec` or :class:`StandInSpec`).
+
+    The scene (rod, servos, stroke) is the robot stage's, read from its ``jacobian.json``,
+    when it is in the pipeline, else :data:`DEFAULT_SCENE`; this stage's own parameters
+    override it field by field.
+    """
     p = ctx.params
-    up = {"rod_length": 80.0, "rest_angle": 60.0, "horn_length": 25.0, "angle_min": 0.0, "angle_max": 90.0,
-          **_robot_params(ctx)}
-    lo = up["angle_min"] if p.motor_min is None else p.motor_min
-    hi = up["angle_max"] if p.motor_max is None else p.motor_max
+    up = read_robot_scene(ctx.inputs["robot"]) if "robot" in ctx.inputs else DEFAULT_SCENE
+    lo = up.angle_min if p.motor_min is None else p.motor_min
+    hi = up.angle_max if p.motor_max is None else p.motor_max
     if lo >= hi:
         raise ConfigError(f"motor_min/motor_max: ({lo:g}, {hi:g}) deg: need motor_min < motor_max")
     if p.model == "standin":
@@ -78,50 +74,38 @@ def build_spec(ctx: StageContext):
     for need in ("orient", "material"):
         if need not in ctx.inputs:
             raise ConfigError(f"{ctx.name}.model: 'robot': the {need!r} stage must be in the pipeline")
-    from ...robot.cli_support import read_sheet  # the robot stage's reader: same sheets, same constants
-
-    o = ctx.inputs["orient"]
-    a, fa, ca = read_sheet(o / "sheet.vtu")
-    b, fb, cb = read_sheet(o / "sheet_mirrored.vtu")
-    info = json.loads((o / "sheet.json").read_text())
-    mat = json.loads((ctx.inputs["material"] / "material.json").read_text())
-    c = mat["constants"]
-    consts = tuple(float(c[k]) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l"))
-    geo = {k: up[k] for k in ROBOT_KEYS[:3]}
-    for k in ROBOT_KEYS[:3]:
-        if getattr(p, k) is not None:
-            geo[k] = float(getattr(p, k))
-    graded = bool(info.get("graded", False)) and ca is not None and cb is not None
+    orient = read_orient(ctx.inputs["orient"])
+    mat = read_material(ctx.inputs["material"])
+    scene = {k: v for k, v in asdict(up).items() if k in ("rod_length", "rest_angle", "horn_length")}
+    scene.update({k: float(getattr(p, k)) for k in scene if getattr(p, k) is not None})
+    sheets = orient.sheets(need_constants=orient.graded)
     if p.mesh_size is not None:
-        a, fa, ca, b, fb, cb = _remesh(info, p.mesh_size, a, ca, b, cb)
-    return RobotSpec(a.points, a.tets, a.attach, np.radians(info["arm_angles_deg"]), b.points, b.tets, b.attach,
-                     fa, fb, consts, consts, motor_range=(lo, hi), density=float(mat.get("density", 1.785e-10)),
-                     rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
-                     consts=ca if graded else None, consts_m=cb if graded else None, **geo)
+        sheets = remesh(orient, p.mesh_size)
+    if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
+        sheets = type(sheets)(sheets.sheet, sheets.mirrored, sheets.fibers, sheets.fibers_mirrored)
+    return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=mat.density,
+                                 rot_weight=p.rot_weight, max_step_deg=p.max_step_deg, **scene)
 
 
-def _remesh(info: dict, mesh_size: float, a, ca, b, cb):
-    """The orient sheet pair re-meshed at ``mesh_size`` [mm] from sheet.json's geometry and fibre
-    law; per-element constants (m, 5) or None carried over by nearest element centroid."""
+def remesh(orient: OrientFile, mesh_size: float):
+    """The orient sheet pair re-meshed at ``mesh_size`` [mm] with the same geometry and fibre
+    law; per-element constants (when the sheets carry them) carried over by nearest centroid."""
+    from dataclasses import replace
+
     from scipy.spatial import cKDTree
 
-    from ...sheet.fibers import spiral_fibers
-    from ...sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+    from ...robot.builder import SheetPair
 
-    g = dict(info["geometry"], mesh_size=float(mesh_size))
-    g["tip_box"] = tuple(g["tip_box"])
-    fs = {k: info["fibers"][k] for k in ("law", "pitch_deg", "tilt_deg", "r_ref") if k in info.get("fibers", {})}
-    s = tripod_sheet(SheetParams(**g))
-    m = mirror_sheet(s)
-    out = []
-    for new, old, consts, mirrored in ((s, a, ca, False), (m, b, cb, True)):
-        fib = spiral_fibers(new.centroids(), mirrored=mirrored, **fs)
-        if consts is not None:
-            old_c = np.asarray(old.points)[np.asarray(old.tets)].mean(axis=1)
-            consts = consts[cKDTree(old_c).query(new.centroids())[1]]
-        sheet = SimpleNamespace(points=new.points, tets=new.tets, attach=new.attach, arm_angles=new.arm_angles)
-        out += [sheet, fib, consts]
-    return tuple(out)
+    fresh = SheetPair.spiral(replace(orient.sheet_params, mesh_size=float(mesh_size)), **orient.fiber_settings)
+    meshes, consts = [], []
+    for new, old in ((fresh.sheet, orient.normal), (fresh.mirrored, orient.mirrored)):
+        c = old.constants
+        if c is not None:
+            c = c[cKDTree(old.mesh.centroids()).query(new.centroids())[1]]
+        consts.append(c)
+        # the arm directions as the orient stage recorded them (degrees in sheet.json)
+        meshes.append(replace(new, arm_angles=old.mesh.arm_angles))
+    return SheetPair(*meshes, fresh.fibers, fresh.fibers_mirrored, *consts)
 
 
 def unit_cache(ctx: StageContext) -> UnitCache:

@@ -12,7 +12,6 @@ or ``cell/cell.vtu`` with ``mesh_route = true``. Writes:
 
 from __future__ import annotations
 
-import json
 from typing import Literal
 
 import numpy as np
@@ -21,6 +20,7 @@ from pydantic import Field
 from ...errors import ConfigError
 from ...homogenize import homogenize_mesh, homogenize_voxels
 from ...material import Isotropic, TransverseIsotropic
+from ..artefacts import read_cell, read_cell_tets
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
@@ -47,7 +47,7 @@ def materials_from_json(spec: dict) -> dict:
             if "E" in m:
                 out[phase] = Isotropic(float(m["E"]), float(m["nu"]))
             else:
-                out[phase] = TransverseIsotropic(*(float(m[k]) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")))
+                out[phase] = TransverseIsotropic.from_mapping(m, where=f"cell.json materials[{key!r}]")
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(
                 f"cell.json materials[{key!r}]: {m!r}: expected {{E, nu}} or {{E_t, E_l, nu_t, nu_tl, mu_l}}"
@@ -57,28 +57,14 @@ def materials_from_json(spec: dict) -> dict:
 
 def run(ctx: StageContext) -> dict:
     p: HomogenizeParams = ctx.params
-    cell_dir = ctx.inputs["cell"]
-    info = json.loads((cell_dir / "cell.json").read_text())
+    cell = read_cell(ctx.inputs["cell"])
+    info, phases, size = cell.info, cell.phases, cell.size
     materials = materials_from_json(info["materials"])
-    with np.load(cell_dir / "voxels.npz") as z:
-        phases = z["phases"].astype(np.int64)
-        size = z["size"].astype(float)
-        cell_axis = z["axis"].astype(float) if "axis" in z else None
-    axis = cell_axis if p.fit_axis == "cell" else None
+    axis = cell.axis if p.fit_axis == "cell" else None
     ctx.progress("homogenize: solve", 0, 3)
     if p.mesh_route:
-        import meshio
-
-        vtu = cell_dir / "cell.vtu"
-        if not vtu.exists():
-            raise ConfigError("homogenize.mesh_route: true: the cell stage wrote no cell.vtu (set cell.tet_mesh = true)")
-        mesh = meshio.read(vtu)
-        tets = mesh.get_cells_type("tetra")
-        phase = None
-        for name in ("phase", "phases"):
-            if name in mesh.cell_data_dict and "tetra" in mesh.cell_data_dict[name]:
-                phase = np.asarray(mesh.cell_data_dict[name]["tetra"]).astype(np.int64)
-        r = homogenize_mesh(mesh.points, tets, materials, phase, size=size, origin=np.zeros(3),
+        points, tets, phase = read_cell_tets(ctx.inputs["cell"])
+        r = homogenize_mesh(points, tets, materials, phase, size=size, origin=np.zeros(3),
                             solver=p.solver, rtol=p.tolerance, axis=axis)
         resolution = [int(len(tets))]
     else:
@@ -101,7 +87,7 @@ def run(ctx: StageContext) -> dict:
     if p.fields:
         from ...viz.homogenize import tet_field_mesh, voxel_field_mesh
 
-        fm = tet_field_mesh(r, mesh.points, tets) if p.mesh_route else voxel_field_mesh(r, phases.shape, size)
+        fm = tet_field_mesh(r, points, tets) if p.mesh_route else voxel_field_mesh(r, phases.shape, size)
         fm.write(ctx.path("fields.vtu"))
     ctx.progress("homogenize: picture", 2, 3)
     if p.picture:

@@ -11,30 +11,31 @@ the transverse-isotropic material, the foam's soft direction), ``material_id`` (
 
 from __future__ import annotations
 
-import json
 from typing import Literal
 
 import numpy as np
 from pydantic import Field
 
+from ... import paper
 from ...material import TransverseIsotropic, interpolate
 from ...sheet import fibers as fb
 from ...sheet import geometry as geo
 from ...sheet import grading as gr
+from ..artefacts import SHEET_FILES, read_chart, read_material, write_sheet
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
-PAPER = {"E_t": 1.39, "E_l": 0.09422, "nu_t": 0.26162, "nu_tl": 0.4161, "mu_l": 0.01628215}
+_FOAM = paper.PAPER_FOAM
 
 
 class ConstantsParams(Params):
     """Fallback constants when the material stage is not in the pipeline (paper's foam)."""
 
-    E_t: float = Field(PAPER["E_t"], gt=0, description="transverse Young's modulus [MPa]")
-    E_l: float = Field(PAPER["E_l"], gt=0, description="longitudinal Young's modulus [MPa]")
-    nu_t: float = Field(PAPER["nu_t"], gt=-1, lt=1, description="transverse Poisson ratio [-]")
-    nu_tl: float = Field(PAPER["nu_tl"], gt=-1, lt=2, description="transverse-longitudinal Poisson ratio [-]")
-    mu_l: float = Field(PAPER["mu_l"], gt=0, description="longitudinal shear modulus [MPa]")
+    E_t: float = Field(_FOAM.E_t, gt=0, description="transverse Young's modulus [MPa]")
+    E_l: float = Field(_FOAM.E_l, gt=0, description="longitudinal Young's modulus [MPa]")
+    nu_t: float = Field(_FOAM.nu_t, gt=-1, lt=1, description="transverse Poisson ratio [-]")
+    nu_tl: float = Field(_FOAM.nu_tl, gt=-1, lt=2, description="transverse-longitudinal Poisson ratio [-]")
+    mu_l: float = Field(_FOAM.mu_l, gt=0, description="longitudinal shear modulus [MPa]")
 
 
 class GradingParams(Params):
@@ -63,7 +64,8 @@ class OrientParams(Params):
     r_ref: float = Field(33.0, gt=0, le=1000, description="radius where an r-dependent law has pitch_deg [mm]")
     tilt_deg: float = Field(0.0, ge=-90, le=90, description="out-of-plane fibre tilt [deg]")
     isotropic: bool = Field(False, description="isotropic sheet: alpha = 0 (E = E_t, nu = nu_t), iso = 1")
-    relative_density: float = Field(0.15, gt=0, le=1, description="the design's relative density [-]")
+    relative_density: float = Field(paper.FOAM_RELATIVE_DENSITY, gt=0, le=1,
+                                    description="the design's relative density [-]")
     rho_exponent: float = Field(2.0, gt=0, le=4, description="modulus ~ rho^n without a chart [-]")
     grading: GradingParams = Field(default_factory=GradingParams, description="graded design")
     constants: ConstantsParams = Field(default_factory=ConstantsParams, description="fallback constants")
@@ -84,9 +86,7 @@ def fiber_settings(p: OrientParams) -> dict:
 
 def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
     if "material" in ctx.inputs:
-        data = json.loads((ctx.inputs["material"] / "material.json").read_text())
-        c = data["constants"]
-        return TransverseIsotropic(*(float(c[k]) for k in gr.CONSTANTS)), "material stage"
+        return read_material(ctx.inputs["material"]).material, "material stage"
     c = ctx.params.constants
     return TransverseIsotropic(c.E_t, c.E_l, c.nu_t, c.nu_tl, c.mu_l), "orient.constants"
 
@@ -99,26 +99,14 @@ def _chart_lookup(ctx: StageContext):
     """
     if "chart" not in ctx.inputs:
         return None, "no chart stage"
-    from ...homogenize.chart import lookup, parse_csv
+    from ...homogenize.chart import lookup
 
-    table = parse_csv((ctx.inputs["chart"] / "chart.csv").read_text())
+    table = read_chart(ctx.inputs["chart"])
 
     def material_at(rho: float, alpha: float) -> TransverseIsotropic:
-        r = lookup(table, relative_density=rho, alpha=alpha)
-        return TransverseIsotropic(*(float(r[k]) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")))
+        return TransverseIsotropic.from_mapping(lookup(table, relative_density=rho, alpha=alpha))
 
     return material_at, "design chart (homogenize)"
-
-
-def _vtu(path, sheet: geo.SheetMesh, cell_data: dict[str, np.ndarray]) -> None:
-    import meshio
-
-    mesh = meshio.Mesh(
-        sheet.points, [("tetra", sheet.tets)],
-        point_data={"attach": sheet.attach.astype(np.int32)},
-        cell_data={k: [np.asarray(v)] for k, v in cell_data.items()},
-    )
-    meshio.write(path, mesh, file_format="vtu")
 
 
 def run(ctx: StageContext) -> dict:
@@ -156,8 +144,8 @@ def run(ctx: StageContext) -> dict:
     ctx.progress("writing meshes", 2, 4)
     common = {"material_id": grading.material_id.astype(np.int32), "density": grading.density,
               "alpha": grading.alpha, **consts}
-    _vtu(ctx.path("sheet.vtu"), normal, {"fiber": fib, **common})
-    _vtu(ctx.path("sheet_mirrored.vtu"), mirrored, {"fiber": fib_m, **common})
+    write_sheet(ctx.path(SHEET_FILES["normal"]), normal, {"fiber": fib, **common})
+    write_sheet(ctx.path(SHEET_FILES["mirrored"]), mirrored, {"fiber": fib_m, **common})
     counts = {str(k): int(np.sum(normal.attach == k)) for k in range(5)}
     info = {
         "geometry": sp.to_dict(),
@@ -177,7 +165,7 @@ def run(ctx: StageContext) -> dict:
         "graded": graded,
         "regions": list(grading.names),
         "constants_source": how,
-        "files": {"normal": "sheet.vtu", "mirrored": "sheet_mirrored.vtu"},
+        "files": dict(SHEET_FILES),
     }
     write_json_atomic(ctx.path("sheet.json"), info)
     ctx.progress("picture", 3, 4)
@@ -207,7 +195,7 @@ register(
         run=run,
         requires=(),
         optional=("material", "chart"),
-        outputs=("sheet.vtu", "sheet_mirrored.vtu", "sheet.json", "sheet.png"),
+        outputs=(*SHEET_FILES.values(), "sheet.json", "sheet.png"),
         doc="tripod sheet mesh + spiral fibre field (normal and mirrored) -> sheet.vtu, sheet.png",
     )
 )

@@ -16,7 +16,6 @@ max_percent), written as percentage / 100.
 
 from __future__ import annotations
 
-import json
 from typing import Literal
 
 import numpy as np
@@ -25,6 +24,7 @@ from pydantic import Field
 from ...errors import ConfigError
 from ...sheet import fibers as fb
 from ...sheet import icesl
+from ..artefacts import read_cell_density, read_orient
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
@@ -34,7 +34,7 @@ DEFAULT_SETTINGS = {
     "cover_thickness_mm_0": 0.0,
     "extruder_temp_degree_c_0": 230.0,
 }
-SHEETS = {"normal": ("sheet.vtu", False), "mirrored": ("sheet_mirrored.vtu", True)}
+SHEETS = {"normal": False, "mirrored": True}  # output folder -> whether the sheet is the mirrored one
 FILES = {"density": "density.txt", "theta": "theta.txt", "phi": "phi.txt", "iso": "iso.txt"}
 
 
@@ -64,38 +64,25 @@ def _write_stl(path, vertices: np.ndarray, faces: np.ndarray, name: str) -> None
         fh.write(rec.tobytes())
 
 
-def _cell_density(ctx: StageContext) -> float | None:
-    if "cell" not in ctx.inputs:
-        return None
-    f = ctx.inputs["cell"] / "cell.json"
-    if not f.exists():
-        return None
-    rho = json.loads(f.read_text()).get("relative_density")
-    return None if rho is None else float(rho)
-
-
 def run(ctx: StageContext) -> dict:
-    import meshio
-
     p: PrintmapParams = ctx.params
     if p.min_percent > p.max_percent:
         raise ConfigError(f"min_percent: {p.min_percent!r}: allowed range is [0, max_percent = {p.max_percent:g}]")
-    src = ctx.inputs["orient"]
-    info = json.loads((src / "sheet.json").read_text())
-    fs = {k: info["fibers"][k] for k in ("law", "pitch_deg", "tilt_deg", "r_ref")}
+    orient = read_orient(ctx.inputs["orient"])
+    info, fs = orient.info, orient.fiber_settings
     alpha_design = float(info["material"]["alpha_percent"])
-    rho_cell = _cell_density(ctx)
+    rho_cell = read_cell_density(ctx.inputs["cell"]) if "cell" in ctx.inputs else None
     scale = 1.0 if rho_cell is None else rho_cell / float(info["relative_density"])
     settings = {"z_layer_height_mm": p.layer_thickness, **p.settings}
     names = list(icesl.SETTINGS[p.infill])
     files = {k: ("angle.txt" if (k == "theta" and p.infill == "polyfoam") else FILES[k]) for k in names}
     summary, slices = {"infill": p.infill, "sheets": {}}, []
-    for step, (label, (vtu, mirrored)) in enumerate(SHEETS.items()):
+    for step, (label, mirrored) in enumerate(SHEETS.items()):
         ctx.progress(f"sampling {label} sheet", step, len(SHEETS) + 1)
-        mesh = meshio.read(src / vtu)
-        tets = mesh.cells_dict["tetra"]
-        rho = np.asarray(mesh.cell_data["density"][0], dtype=float) * scale
-        alpha = np.asarray(mesh.cell_data["alpha"][0], dtype=float)
+        sheet = orient.mirrored if mirrored else orient.normal
+        mesh, tets = sheet.mesh, sheet.mesh.tets
+        rho = np.asarray(sheet.cell_data["density"], dtype=float) * scale
+        alpha = np.asarray(sheet.cell_data["alpha"], dtype=float)
         iso = np.ones_like(alpha) if alpha_design <= 0 else np.clip(1.0 - alpha / alpha_design, 0.0, 1.0)
         pf = icesl.print_fields(
             mesh.points, tets,

@@ -7,12 +7,12 @@ ran, copies their pictures next to ``report.md`` so the page is self-contained.
 
 from __future__ import annotations
 
-import json
 import shutil
 
 from pydantic import Field
 
 from ...studies.report import build_report
+from ..artefacts import read_constants, read_material, read_summary
 from ..registry import Params, Stage, StageContext, register
 
 STUDIES = ("workspace", "ranges", "anisotropy", "maze")
@@ -22,27 +22,19 @@ class ReportParams(Params):
     title: str = Field("metasheet: reproduction of the paper's studies", description="report title")
 
 
-def _summary(directory, name):
-    f = directory / f"{name}.json"
-    if f.exists():
-        return json.loads(f.read_text())
-    man = directory / "manifest.json"
-    return json.loads(man.read_text()).get("summary") if man.exists() else None
-
-
 def run(ctx: StageContext) -> dict:
     summaries, pictures = {}, {}
     for name, d in ctx.inputs.items():
-        summaries[name] = _summary(d, name) if name in STUDIES else _summary(d, "__none__")
+        summaries[name] = read_summary(d, name if name in STUDIES else None)
         png = d / f"{name}.png"
         if png.exists():
             shutil.copyfile(png, ctx.path(png.name))
             pictures[name] = png.name
     if "homogenize" in ctx.inputs:
-        summaries["homogenize"] = json.loads((ctx.inputs["homogenize"] / "constants.json").read_text())
+        summaries["homogenize"] = read_constants(ctx.inputs["homogenize"])
     if "material" in ctx.inputs:
-        m = json.loads((ctx.inputs["material"] / "material.json").read_text())
-        summaries["material"] = {**m["constants"], "alpha_percent": m["alpha_percent"], "source": m["source"]}
+        m = read_material(ctx.inputs["material"])
+        summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source}
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}

@@ -6,7 +6,8 @@ constants along the spiral fibres) and with isotropic silicone, and writes
 
 * ``jacobian.json``: per material the Jacobian J (eq. 7) and compliance W at the rest
   equilibrium, the singular values, per-DOF authority per degree, and the rod rotation per
-  degree when all six motors move together (from J and from a finite move);
+  degree when all six motors move together (from J and from a finite move), and ``geometry``:
+  the scene (rod length, servo geometry, counts) the study stages build their robot on;
 * ``rest.vtu``: the foam robot at its rest equilibrium under gravity (both sheets, world
   frame), cell data ``sheet`` (0 = A, 1 = B), point data ``attach`` (0 free, k + 1 horn of
   motor k = 0..5, 99 effector) and ``displacement`` from the unloaded rest [mm];
@@ -15,69 +16,52 @@ constants along the spiral fibres) and with isotropic silicone, and writes
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 from pydantic import Field
 
+from ... import paper
+from ...errors import ConfigError
 from ...material import Isotropic
-from ...robot.assemblies import ServoGeometry
-from ...robot.cli_support import robot_from_orient
+from ...robot.builder import six_dof_robot
 from ...robot.compare import evaluate
+from ...robot.robots import ServoGeometry
+from ..artefacts import read_material, read_orient, write_jacobian, write_rest_vtu
 from ..registry import Params, Stage, StageContext, register
 
 
 class RobotParams(Params):
-    rod_length: float = Field(80.0, gt=10, le=1000, description="rod joining the sheet centres [mm]")
-    rest_angle: float = Field(60.0, ge=-180, le=180, description="motor angle of the undeformed rest pose; places "
-                              "the servo pivots (the servo radius is derived and reported) [deg]")
-    horn_length: float = Field(25.0, gt=0, le=1000, description="servo horn length [mm]")
-    angle_min: float = Field(0.0, ge=-180, le=180, description="motor stroke minimum [deg] (0 = horizontal horn)")
-    angle_max: float = Field(90.0, ge=-180, le=180, description="motor stroke maximum [deg] (90 = vertical horn)")
+    rod_length: float = Field(paper.ROD_LENGTH, gt=10, le=1000, description="rod joining the sheet centres [mm]")
+    rest_angle: float = Field(paper.REST_ANGLE, ge=-180, le=180, description="motor angle of the undeformed rest "
+                              "pose; places the servo pivots (the servo radius is derived and reported) [deg]")
+    horn_length: float = Field(paper.HORN_LENGTH, gt=0, le=1000, description="servo horn length [mm]")
+    angle_min: float = Field(paper.ANGLE_MIN, ge=-180, le=180, description="motor stroke minimum [deg] "
+                             "(0 = horizontal horn)")
+    angle_max: float = Field(paper.ANGLE_MAX, ge=-180, le=180, description="motor stroke maximum [deg] "
+                             "(90 = vertical horn)")
     delta_deg: float = Field(-15.0, ge=-90, le=90, description="all-motors move for the pictures and finite test [deg]")
-    silicone_E: float = Field(0.25, gt=0, le=1e4, description="silicone Young's modulus [MPa]")
-    silicone_nu: float = Field(0.45, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
-    silicone_density: float = Field(1.07e-9, gt=0, le=1e-7, description="silicone density [t/mm^3]")
+    silicone_E: float = Field(paper.SILICONE.E, gt=0, le=1e4, description="silicone Young's modulus [MPa]")
+    silicone_nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
+    silicone_density: float = Field(paper.SILICONE_DENSITY, gt=0, le=1e-7, description="silicone density [t/mm^3]")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     picture: bool = Field(True, description="write robot.png")
-
-
-def _write_rest_vtu(path, robot, state) -> None:
-    import meshio
-
-    c = robot.coupling
-    tags = np.zeros(len(c.rest), dtype=np.int32)
-    tags[c.effector_nodes] = 99
-    for k, s in enumerate(c.servos):
-        tags[s.nodes] = k + 1
-    n_a = robot.info.get("n_tets_per_sheet", [len(robot.body.tets)])[0]
-    sheet = (np.arange(len(robot.body.tets)) >= n_a).astype(np.int32)
-    meshio.write(path, meshio.Mesh(
-        state.x, [("tetra", np.asarray(robot.body.tets))],
-        point_data={"attach": tags, "displacement": state.x - c.rest},
-        cell_data={"sheet": [sheet]}), binary=True)
 
 
 def run(ctx: StageContext) -> dict:
     p: RobotParams = ctx.params
     if p.angle_min >= p.angle_max:
-        from ...errors import ConfigError
-
         raise ConfigError(f"robot.angle_min/angle_max: ({p.angle_min:g}, {p.angle_max:g}) deg: need min < max")
-    mat = json.loads((ctx.inputs["material"] / "material.json").read_text())
-    density = float(mat.get("density", 1.785e-10))
+    density = read_material(ctx.inputs["material"]).density
     if not p.angle_min <= p.rest_angle <= p.angle_max:
-        from ...errors import ConfigError
-
         raise ConfigError(f"robot.rest_angle: {p.rest_angle:g} deg: allowed range [angle_min, angle_max] = "
                           f"[{p.angle_min:g}, {p.angle_max:g}] deg")
     geo = ServoGeometry(p.rest_angle, p.horn_length, p.angle_min, p.angle_max)
-    orient = ctx.inputs["orient"]
+    orient = read_orient(ctx.inputs["orient"])
     ctx.progress("building robots", 0, 4)
-    robots = {
-        "foam": robot_from_orient(orient, rod_length=p.rod_length, geometry=geo, density=density),
-        "silicone": robot_from_orient(orient, material=Isotropic(p.silicone_E, p.silicone_nu),
-                                      rod_length=p.rod_length, geometry=geo, density=p.silicone_density),
+    scene = {"rod_length": p.rod_length, "geometry": geo}
+    robots = {  # the foam: the sheets' own per-element constants along their fibres
+        "foam": six_dof_robot(orient.sheets(), density=density, **scene),
+        "silicone": six_dof_robot(orient.sheets(need_constants=False), Isotropic(p.silicone_E, p.silicone_nu),
+                                  density=p.silicone_density, **scene),
     }
     cases = {}
     for i, (name, rob) in enumerate(robots.items()):
@@ -91,8 +75,8 @@ def run(ctx: StageContext) -> dict:
         "geometry": foam.info,
         "materials": {name: c.to_dict() for name, c in cases.items()},
     }
-    ctx.path("jacobian.json").write_text(json.dumps(out, indent=1, sort_keys=True))
-    _write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
+    write_jacobian(ctx.path("jacobian.json"), out)
+    write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
     if p.picture:
         ctx.progress("picture", 3, 4)
         from ...viz.robot import robot_picture

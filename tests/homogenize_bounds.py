@@ -1,5 +1,8 @@
 """Analytic references: Voigt and Hashin-Shtrikman upper bounds, the exact laminate.
 
+Independent answers the homogenisation tests compare against (a helper module, no tests
+here; it lived in ``metasheet/homogenize/bounds.py``, which no library code used).
+
 - Voigt (uniform strain): ``C_V = sum_k f_k C_k`` with void contributing 0; for any
   microstructure ``C_V - C*`` is positive semi-definite (energy bound).
 - Hashin-Shtrikman upper bounds for an isotropic solid (K, G) of volume fraction
@@ -20,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..material import Isotropic
+from metasheet.material import Isotropic
 
 _T = [0, 1, 5]  # in-plane components (strain continuous)
 _N = [2, 3, 4]  # out-of-plane components (stress continuous)

@@ -1,5 +1,5 @@
 """Small periodic level-set fields with known solids, shared by the cell surface and tet-mesh
-tests (helpers only: no tests here)."""
+tests (``test_cell_surface.py``, ``test_cell_tetmesh.py``); a helper module, no tests here."""
 
 import itertools
 

@@ -40,15 +40,16 @@ Geometry decisions (FACTS.md; documented here because the sources do not pin the
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
-from ..conventions import GRAVITY, MANDEL_SCALE, TPU_DENSITY
+from .. import paper
+from ..conventions import GRAVITY, TPU_DENSITY
 from ..errors import ConfigError, check_range
-from ..material import mandel_rotation
+from ..voigt import MANDEL, mandel_rotation
 from .rigid import RigidCoupling, Servo
 
-_MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)
 
 
 @dataclass(frozen=True)
@@ -64,10 +65,10 @@ class ServoGeometry:
     angle_min, angle_max : motor stroke [deg], 0 = horizontal horn, 90 = vertical.
     """
 
-    rest_angle: float = 60.0
-    horn_length: float = 25.0
-    angle_min: float = 0.0
-    angle_max: float = 90.0
+    rest_angle: float = paper.REST_ANGLE
+    horn_length: float = paper.HORN_LENGTH
+    angle_min: float = paper.ANGLE_MIN
+    angle_max: float = paper.ANGLE_MAX
 
     def __post_init__(self):
         check_range("rest_angle", self.rest_angle, -180.0, 180.0)
@@ -90,6 +91,7 @@ class Robot:
     angle_min, angle_max : (na,) motor limits [rad].
     axis : (3,) the effector axis of interest (rod axis / tripod normal).
     info : JSON-able description of the geometry (pivots, rest angles...).
+    f_ext : (n, 3) nodal gravity forces [N] (derived from ``body`` and ``gravity``).
     """
 
     name: str
@@ -101,8 +103,10 @@ class Robot:
     axis: np.ndarray
     info: dict = field(default_factory=dict)
 
-    def __post_init__(self):
-        object.__setattr__(self, "f_ext", np.asarray(self.body.gravity(tuple(self.gravity)), float).reshape(-1, 3))
+    @cached_property
+    def f_ext(self) -> np.ndarray:
+        """(n, 3) external nodal forces [N]: the lumped weight ``M g`` of eq. (1)."""
+        return np.asarray(self.body.gravity(tuple(self.gravity)), float).reshape(-1, 3)
 
     def rest_state(self):
         """The undeformed configuration (motors at their rest angles, no gravity sag)."""
@@ -121,8 +125,8 @@ class Robot:
 def _rotate_local(C, Q) -> np.ndarray:
     """(m, 6, 6) or (6, 6) Voigt stiffness in a frame rotated by Q (3, 3) (local -> world)."""
     Qm = mandel_rotation(Q[None])[0]
-    Cm = np.asarray(C, float) * _MANDEL
-    return np.einsum("IK,...KL,JL->...IJ", Qm, Cm, Qm) / _MANDEL
+    Cm = np.asarray(C, float) * MANDEL
+    return np.einsum("IK,...KL,JL->...IJ", Qm, Cm, Qm) / MANDEL
 
 
 def _check_sheet(sheet, stiffness, label):
@@ -163,7 +167,7 @@ def _servos(pts_world, att, arm_angles, Q, centre, geo: ServoGeometry, offset: i
     return servos, info
 
 
-def _make_robot(name, pts, tets, C, eff_nodes, origin, servos, info, geo, gravity, axis, density):
+def _make_robot(name, pts, tets, C, eff_nodes, origin, servos, info, geo, gravity, axis, density, extra=None):
     from .body import ElasticBody
 
     body = ElasticBody(pts, tets, C, density=density)
@@ -179,7 +183,7 @@ def _make_robot(name, pts, tets, C, eff_nodes, origin, servos, info, geo, gravit
     info = {"servo_geometry": {"rest_angle_deg": geo.rest_angle, "horn_length_mm": geo.horn_length,
                                "angle_min_deg": geo.angle_min, "angle_max_deg": geo.angle_max,
                                "servo_radius_mm_derived": round(float(np.mean(radii)), 3)},
-            "servos": info, **info_extra(pts, tets, eff_nodes, density)}
+            "servos": info, **info_extra(pts, tets, eff_nodes, density), **(extra or {})}
     return Robot(name, body, coupling, np.asarray(gravity, float), lo, hi, np.asarray(axis, float), info)
 
 
@@ -212,7 +216,7 @@ Q_A = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 Q_B = np.diag([-1.0, -1.0, 1.0]) @ Q_A
 
 
-def six_dof(sheet_a, stiffness_a, sheet_b, stiffness_b, *, rod_length: float = 80.0,
+def six_dof(sheet_a, stiffness_a, sheet_b, stiffness_b, *, rod_length: float = paper.ROD_LENGTH,
             geometry: ServoGeometry = ServoGeometry(), density: float = TPU_DENSITY,
             gravity=(0.0, 0.0, -GRAVITY)) -> Robot:
     """The paper's 6-DOF robot: two tripods facing each other joined by a rigid rod along x.
@@ -236,9 +240,7 @@ def six_dof(sheet_a, stiffness_a, sheet_b, stiffness_b, *, rod_length: float = 8
     tets = np.vstack([ta, np.asarray(tb) + len(pa)])
     C = np.concatenate([_rotate_local(Ca, Q_A), _rotate_local(Cb, Q_B)])
     eff = np.concatenate([np.flatnonzero(aa == 4), np.flatnonzero(ab == 4) + len(pa)])
-    rob = _make_robot("six_dof", pts, tets, C, eff, np.zeros(3), sa + sb, ia + ib, geometry, gravity,
-                      (1.0, 0.0, 0.0), density)
-    rob.info["rod_length_mm"] = rod_length
-    rob.info["n_tets_per_sheet"] = [int(len(ta)), int(len(tb))]
-    rob.info["sheet_centres_mm"] = [ca.tolist(), cb.tolist()]
-    return rob
+    extra = {"rod_length_mm": rod_length, "n_tets_per_sheet": [int(len(ta)), int(len(tb))],
+             "sheet_centres_mm": [ca.tolist(), cb.tolist()]}
+    return _make_robot("six_dof", pts, tets, C, eff, np.zeros(3), sa + sb, ia + ib, geometry, gravity,
+                       (1.0, 0.0, 0.0), density, extra)

@@ -1,7 +1,8 @@
-"""Sample cells built with numpy alone, for tests, benchmarks and examples.
+"""Sample cells built with numpy alone: test fixtures of the homogenisation (a helper module,
+no tests here; it lived in ``metasheet/homogenize/samples.py``, which only tests used).
 
 They let the homogenisation be tested without the cell stage: the solid cube, a
-two-phase laminate (exact answer: :func:`~metasheet.homogenize.bounds.backus_laminate`),
+two-phase laminate (exact answer: :func:`homogenize_bounds.backus_laminate`),
 a simple cubic strut lattice (stretch-dominated estimate E = E_s A / L^2) and an
 open-cell "edge foam": voxels close to the edges of a periodic Voronoi tessellation,
 where the third-nearest seed is almost as near as the nearest one.
@@ -12,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import ConfigError
+from metasheet.errors import ConfigError
 
 
 def laminate(n: int, fraction: float, *, axis: int = 2) -> np.ndarray:

@@ -1,0 +1,351 @@
+"""Sparse linear solvers: one probe of the optional back-ends, one naming, two uses.
+
+Names, everywhere (reports, settings, statistics):
+
+- ``"cholmod"``: sparse Cholesky of scikit-sparse 0.4.16 on SuiteSparse (optional: needs
+  ``apt-get install libsuitesparse-dev``, then ``pip install scikit-sparse==0.4.16``).
+- ``"superlu"``: scipy's SuperLU (always there).
+- ``"amg-cg"``: smoothed-aggregation AMG (pyamg) preconditioning CG, SPD only (:mod:`.amg`).
+
+The direct back-ends are the entries of :data:`BACKENDS`, best first, each probed once at
+import (:func:`available`); adding one (e.g. PARDISO through pypardiso) is one more entry.
+
+Two uses:
+
+- :func:`solve_spd`: ``A X = B`` for an SPD ``A`` and several right-hand sides
+  (homogenisation's six corrector problems, one factorisation or AMG hierarchy for all).
+  ``"auto"`` takes the first available direct back-end up to its size limit
+  (:data:`CHOLMOD_MAX_DOF`, :data:`SUPERLU_MAX_DOF`), AMG-CG above.
+- :class:`SparseSolver`: repeated factorisations of the robot's free block ``K_ff``, one fixed
+  structurally symmetric pattern, slightly non-symmetric values (see :mod:`metasheet.robot.kernels`).
+  SuperLU factorises ``K_ff`` itself (every solve exact). CHOLMOD factorises the symmetric part
+  ``M = (K_ff + K_ff^T) / 2`` with its symbolic analysis cached for the pattern: ``M^-1`` is a
+  *modified-Newton* operator, and :meth:`SparseSolver.solve_exact` restores the exact solve by
+  iterative refinement ``y <- y + M^-1 (b - K_ff y)``, falling back to SuperLU of ``K_ff``
+  when that does not reach ``refine_tol`` within ``max_refine`` sweeps (a strongly
+  non-symmetric tangent far from rest) or ``M`` is not positive definite. Chord steps use
+  :meth:`Factor.solve` and are checked on the true residual by the callers
+  (:mod:`metasheet.robot.statics`, :mod:`metasheet.robot.inverse`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import ConfigError, ConvergenceError
+from .amg import amg_cg
+from .assembly import transpose_map
+
+#: Largest SPD system SuperLU takes under "auto": its fill-in grows fast in 3D (P1 elasticity
+#: cubes, same machine: 0.18 s at 6k dofs, 4.5 s at 26k, 119 s / 6.5 GB at 105k).
+SUPERLU_MAX_DOF = 12_000
+#: Largest SPD system CHOLMOD takes under "auto". Measured on the open-cell 15 % foam
+#: (benchmarks/bench_homogenize.py, 2 shared cores, 1 BLAS thread): CHOLMOD 8 s at 105k
+#: dofs, 12 s / 1.5 GB at 215k, 103 s / 4.5 GB at 614k, where AMG-CG needs 40-100
+#: iterations per load case (thin voxel struts): 38 s, 57 s, 310 s (224k, 3:1 voxels).
+#: Above, the factor's memory (~ n^(4/3)) would pass 6 GB: AMG.
+CHOLMOD_MAX_DOF = 700_000
+
+
+@dataclass
+class Factor:
+    """One factorised matrix. ``name``: the back-end; ``symmetric``: True when it factorises
+    the symmetric part ``(A + A^T) / 2`` rather than ``A`` itself (then not an exact inverse)."""
+
+    name: str
+    _solve: object
+    symmetric: bool
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``M^-1 rhs`` for rhs (n,) or (n, k); M is the factorised matrix (see :attr:`symmetric`)."""
+        return self._solve(rhs)
+
+
+# --------------------------------------------------------------------------- back-ends
+
+
+def superlu(A: sp.spmatrix, *, symmetric_mode: bool = False) -> Factor:
+    """SuperLU factor of ``A`` (n, n), columns ordered by minimum degree on ``A^T + A``.
+
+    ``symmetric_mode``: diagonal pivots only (``diag_pivot_thresh=0``, SuperLU's
+    ``SymmetricMode``), for a structurally symmetric matrix that is nearly symmetric in value
+    (the robot's ``K_ff``): the symmetric ordering is then kept.
+    """
+    if symmetric_mode:
+        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    else:
+        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
+    return Factor("superlu", lu.solve, False)
+
+
+def _superlu(A: sp.spmatrix) -> Factor:
+    return superlu(A, symmetric_mode=True)
+
+
+def _superlu_spd(_module, A: sp.csc_matrix) -> Callable:
+    return superlu(A).solve
+
+
+def _superlu_general(_module) -> Callable:
+    return _superlu
+
+
+def _cholmod_spd(cholmod, A: sp.csc_matrix) -> Callable:
+    return cholmod.cholesky(A)  # the returned factor solves when called
+
+
+class _CholmodSymmetricPart:
+    """Cholesky of ``(A + A^T) / 2`` on ``A``'s own pattern, the symbolic analysis cached."""
+
+    def __init__(self, cholmod):
+        self.cholmod = cholmod
+        self._key = None
+        self._tmap = None
+        self._symbolic = None
+
+    def __call__(self, A: sp.csr_matrix) -> Factor | None:
+        """The factor, or None when the symmetric part is not positive definite."""
+        A.sort_indices()
+        key = (A.shape, A.nnz, A.indptr.tobytes(), A.indices.tobytes())
+        if self._key != key:
+            self._tmap = transpose_map(A, name="K_ff")
+            self._key = key
+            self._symbolic = None
+        # its CSR arrays are also its CSC arrays (symmetric)
+        M = sp.csc_matrix((0.5 * (A.data + A.data[self._tmap]), A.indices, A.indptr), shape=A.shape)
+        try:
+            if self._symbolic is None:
+                self._symbolic = self.cholmod.analyze(M)
+            f = self._symbolic.cholesky(M)  # numeric factorisation on the cached analysis
+            return Factor("cholmod", f.solve_A, True)
+        except self.cholmod.CholmodNotPositiveDefiniteError:
+            return None
+
+
+@dataclass(frozen=True)
+class Backend:
+    """A sparse direct solver.
+
+    name : its name in reports and settings.
+    module : what to import ("" for scipy's own); package, install : for the error when missing.
+    max_spd_dof : largest SPD system :func:`solve_spd` gives it under "auto".
+    spd : (module, A csc SPD) -> solve(B), one factorisation for many right-hand sides.
+    general : module -> factorise(A csr, structurally symmetric) -> :class:`Factor` or None
+        (None: cannot, SuperLU takes over); called once per :class:`SparseSolver`, may cache.
+    """
+
+    name: str
+    module: str
+    package: str
+    install: str
+    max_spd_dof: int
+    spd: Callable
+    general: Callable
+
+
+#: Direct back-ends, best first: "auto" and "direct" take the first available one.
+BACKENDS = {
+    b.name: b for b in (
+        Backend("cholmod", "sksparse.cholmod", "scikit-sparse",
+                "apt-get install libsuitesparse-dev; pip install scikit-sparse==0.4.16",
+                CHOLMOD_MAX_DOF, _cholmod_spd, _CholmodSymmetricPart),
+        Backend("superlu", "", "scipy", "", SUPERLU_MAX_DOF, _superlu_spd, _superlu_general),
+    )
+}
+
+
+def _probe(module: str):
+    if not module:
+        return spla
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        return None
+
+
+_MODULES = {name: _probe(b.module) for name, b in BACKENDS.items()}
+
+
+def available(name: str) -> bool:
+    """True when the direct back-end ``name`` (a key of :data:`BACKENDS`) can be used here."""
+    return _MODULES.get(name) is not None
+
+
+HAVE_CHOLMOD = available("cholmod")
+
+
+# --------------------------------------------------------------------------- SPD solve
+
+#: What :func:`solve_spd` accepts.
+SPD_SOLVERS = ("auto", "direct", "amg")
+
+
+@dataclass(frozen=True)
+class SolveReport:
+    """What the linear solver did.
+
+    Attributes
+    ----------
+    solver : "cholmod", "superlu" or "amg-cg".
+    iterations : (r,) CG iterations per right-hand side (0 for direct solvers).
+    residuals : (r,) relative residuals ||K u + f|| / ||f|| (0 for a zero right-hand side).
+    setup_seconds : factorisation or AMG hierarchy time [s].
+    solve_seconds : time for all right-hand sides [s].
+    n_dof : size of the solved system.
+    """
+
+    solver: str
+    iterations: tuple[int, ...]
+    residuals: tuple[float, ...]
+    setup_seconds: float
+    solve_seconds: float
+    n_dof: int
+
+
+def choose_solver(solver: str, n_dof: int) -> str:
+    """The concrete solver ("cholmod", "superlu" or "amg-cg") for a request in :data:`SPD_SOLVERS`
+    and a system size."""
+    if solver not in SPD_SOLVERS:
+        raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(SPD_SOLVERS)}")
+    if solver == "amg":
+        return "amg-cg"
+    direct = [b for name, b in BACKENDS.items() if available(name)]
+    if solver == "direct":
+        return direct[0].name
+    for b in direct:
+        if n_dof <= b.max_spd_dof:
+            return b.name
+    return "amg-cg"
+
+
+def solve_spd(A: sp.spmatrix, B: np.ndarray, *, solver: str = "auto", rtol: float = 1e-8,
+              coords: np.ndarray | None = None, maxiter: int = 2000) -> tuple[np.ndarray, SolveReport]:
+    """Solve ``A X = B`` for a symmetric positive-definite ``A``.
+
+    Parameters
+    ----------
+    A : (n, n) sparse SPD matrix.
+    B : (n, r) right-hand sides.
+    solver : "auto", "direct" or "amg" (:func:`choose_solver`).
+    rtol : relative residual asked of CG and checked for every solver.
+    coords : (n / 3, 3) node coordinates [mm] for the AMG near-null space (needed for "amg").
+    maxiter : CG iteration cap.
+
+    Returns
+    -------
+    X : (n, r) solutions, and the :class:`SolveReport`.
+
+    Raises
+    ------
+    ConvergenceError : a residual above the tolerance (with the residuals as history).
+    """
+    A = sp.csr_matrix(A)
+    B = np.asarray(B, float)
+    n = A.shape[0]
+    kind = choose_solver(solver, n)
+    t0 = time.perf_counter()
+    iters = [0] * B.shape[1]
+    if kind == "amg-cg":
+        X, iters, t1 = amg_cg(A, B, rtol, coords, maxiter)
+    else:
+        solve = BACKENDS[kind].spd(_MODULES[kind], sp.csc_matrix(A))
+        t1 = time.perf_counter()
+        X = solve(B)
+    t2 = time.perf_counter()
+    bn = np.linalg.norm(B, axis=0)
+    res = np.linalg.norm(A @ X - B, axis=0) / np.where(bn > 0, bn, 1.0)
+    report = SolveReport(kind, tuple(int(i) for i in iters), tuple(float(r) for r in res), t1 - t0, t2 - t1, n)
+    limit = max(rtol, 1e-12) * (10.0 if kind == "amg-cg" else 1e4)
+    if not np.all(np.isfinite(X)) or np.any(res > limit):
+        raise ConvergenceError(
+            f"{kind}: relative residuals {np.array2string(res, precision=2)} exceed {limit:g} "
+            "(singular stiffness: a floating part or a mechanism in the cell?)",
+            history=res.tolist(),
+        )
+    return X, report
+
+
+# --------------------------------------------------------------------------- general factorisation
+
+#: What :class:`SparseSolver` (and the robot's ``linear_solver`` setting) accepts.
+FACTOR_SOLVERS = ("auto", *BACKENDS)
+
+
+def resolve(solver: str) -> str:
+    """The back-end that runs for a requested ``solver`` in :data:`FACTOR_SOLVERS`."""
+    if solver not in FACTOR_SOLVERS:
+        raise ConfigError(f"linear_solver: {solver!r}: allowed {FACTOR_SOLVERS}")
+    here = [name for name in BACKENDS if available(name)]
+    if solver == "auto":
+        return here[0]
+    if solver not in here:
+        b = BACKENDS[solver]
+        raise ConfigError(f"linear_solver: {solver!r}: {b.package} is not installed ({b.install}); "
+                          f"allowed here: {' or '.join(repr(s) for s in ('auto', *here))}")
+    return solver
+
+
+class SparseSolver:
+    """Factorises matrices of one fixed sparsity pattern (CSR, structurally symmetric).
+
+    Parameters
+    ----------
+    solver : "auto" | "cholmod" | "superlu" (:data:`FACTOR_SOLVERS`).
+    refine_tol : relative residual (Frobenius, per right-hand-side block) an exact solve must reach.
+    max_refine : refinement sweeps before falling back to SuperLU.
+
+    :attr:`stats` counts what actually ran: factorisations per back-end, fallbacks,
+    refinement sweeps and exact solves.
+    """
+
+    def __init__(self, solver: str = "auto", *, refine_tol: float = 1e-10, max_refine: int = 8):
+        self.name = resolve(solver)
+        self.refine_tol = float(refine_tol)
+        self.max_refine = int(max_refine)
+        self._factorize = BACKENDS[self.name].general(_MODULES[self.name])
+        self.stats = {**{name: 0 for name in BACKENDS}, "fallbacks": 0, "refine_sweeps": 0, "exact_solves": 0}
+
+    def factorize(self, A: sp.csr_matrix) -> Factor:
+        """Factor of ``A`` (CSR, sorted indices): LU of A, or Cholesky of its symmetric part."""
+        A = A.tocsr()
+        factor = self._factorize(A)
+        if factor is None:
+            self.stats["fallbacks"] += 1
+            factor = _superlu(A)
+        self.stats[factor.name] += 1
+        return factor
+
+    def solve_exact(self, factor: Factor, A: sp.csr_matrix, rhs: np.ndarray) -> tuple[np.ndarray, Factor]:
+        """``A^-1 rhs`` to ``refine_tol`` using ``factor`` (of A or of its symmetric part).
+
+        Returns the solution and the factor to keep using (a SuperLU factor of ``A`` after a
+        fallback, so that later chord solves are exact too).
+        """
+        self.stats["exact_solves"] += 1
+        y = factor.solve(rhs)
+        if not factor.symmetric:
+            return y, factor
+        nb = max(float(np.linalg.norm(rhs)), 1e-300)
+        prev = np.inf
+        for sweep in range(self.max_refine + 1):
+            r = rhs - A @ y
+            nr = float(np.linalg.norm(r))
+            if nr <= self.refine_tol * nb:
+                return y, factor
+            if sweep == self.max_refine or nr > 0.5 * prev:  # slow contraction: asymmetry not small
+                break
+            prev = nr
+            y = y + factor.solve(r)
+            self.stats["refine_sweeps"] += 1
+        self.stats["fallbacks"] += 1
+        self.stats["superlu"] += 1
+        lu = _superlu(A)
+        return lu.solve(rhs), lu

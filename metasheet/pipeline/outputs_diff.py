@@ -1,0 +1,136 @@
+"""Compare two output trees file by file: identical bytes, equal numbers, or different.
+
+``metasheet diff A B`` answers "did this change alter any result?" for two runs of a
+pipeline (two versions of the code, two machines, two thread counts). Files whose bytes
+match are "identical". Otherwise the numbers inside are compared where the format is known
+(JSON, VTU, NPZ, CSV and text), quantity by quantity (a JSON key, a mesh array, a CSV
+column), and the largest normwise relative difference ``max|a - b| / max(|a|, |b|)`` over
+the quantities is reported; anything else (pictures, STL) is just "different". Wall-clock fields (``timings_s``, ``wall_s``, ...) and manifests are skipped:
+they differ between any two runs.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .manifest import MANIFEST, sha256_file
+
+#: JSON keys holding wall-clock times: never compared.
+TIME_KEYS = ("timings_s", "wall_s", "s_per_point", "time_s", "seconds", "median_step_ms")
+_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?|nan|inf", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class FileDiff:
+    """One file's comparison: ``status`` "identical", "numbers", "different", "missing in a"
+    or "missing in b"; ``max_rel`` the largest relative difference of its numbers (nan when
+    not compared numerically); ``note`` what did not line up (shapes, keys, text)."""
+
+    path: str
+    status: str
+    max_rel: float = float("nan")
+    note: str = ""
+
+
+def _json_numbers(obj, groups: dict, keys: list, prefix: str = "") -> None:
+    if isinstance(obj, dict):
+        for k in sorted(obj):
+            if k not in TIME_KEYS:
+                _json_numbers(obj[k], groups, keys, f"{prefix}.{k}")
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            _json_numbers(v, groups, keys, f"{prefix}[]")
+    elif isinstance(obj, bool) or obj is None or isinstance(obj, str):
+        keys.append(f"{prefix}={obj!r}")  # compared exactly, as structure
+    elif isinstance(obj, (int, float)):
+        groups.setdefault(prefix, []).append(float(obj))
+        keys.append(prefix)
+
+
+def _csv_columns(text: str) -> tuple[dict, list]:
+    lines = [ln.split(",") for ln in text.strip().splitlines()]
+    groups, keys = {}, [",".join(lines[0])]
+    for row in lines[1:]:
+        for name, cell in zip(lines[0], row):
+            try:
+                groups.setdefault(name, []).append(float(cell))
+            except ValueError:
+                keys.append(f"{name}={cell}")
+    return groups, keys
+
+
+def _quantities(path: Path) -> tuple[dict[str, np.ndarray], list]:
+    """The numbers of a file grouped by quantity (a JSON key path, a VTU array, a CSV column),
+    and the non-numeric structure they sit in."""
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        groups, keys = {}, []
+        _json_numbers(json.loads(path.read_text()), groups, keys)
+    elif suffix == ".vtu":
+        import meshio
+
+        m = meshio.read(path)
+        groups = {"points": m.points, **{f"cells:{c.type}": c.data for c in m.cells}}
+        groups |= {f"point:{k}": v for k, v in m.point_data.items()}
+        groups |= {f"cell:{k}": np.concatenate([np.ravel(b) for b in v]) for k, v in m.cell_data.items()}
+        keys = sorted(f"{k}{np.shape(v)}" for k, v in groups.items())
+    elif suffix == ".npz":
+        with np.load(path) as z:
+            groups = {k: z[k] for k in z.files}
+        keys = sorted(f"{k}{np.shape(v)}" for k, v in groups.items())
+    elif suffix == ".csv":
+        groups, keys = _csv_columns(path.read_text())
+    else:
+        text = path.read_text()
+        groups, keys = {"numbers": [float(t) for t in _NUMBER.findall(text)]}, [_NUMBER.sub("#", text)]
+    return {k: np.ravel(np.asarray(v, float)) for k, v in groups.items()}, keys
+
+
+def _normwise(a: np.ndarray, b: np.ndarray) -> float:
+    """max |a - b| / max(|a|, |b|) over one quantity (NaN where both are NaN counts as equal)."""
+    same_nan = np.isnan(a) & np.isnan(b)
+    d = np.where(same_nan, 0.0, np.abs(a - b))
+    scale = max(float(np.nanmax(np.abs(a), initial=0.0)), float(np.nanmax(np.abs(b), initial=0.0)))
+    worst = float(np.max(d, initial=0.0))
+    return 0.0 if worst == 0.0 else (np.inf if scale == 0.0 or not np.isfinite(worst) else worst / scale)
+
+
+def compare_file(a: Path, b: Path) -> FileDiff:
+    """Compare two files of the same relative path (see the module docstring)."""
+    rel = a.name
+    if sha256_file(a) == sha256_file(b):
+        return FileDiff(rel, "identical", 0.0)
+    if a.suffix.lower() not in (".json", ".vtu", ".npz", ".csv", ".txt", ".lua", ".md"):
+        return FileDiff(rel, "different", note="binary content differs")
+    try:
+        ga, ka = _quantities(a)
+        gb, kb = _quantities(b)
+    except (ValueError, UnicodeDecodeError, OSError) as exc:
+        return FileDiff(rel, "different", note=f"not comparable: {exc}")
+    if ka != kb or ga.keys() != gb.keys() or any(ga[k].shape != gb[k].shape for k in ga):
+        return FileDiff(rel, "different", note="structure differs (keys, shapes or text)")
+    worst = {k: _normwise(ga[k], gb[k]) for k in ga}
+    name = max(worst, key=worst.get, default="")
+    return FileDiff(rel, "numbers", worst.get(name, 0.0), f"largest in {name}" if worst.get(name) else "")
+
+
+def compare_trees(a: Path, b: Path, *, skip_manifests: bool = True) -> list[FileDiff]:
+    """:class:`FileDiff` for every file under either tree (relative paths, sorted)."""
+    def files(root: Path) -> set[str]:
+        return {p.relative_to(root).as_posix() for p in root.rglob("*")
+                if p.is_file() and not (skip_manifests and p.name == MANIFEST)}
+
+    fa, fb = files(a), files(b)
+    out = []
+    for rel in sorted(fa | fb):
+        if rel not in fa or rel not in fb:
+            out.append(FileDiff(rel, "missing in a" if rel not in fa else "missing in b"))
+            continue
+        d = compare_file(a / rel, b / rel)
+        out.append(FileDiff(rel, d.status, d.max_rel, d.note))
+    return out

@@ -1,0 +1,131 @@
+"""The one way to build the paper's 6-DOF robot: a sheet pair, a material, the servo geometry.
+
+The robot stage, the ``metasheet robot goto`` command, the studies (in every worker) and the
+tests and benchmarks all call :func:`six_dof_robot`, so the sheets' stiffness is made one
+way: per-element constants (a graded design, as the orient stage wrote them) or a single
+material, rotated so that its axis 3 (the soft l axis) follows each element's fibre.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import paper
+from ..conventions import GRAVITY
+from ..errors import ConfigError
+from ..material import Isotropic, TransverseIsotropic
+from ..sheet.geometry import SheetMesh, SheetParams
+from ..voigt import stiffness_along
+from .robots import Robot, ServoGeometry, six_dof
+
+
+@dataclass(frozen=True, eq=False)
+class SheetPair:
+    """The two sheets of the 6-DOF robot and their fibre fields.
+
+    Attributes
+    ----------
+    sheet : the normal sheet (tripod A), a :class:`~metasheet.sheet.geometry.SheetMesh`.
+    mirrored : its reflection y -> -y (tripod B).
+    fibers, fibers_mirrored : (m, 3) float fibre direction (local axis 3) per element of each.
+    constants, constants_mirrored : (m, 5) float per-element constants [MPa, -] in
+        :data:`~metasheet.material.CONSTANT_NAMES` order, or None (a material is then given).
+    """
+
+    sheet: SheetMesh
+    mirrored: SheetMesh
+    fibers: np.ndarray
+    fibers_mirrored: np.ndarray
+    constants: np.ndarray | None = None
+    constants_mirrored: np.ndarray | None = None
+
+    def __post_init__(self):
+        for label, mesh, fib, con in (("fibers", self.sheet, self.fibers, self.constants),
+                                      ("fibers_mirrored", self.mirrored, self.fibers_mirrored,
+                                       self.constants_mirrored)):
+            m = len(mesh.tets)
+            if np.shape(fib) != (m, 3):
+                raise ConfigError(f"{label}: shape is {np.shape(fib)} and should be ({m}, 3)")
+            if con is not None and np.shape(con) != (m, 5):
+                raise ConfigError(f"{label.replace('fibers', 'constants')}: shape is {np.shape(con)} "
+                                  f"and should be ({m}, 5)")
+
+    @classmethod
+    def spiral(cls, params: SheetParams | None = None, **fiber_settings) -> "SheetPair":
+        """A freshly meshed sheet, its mirror and the spiral fibre field
+        (``fiber_settings``: keywords of :func:`metasheet.sheet.fibers.spiral_fibers`)."""
+        from ..sheet.fibers import spiral_fibers
+        from ..sheet.geometry import mirror_sheet, tripod_sheet
+
+        s = tripod_sheet(params or SheetParams())
+        m = mirror_sheet(s)
+        return cls(s, m, spiral_fibers(s.centroids(), **fiber_settings),
+                   spiral_fibers(m.centroids(), mirrored=True, **fiber_settings))
+
+    @property
+    def has_constants(self) -> bool:
+        return self.constants is not None and self.constants_mirrored is not None
+
+
+def material_stiffness(material, fibers: np.ndarray) -> np.ndarray:
+    """Sheet-frame stiffness [MPa] of one material: (6, 6) when isotropic, else (m, 6, 6)
+    with axis 3 along ``fibers`` (m, 3)."""
+    C = material.stiffness()
+    if isinstance(material, Isotropic):
+        return C
+    return stiffness_along(C, fibers)
+
+
+def element_stiffness(fibers: np.ndarray, constants: np.ndarray) -> np.ndarray:
+    """(m, 6, 6) sheet-frame stiffness [MPa] from per-element constants (m, 5), axis 3 along
+    ``fibers`` (m, 3). Elements whose constants agree to 1e-12 share one tensor (a graded
+    design has a few distinct materials); each group uses its first element's constants."""
+    keys = np.round(np.asarray(constants, float), 12)
+    _, first, inv = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    C = np.empty((len(fibers), 6, 6))
+    for i, row in enumerate(first):
+        sel = np.flatnonzero(inv == i)
+        C[sel] = stiffness_along(TransverseIsotropic(*constants[row]).stiffness(), fibers[sel])
+    return C
+
+
+def _plain(material):
+    """An exactly isotropic transverse-isotropic material as :class:`Isotropic` (no fibre
+    rotation needed: the anisotropy sweep's alpha = 0 end)."""
+    if isinstance(material, TransverseIsotropic) and material.alpha < 1e-9 \
+            and abs(material.nu_tl - material.nu_t) < 1e-12 \
+            and abs(material.mu_l - material.mu_t) <= 1e-12 * material.mu_t:
+        return Isotropic(material.E_t, material.nu_t)
+    return material
+
+
+def six_dof_robot(sheets: SheetPair, material=None, *, density: float, rod_length: float = paper.ROD_LENGTH,
+                  geometry: ServoGeometry = ServoGeometry(), gravity=(0.0, 0.0, -GRAVITY)) -> Robot:
+    """The paper's 6-DOF robot (two tripods face to face, rod along x) from ``sheets``.
+
+    Parameters
+    ----------
+    sheets : the sheet pair with fibres (and per-element constants for ``material`` None).
+    material : None: each element's own constants (an error when the pair has none);
+        :class:`~metasheet.material.Isotropic` or
+        :class:`~metasheet.material.TransverseIsotropic`: that material everywhere, along
+        the fibres.
+    density : sheet mass density [t/mm^3] (e.g. :data:`metasheet.paper.FOAM_DENSITY`).
+    rod_length : [mm]; geometry : servo placement and stroke; gravity : (3,) [mm/s^2].
+    """
+    if material is None:
+        if not sheets.has_constants:
+            raise ConfigError("material: None: the sheets carry no per-element constants; give a material")
+        Ca = element_stiffness(sheets.fibers, sheets.constants)
+        Cb = element_stiffness(sheets.fibers_mirrored, sheets.constants_mirrored)
+    else:
+        if not isinstance(material, (Isotropic, TransverseIsotropic)):
+            raise ConfigError(f"material: {type(material).__name__}: expected Isotropic or TransverseIsotropic")
+        material = _plain(material)
+        Ca = material_stiffness(material, sheets.fibers)
+        Cb = material_stiffness(material, sheets.fibers_mirrored)
+    return six_dof(sheets.sheet, Ca, sheets.mirrored, Cb, rod_length=rod_length, geometry=geometry,
+                   density=density, gravity=gravity)

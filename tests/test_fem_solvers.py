@@ -1,0 +1,128 @@
+"""The solver layer: one naming, one probe of the optional back-ends, and the pip-only fallback.
+
+On a machine with scikit-sparse, "direct" always means CHOLMOD; these tests hide it
+(monkeypatch :func:`metasheet.fem.solvers.available`) so that the path of a pip-only install
+is exercised here as well, and check that every route gives the same tensor.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from metasheet.errors import ConfigError
+from metasheet.fem import solvers
+from metasheet.homogenize import homogenize_voxels
+from metasheet.material import Isotropic
+
+from homogenize_bounds import backus_laminate
+from homogenize_samples import edge_foam, laminate
+
+TPU = Isotropic(12.0, 0.3)
+SOFT = Isotropic(1.5, 0.45)
+
+
+def _cholmod(monkeypatch, have: bool):
+    """Pretend CHOLMOD is (not) installed; the other back-ends keep their real probe."""
+    real = solvers.available
+    monkeypatch.setattr(solvers, "available", lambda name: have if name == "cholmod" else real(name))
+
+
+def _nonsymmetric(n=120, seed=0):
+    """Structurally symmetric, diagonally dominant, non-symmetric values (like the robot's K_ff)."""
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=0.05, random_state=seed, format="csr")
+    A = A + A.T + sp.diags(4.0 + rng.uniform(size=n))
+    A = A.tocsr()
+    A.data = A.data * (1.0 + 0.05 * rng.uniform(-1, 1, A.nnz))
+    A.sort_indices()
+    return A
+
+
+def test_one_naming():
+    assert tuple(solvers.BACKENDS) == ("cholmod", "superlu")  # best first
+    assert solvers.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")
+    assert solvers.SPD_SOLVERS == ("auto", "direct", "amg")
+    assert solvers.available("superlu")  # scipy: always there
+    assert solvers.HAVE_CHOLMOD == solvers.available("cholmod")
+
+
+@pytest.mark.parametrize("have", [False, True])
+def test_choose_solver_thresholds(monkeypatch, have):
+    _cholmod(monkeypatch, have)
+    small, mid, big = solvers.SUPERLU_MAX_DOF, solvers.SUPERLU_MAX_DOF + 1, solvers.CHOLMOD_MAX_DOF + 1
+    assert solvers.choose_solver("auto", small) == ("cholmod" if have else "superlu")
+    assert solvers.choose_solver("auto", mid) == ("cholmod" if have else "amg-cg")
+    assert solvers.choose_solver("auto", big) == "amg-cg"
+    assert solvers.choose_solver("direct", big) == ("cholmod" if have else "superlu")
+    assert solvers.choose_solver("amg", small) == "amg-cg"
+
+
+def test_unknown_names_are_config_errors():
+    with pytest.raises(ConfigError, match="solver: 'umfpack'"):
+        solvers.choose_solver("umfpack", 10)
+    with pytest.raises(ConfigError, match="linear_solver: 'splu'"):
+        solvers.resolve("splu")
+
+
+@pytest.mark.parametrize("have", [False, True])
+def test_resolve_follows_the_probe(monkeypatch, have):
+    _cholmod(monkeypatch, have)
+    assert solvers.resolve("auto") == ("cholmod" if have else "superlu")
+    assert solvers.resolve("superlu") == "superlu"
+    if have:
+        assert solvers.resolve("cholmod") == "cholmod"
+    else:
+        with pytest.raises(ConfigError, match=r"scikit-sparse is not installed .*allowed here: 'auto' or 'superlu'"):
+            solvers.resolve("cholmod")
+
+
+def test_superlu_keeps_its_options():
+    """Same SuperLU options as before the solver layer: results bitwise equal to scipy called directly."""
+    A = _nonsymmetric()
+    b = np.random.default_rng(1).normal(size=(A.shape[0], 3))
+    sym = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    plain = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
+    assert np.array_equal(solvers.superlu(A, symmetric_mode=True).solve(b), sym.solve(b))
+    assert np.array_equal(solvers.superlu(A).solve(b), plain.solve(b))
+    s = solvers.SparseSolver("superlu")
+    fac = s.factorize(A)
+    assert fac.name == "superlu" and not fac.symmetric
+    assert np.array_equal(fac.solve(b), sym.solve(b))
+    y, fac2 = s.solve_exact(fac, A, b)
+    assert fac2 is fac and np.array_equal(y, sym.solve(b))
+    assert s.stats == {"cholmod": 0, "superlu": 1, "fallbacks": 0, "refine_sweeps": 0, "exact_solves": 1}
+
+
+def test_solve_spd_direct_reports_superlu(monkeypatch):
+    _cholmod(monkeypatch, False)
+    A = _nonsymmetric(seed=2)
+    A = (0.5 * (A + A.T)).tocsr()  # SPD: diagonally dominant
+    B = np.random.default_rng(2).normal(size=(A.shape[0], 6))
+    X, report = solvers.solve_spd(A, B, solver="direct")
+    assert report.solver == "superlu" and report.iterations == (0,) * 6 and report.n_dof == A.shape[0]
+    assert np.array_equal(X, spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(B))
+    assert max(report.residuals) < 1e-12
+
+
+def test_pip_only_direct_is_superlu_and_exact(monkeypatch):
+    """Without CHOLMOD, "direct" runs SuperLU and still returns the exact Backus laminate."""
+    _cholmod(monkeypatch, False)
+    r = homogenize_voxels(laminate(6, 0.5), (1.0, 1.0, 1.0), {1: TPU, 2: SOFT}, solver="direct")
+    assert r.solver == "superlu"
+    C = backus_laminate([TPU.stiffness(), SOFT.stiffness()], [0.5, 0.5])
+    np.testing.assert_allclose(r.C, C, rtol=0, atol=1e-6 * np.abs(C).max())
+
+
+def test_pip_only_routes_agree_on_a_foam(monkeypatch):
+    """SuperLU, AMG-CG (and CHOLMOD when installed) give one tensor on a porous foam."""
+    ph = edge_foam(14, 0.3, seeds=5, rng_seed=1)
+    ref = homogenize_voxels(ph, (1.0, 1.0, 1.0), {1: TPU}, solver="direct", localise=False)
+    _cholmod(monkeypatch, False)
+    lu = homogenize_voxels(ph, (1.0, 1.0, 1.0), {1: TPU}, solver="direct", localise=False)
+    amg = homogenize_voxels(ph, (1.0, 1.0, 1.0), {1: TPU}, solver="amg", rtol=1e-10, localise=False)
+    assert lu.solver == "superlu" and amg.solver == "amg-cg"
+    scale = np.abs(lu.C).max()
+    assert np.abs(lu.C - ref.C).max() < 1e-10 * scale
+    assert np.abs(amg.C - lu.C).max() < 1e-8 * scale
+    assert all(0 < lc.iterations < 200 for lc in amg.load_cases)
