@@ -18,10 +18,11 @@ from scipy.interpolate import RegularGridInterpolator
 from scipy.optimize import least_squares
 
 from ..errors import ConfigError, InfeasibleError
+from ..material import CONSTANT_NAMES
 
 #: Columns of a chart table (one row per grid point and seed).
-COLUMNS = ("target_density", "stretch", "seed", "relative_density", "E_t", "E_l", "nu_t", "nu_tl",
-           "mu_l", "alpha", "misfit", "n_dof", "solver")
+COLUMNS = ("target_density", "stretch", "seed", "relative_density", *CONSTANT_NAMES, "alpha", "misfit", "n_dof",
+           "solver")
 
 
 def chart_points(design: Mapping, densities: Sequence[float], stretches: Sequence[float],
@@ -63,7 +64,7 @@ def _grid(table) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     st = np.unique([float(r["stretch"]) for r in rows])
     if len(dens) < 2 or len(st) < 2:
         raise ConfigError(f"chart_table: needs >= 2 densities and >= 2 stretches (has {len(dens)} x {len(st)})")
-    keys = ("relative_density", "E_t", "E_l", "nu_t", "nu_tl", "mu_l")
+    keys = ("relative_density", *CONSTANT_NAMES)
     acc = {k: np.zeros((len(dens), len(st))) for k in keys}
     cnt = np.zeros((len(dens), len(st)))
     for r in rows:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ..material import CONSTANT_NAMES
 from ..paper import PAPER_FOAM
 
 
@@ -46,7 +47,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     diffs: list[str] = []
     if "material" in s:
         m = s["material"]
-        keys = ("E_t", "E_l", "nu_t", "nu_tl", "mu_l", "alpha_percent", "source")
+        keys = (*CONSTANT_NAMES, "alpha_percent", "source")
         lines += ["## Constants (paper Section II, FACTS)", "", _table([(k, m[k]) for k in keys if k in m]), ""]
     if "homogenize" in s:
         h, paper = s["homogenize"], PAPER_CONSTANTS
