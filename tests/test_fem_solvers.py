@@ -1,8 +1,9 @@
-"""The solver layer: one naming, one probe of the optional back-ends, and the pip-only fallback.
+"""The solver layer: one naming, one probe of the optional back-ends, and the fallbacks.
 
-On a machine with scikit-sparse, "direct" always means CHOLMOD; these tests hide it
-(monkeypatch :func:`metasheet.fem.solvers.available`) so that the path of a pip-only install
-is exercised here as well, and check that every route gives the same tensor.
+"direct" means the first available of CHOLMOD (optional, apt), PARDISO (pip, x86_64) and
+SuperLU (always); these tests hide back-ends (monkeypatch
+:func:`metasheet.fem.solvers.available`) so that every route runs wherever the tests run,
+and check that every route gives the same tensor.
 """
 
 import numpy as np
@@ -22,10 +23,15 @@ TPU = Isotropic(12.0, 0.3)
 SOFT = Isotropic(1.5, 0.45)
 
 
-def _cholmod(monkeypatch, have: bool):
-    """Pretend CHOLMOD is (not) installed; the other back-ends keep their real probe."""
+def _cholmod(monkeypatch, have: bool, pardiso: bool = False):
+    """Pretend CHOLMOD is (not) installed and PARDISO is (not): only SuperLU keeps its real probe."""
     real = solvers.available
-    monkeypatch.setattr(solvers, "available", lambda name: have if name == "cholmod" else real(name))
+    present = {"cholmod": have, "pardiso": pardiso}
+    monkeypatch.setattr(solvers, "available", lambda name: present.get(name, real(name)))
+
+
+needs_pardiso = pytest.mark.skipif(not solvers.available("pardiso"),
+                                   reason="pypardiso (MKL) has no wheel for this platform")
 
 
 def _nonsymmetric(n=120, seed=0):
@@ -40,8 +46,8 @@ def _nonsymmetric(n=120, seed=0):
 
 
 def test_one_naming():
-    assert tuple(solvers.BACKENDS) == ("cholmod", "superlu")  # best first
-    assert solvers.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")
+    assert tuple(solvers.BACKENDS) == ("cholmod", "pardiso", "superlu")  # best first
+    assert solvers.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")  # PARDISO: SPD systems only
     assert solvers.SPD_SOLVERS == ("auto", "direct", "amg")
     assert solvers.available("superlu")  # scipy: always there
     assert solvers.HAVE_CHOLMOD == solvers.available("cholmod")
@@ -63,6 +69,8 @@ def test_unknown_names_are_config_errors():
         solvers.choose_solver("umfpack", 10)
     with pytest.raises(ConfigError, match="linear_solver: 'splu'"):
         solvers.resolve("splu")
+    with pytest.raises(ConfigError, match="linear_solver: 'pardiso'"):
+        solvers.resolve("pardiso")
 
 
 @pytest.mark.parametrize("have", [False, True])
@@ -126,3 +134,32 @@ def test_pip_only_routes_agree_on_a_foam(monkeypatch):
     assert np.abs(lu.C - ref.C).max() < 1e-10 * scale
     assert np.abs(amg.C - lu.C).max() < 1e-8 * scale
     assert all(0 < lc.iterations < 200 for lc in amg.load_cases)
+
+
+@pytest.mark.parametrize("have_cholmod", [False, True])
+def test_pardiso_is_the_pip_only_direct_solver(monkeypatch, have_cholmod):
+    """With pypardiso (a pip dependency), "auto" takes PARDISO up to its limit, after CHOLMOD."""
+    _cholmod(monkeypatch, have_cholmod, pardiso=True)
+    mid, big = solvers.SUPERLU_MAX_DOF + 1, solvers.PARDISO_MAX_DOF + 1
+    first = "cholmod" if have_cholmod else "pardiso"
+    assert solvers.choose_solver("auto", 100) == first
+    assert solvers.choose_solver("auto", mid) == first
+    assert solvers.choose_solver("auto", big) == "amg-cg"
+    assert solvers.choose_solver("direct", big) == first
+    assert solvers.resolve("auto") == ("cholmod" if have_cholmod else "superlu")  # the robot's K_ff
+
+
+@needs_pardiso
+def test_pardiso_solves_spd_exactly_and_agrees_with_superlu(monkeypatch):
+    _cholmod(monkeypatch, False, pardiso=True)
+    A = _nonsymmetric(seed=3)
+    A = (0.5 * (A + A.T)).tocsr()
+    B = np.random.default_rng(3).normal(size=(A.shape[0], 6))
+    X, report = solvers.solve_spd(A, B, solver="direct")
+    assert report.solver == "pardiso" and max(report.residuals) < 1e-12
+    ref = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(B)
+    assert np.abs(X - ref).max() < 1e-12 * np.abs(ref).max()
+    r = homogenize_voxels(laminate(6, 0.5), (1.0, 1.0, 1.0), {1: TPU, 2: SOFT}, solver="direct")
+    assert r.solver == "pardiso"
+    C = backus_laminate([TPU.stiffness(), SOFT.stiffness()], [0.5, 0.5])
+    np.testing.assert_allclose(r.C, C, rtol=0, atol=1e-6 * np.abs(C).max())

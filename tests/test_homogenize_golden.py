@@ -136,11 +136,12 @@ def test_every_golden_is_checked():
 
 
 def _full_params():
-    from metasheet.fem.solvers import HAVE_CHOLMOD
+    from metasheet.fem.solvers import available
 
-    # paper_foam at n = 64 (224k dofs): ~25 s with CHOLMOD, ~5 min with AMG (pip-only): CI
-    # runs it only where CHOLMOD is installed
-    return [pytest.param(name, marks=() if HAVE_CHOLMOD else pytest.mark.slow) for name in FULL]
+    # paper_foam at n = 64 (224k dofs): ~25 s with CHOLMOD or PARDISO (pip), ~2-5 min with
+    # AMG-CG: CI runs it wherever a fast direct solver is installed
+    fast = available("cholmod") or available("pardiso")
+    return [pytest.param(name, marks=() if fast else pytest.mark.slow) for name in FULL]
 
 
 @pytest.mark.parametrize("name", _full_params())

@@ -3,9 +3,12 @@
 The Lua test runs the generated ``print.lua`` against a small stand-in for IceSL's
 functions (tex3d_r8f, v, load, emit, set_setting_value, set_service) and checks that
 every field file is read, has 64^3 values, and is bound to the right setting and box.
-It needs a ``lua`` binary (Debian: ``apt-get install lua5.4``) and skips without one.
+Each check runs through two Lua runtimes: ``lupa`` (Lua 5.4 bundled in a PyPI wheel, part
+of the ``test`` extra, never skipped) and, when installed, the ``lua5.4`` binary (Debian:
+``apt-get install lua5.4``), which is skipped without one.
 """
 
+import contextlib
 import json
 import shutil
 import subprocess
@@ -18,8 +21,7 @@ from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import orient, printmap
 from metasheet.sheet import icesl
 
-LUA = next((shutil.which(n) for n in ("lua5.4", "lua5.3", "lua", "luajit") if shutil.which(n)), None)
-needs_lua = pytest.mark.skipif(LUA is None, reason="no Lua interpreter (apt-get install lua5.4)")
+LUA54 = shutil.which("lua5.4")
 
 STANDIN = r"""
 local real_open = io.open
@@ -59,6 +61,66 @@ end
 print('LOAD ' .. tostring(loaded[1]) .. ' ' .. #loaded)
 print('EMIT ' .. emitted)
 """
+
+# What `lua5.4 driver script` does, inside a lupa runtime: `arg` and the chunk's `...` as
+# the binary sets them, `print` into a buffer (the captured stdout), errors with their
+# traceback (the binary's stderr, exit status 1), a CPU-time limit standing in for `timeout=`.
+LUPA_MAIN = r"""
+local driver, script, timeout = ...
+python, package.loaded.python = nil, nil  -- the binary has no `python` module
+arg = {[0] = driver, script}
+local out, tostring, select = {}, tostring, select
+function print(...)
+  for i = 1, select('#', ...) do out[#out + 1] = (i > 1 and '\t' or '') .. tostring((select(i, ...))) end
+  out[#out + 1] = '\n'
+end
+local clock, t0, timed_out = os.clock, os.clock(), false
+debug.sethook(function()
+  if clock() - t0 > timeout then timed_out = true; error('timeout', 0) end
+end, '', 1000000)
+local ok, err = xpcall(function() return assert(loadfile(driver))(script) end, debug.traceback)
+debug.sethook()
+return table.concat(out), ok, tostring(err), timed_out
+"""
+
+
+def _lupa_runtime():
+    """A fresh Lua 5.4 state from lupa (``lupa.lua54``, else lupa's default Lua)."""
+    try:
+        import lupa
+    except ImportError as err:
+        raise RuntimeError('lupa is missing: pip install -e ".[test]" (or pip install "lupa>=2")') from err
+    try:
+        from lupa import lua54 as lua
+    except ImportError:
+        lua = lupa
+    return lua.LuaRuntime()
+
+
+def _run_lupa(driver, script: str, *, cwd: Path, timeout: float) -> subprocess.CompletedProcess:
+    """Run ``driver`` with argument ``script`` in lupa, from the working directory ``cwd``."""
+    lua = _lupa_runtime()
+    with contextlib.chdir(cwd):  # io.open and loadfile resolve against the process cwd
+        out, ok, err, timed_out = lua.execute(LUPA_MAIN, str(driver), script, float(timeout))
+    args = ["lupa", str(driver), script]
+    if timed_out:
+        raise subprocess.TimeoutExpired(args, timeout, output=out)
+    return subprocess.CompletedProcess(args, 0 if ok else 1, out, "" if ok else f"lupa: {err}\n")
+
+
+def _run_binary(driver, script: str, *, cwd: Path, timeout: float) -> subprocess.CompletedProcess:
+    """Run ``lua5.4 driver script`` from the working directory ``cwd``."""
+    return subprocess.run([LUA54, str(driver), script], cwd=cwd, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(params=["lupa", pytest.param("lua5.4", marks=pytest.mark.system)])
+def run_lua(request):
+    """``run(driver, script, cwd=, timeout=) -> CompletedProcess`` through one Lua runtime."""
+    if request.param == "lupa":
+        return _run_lupa
+    if LUA54 is None:
+        pytest.skip("no lua5.4 binary on PATH (Debian: apt-get install lua5.4); the same check ran through lupa")
+    return _run_binary
 
 
 @pytest.fixture(scope="module")
@@ -111,14 +173,13 @@ def test_printmap_outputs(runs):
     _nonblank_png(pm / "printmap.png")
 
 
-@needs_lua
 @pytest.mark.parametrize("label", ["normal", "mirrored"])
-def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label):
+def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label, run_lua):
     _, pm, _, _ = runs
     info = json.loads((pm / "printmap.json").read_text())["sheets"][label]
     driver = tmp_path / "standin.lua"
     driver.write_text(STANDIN)
-    res = subprocess.run([LUA, str(driver), "print.lua"], cwd=pm / label, capture_output=True, text=True, timeout=120)
+    res = run_lua(driver, "print.lua", cwd=pm / label, timeout=120)
     assert res.returncode == 0, res.stderr
     lines = res.stdout.splitlines()
     fields = {ln.split()[1]: ln.split()[2:] for ln in lines if ln.startswith("FIELD")}
@@ -138,8 +199,7 @@ def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label):
     assert "LOAD sheet.stl 1" in lines and "EMIT 1" in lines
 
 
-@needs_lua
-def test_polyfoam_script_binds_density_and_angle(tmp_path):
+def test_polyfoam_script_binds_density_and_angle(tmp_path, run_lua):
     rng = np.random.default_rng(0)
     files = {"density": "density.txt", "theta": "angle.txt"}
     sums = {}
@@ -151,7 +211,7 @@ def test_polyfoam_script_binds_density_and_angle(tmp_path):
     (tmp_path / "print.lua").write_text(icesl.lua_script(
         stl="sheet.stl", infill="polyfoam", files=files, box=box, settings={"z_layer_height_mm": 0.3}))
     (tmp_path / "standin.lua").write_text(STANDIN)
-    res = subprocess.run([LUA, "standin.lua", "print.lua"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    res = run_lua("standin.lua", "print.lua", cwd=tmp_path, timeout=60)
     assert res.returncode == 0, res.stderr
     fields = {ln.split()[1]: ln.split()[2:] for ln in res.stdout.splitlines() if ln.startswith("FIELD")}
     assert {k: v[0] for k, v in fields.items()} == {"infill_percentage_0": "density.txt", "infill_angle_0": "angle.txt"}
@@ -161,13 +221,12 @@ def test_polyfoam_script_binds_density_and_angle(tmp_path):
     assert "SET infill_type_0 Polyfoam" in res.stdout.splitlines()
 
 
-@needs_lua
-def test_lua_script_fails_loudly_on_a_short_field(tmp_path):
+def test_lua_script_fails_loudly_on_a_short_field(tmp_path, run_lua):
     box = icesl.GridBox(np.zeros(3), np.ones(3))
     files = {"density": "density.txt", "theta": "angle.txt"}
     (tmp_path / "density.txt").write_text(icesl.field_text(np.zeros((64, 64, 64))))
     (tmp_path / "angle.txt").write_text("0.5 0.5\n")
     (tmp_path / "print.lua").write_text(icesl.lua_script(stl="s.stl", infill="polyfoam", files=files, box=box, settings={}))
     (tmp_path / "standin.lua").write_text(STANDIN)
-    res = subprocess.run([LUA, "standin.lua", "print.lua"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    res = run_lua("standin.lua", "print.lua", cwd=tmp_path, timeout=60)
     assert res.returncode != 0 and "expected 262144 values, read 2" in res.stderr

@@ -4,6 +4,8 @@ Names, everywhere (reports, settings, statistics):
 
 - ``"cholmod"``: sparse Cholesky of scikit-sparse 0.4.16 on SuiteSparse (optional: needs
   ``apt-get install libsuitesparse-dev``, then ``pip install scikit-sparse==0.4.16``).
+- ``"pardiso"``: MKL PARDISO through pypardiso (a pip dependency on x86_64 Linux and
+  Windows), for SPD systems: sparse Cholesky of the upper triangle.
 - ``"superlu"``: scipy's SuperLU (always there).
 - ``"amg-cg"``: smoothed-aggregation AMG (pyamg) preconditioning CG, SPD only (:mod:`.amg`).
 
@@ -52,6 +54,8 @@ SUPERLU_MAX_DOF = 12_000
 #: iterations per load case (thin voxel struts): 38 s, 57 s, 310 s (224k, 3:1 voxels).
 #: Above, the factor's memory (~ n^(4/3)) would pass 6 GB: AMG.
 CHOLMOD_MAX_DOF = 700_000
+#: Largest SPD system PARDISO (MKL, through pypardiso) takes under "auto".
+PARDISO_MAX_DOF = 700_000
 
 
 @dataclass
@@ -98,6 +102,15 @@ def _superlu_general(_module) -> Callable:
     return _superlu
 
 
+def _pardiso_spd(pypardiso, A: sp.csc_matrix) -> Callable:
+    # mtype 2: real symmetric positive definite, given by its upper triangle
+    solver = pypardiso.PyPardisoSolver(mtype=2)
+    U = sp.triu(A, format="csr")
+    U.sort_indices()
+    solver.factorize(U)
+    return lambda B: solver.solve(U, np.asarray(B, float))
+
+
 def _cholmod_spd(cholmod, A: sp.csc_matrix) -> Callable:
     return cholmod.cholesky(A)  # the returned factor solves when called
 
@@ -140,6 +153,7 @@ class Backend:
     spd : (module, A csc SPD) -> solve(B), one factorisation for many right-hand sides.
     general : module -> factorise(A csr, structurally symmetric) -> :class:`Factor` or None
         (None: cannot, SuperLU takes over); called once per :class:`SparseSolver`, may cache.
+        None when the back-end serves only SPD systems.
     """
 
     name: str
@@ -148,7 +162,7 @@ class Backend:
     install: str
     max_spd_dof: int
     spd: Callable
-    general: Callable
+    general: Callable | None
 
 
 #: Direct back-ends, best first: "auto" and "direct" take the first available one.
@@ -157,6 +171,8 @@ BACKENDS = {
         Backend("cholmod", "sksparse.cholmod", "scikit-sparse",
                 "apt-get install libsuitesparse-dev; pip install scikit-sparse==0.4.16",
                 CHOLMOD_MAX_DOF, _cholmod_spd, _CholmodSymmetricPart),
+        Backend("pardiso", "pypardiso", "pypardiso", "pip install pypardiso (x86_64 Linux and Windows)",
+                PARDISO_MAX_DOF, _pardiso_spd, None),
         Backend("superlu", "", "scipy", "", SUPERLU_MAX_DOF, _superlu_spd, _superlu_general),
     )
 }
@@ -194,7 +210,7 @@ class SolveReport:
 
     Attributes
     ----------
-    solver : "cholmod", "superlu" or "amg-cg".
+    solver : "cholmod", "pardiso", "superlu" or "amg-cg".
     iterations : (r,) CG iterations per right-hand side (0 for direct solvers).
     residuals : (r,) relative residuals ||K u + f|| / ||f|| (0 for a zero right-hand side).
     setup_seconds : factorisation or AMG hierarchy time [s].
@@ -211,7 +227,7 @@ class SolveReport:
 
 
 def choose_solver(solver: str, n_dof: int) -> str:
-    """The concrete solver ("cholmod", "superlu" or "amg-cg") for a request in :data:`SPD_SOLVERS`
+    """The concrete solver (a key of :data:`BACKENDS` or "amg-cg") for a request in :data:`SPD_SOLVERS`
     and a system size."""
     if solver not in SPD_SOLVERS:
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(SPD_SOLVERS)}")
@@ -276,14 +292,14 @@ def solve_spd(A: sp.spmatrix, B: np.ndarray, *, solver: str = "auto", rtol: floa
 # --------------------------------------------------------------------------- general factorisation
 
 #: What :class:`SparseSolver` (and the robot's ``linear_solver`` setting) accepts.
-FACTOR_SOLVERS = ("auto", *BACKENDS)
+FACTOR_SOLVERS = ("auto", *(name for name, b in BACKENDS.items() if b.general is not None))
 
 
 def resolve(solver: str) -> str:
     """The back-end that runs for a requested ``solver`` in :data:`FACTOR_SOLVERS`."""
     if solver not in FACTOR_SOLVERS:
         raise ConfigError(f"linear_solver: {solver!r}: allowed {FACTOR_SOLVERS}")
-    here = [name for name in BACKENDS if available(name)]
+    here = [name for name in FACTOR_SOLVERS[1:] if available(name)]
     if solver == "auto":
         return here[0]
     if solver not in here:
@@ -311,7 +327,7 @@ class SparseSolver:
         self.refine_tol = float(refine_tol)
         self.max_refine = int(max_refine)
         self._factorize = BACKENDS[self.name].general(_MODULES[self.name])
-        self.stats = {**{name: 0 for name in BACKENDS}, "fallbacks": 0, "refine_sweeps": 0, "exact_solves": 0}
+        self.stats = {**{name: 0 for name in FACTOR_SOLVERS[1:]}, "fallbacks": 0, "refine_sweeps": 0, "exact_solves": 0}
 
     def factorize(self, A: sp.csr_matrix) -> Factor:
         """Factor of ``A`` (CSR, sorted indices): LU of A, or Cholesky of its symmetric part."""
