@@ -3,9 +3,10 @@
 One table, same run. Every row runs in a fresh subprocess so that its peak memory
 (ru_maxrss) is its own; wall seconds are medians over ``--repeat`` runs inside it.
 
-- "foam" rows: iso_foam at n = 48, 64 (96 with --large), with CHOLMOD ("direct", when
-  scikit-sparse is importable) and with the pip-only fallback ("amg": smoothed-aggregation
-  AMG + CG), setup (factorisation / hierarchy) and solve (six load cases) apart.
+- "foam" rows: iso_foam at n = 48, 64 (96 with --large), with each fast direct back-end present
+  (CHOLMOD when scikit-sparse is importable, PARDISO when pypardiso is) and with the iterative
+  fallback ("amg": smoothed-aggregation AMG + CG), setup (factorisation / hierarchy) and solve
+  (six load cases) apart.
 - "sfepy" rows (--sfepy N, default 40, the coarsest grid where the foam is feasible): the
   same foam with its last voxel slices copied from the first ones (so SfePy's non-periodic
   mesh + periodic conditions is exactly our mesh), timed with our solvers and with SfePy's homogenisation (tests/sfepy_reference.py)
@@ -108,16 +109,17 @@ def main():
     if args.one:
         print(json.dumps(one(int(args.one[0]), args.one[1], args.repeat, args.matched)))
         return
-    from metasheet.fem.solvers import HAVE_CHOLMOD
+    from metasheet.fem.solvers import HAVE_CHOLMOD, available
     from sfepy_reference import sfepy_available
 
-    print(f"cholmod={HAVE_CHOLMOD} BLAS: {blas_info()} OPENBLAS_NUM_THREADS="
+    print(f"cholmod={HAVE_CHOLMOD} pardiso={available('pardiso')} BLAS: {blas_info()} OPENBLAS_NUM_THREADS="
           f"{os.environ.get('OPENBLAS_NUM_THREADS', '-')} cores={os.cpu_count()} load={os.getloadavg()[0]:.1f} "
           f"repeat={args.repeat}")
-    direct = ["direct"] if HAVE_CHOLMOD else []
+    # every fast direct back-end present (SuperLU: 119 s / 6.5 GB at 105k dofs, not a contender)
+    direct = [name for name in ("cholmod", "pardiso") if available(name)]
     cases = [("foam", n, s, False) for n in args.sizes for s in direct + ["amg"]]
     if args.large:
-        cases.append(("foam", 96, "direct" if HAVE_CHOLMOD else "amg", False))
+        cases.append(("foam", 96, direct[0] if direct else "amg", False))
     if args.sfepy and sfepy_available():
         cases += [("sfepy", args.sfepy, s, True) for s in direct + ["amg"]]
         theirs = (["sfepy-cholmod"] if HAVE_CHOLMOD else []) + ["sfepy-default"]

@@ -48,7 +48,7 @@ def _nonsymmetric(n=120, seed=0):
 def test_one_naming():
     assert tuple(solvers.BACKENDS) == ("cholmod", "pardiso", "superlu")  # best first
     assert solvers.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")  # PARDISO: SPD systems only
-    assert solvers.SPD_SOLVERS == ("auto", "direct", "amg")
+    assert solvers.SPD_SOLVERS == ("auto", "direct", "amg", "cholmod", "pardiso", "superlu")
     assert solvers.available("superlu")  # scipy: always there
     assert solvers.HAVE_CHOLMOD == solvers.available("cholmod")
 
@@ -71,6 +71,7 @@ def test_unknown_names_are_config_errors():
         solvers.resolve("splu")
     with pytest.raises(ConfigError, match="linear_solver: 'pardiso'"):
         solvers.resolve("pardiso")
+    assert solvers.choose_solver("superlu", 10**7) == "superlu"  # a back-end by name: no size policy
 
 
 @pytest.mark.parametrize("have", [False, True])

@@ -200,8 +200,8 @@ HAVE_CHOLMOD = available("cholmod")
 
 # --------------------------------------------------------------------------- SPD solve
 
-#: What :func:`solve_spd` accepts.
-SPD_SOLVERS = ("auto", "direct", "amg")
+#: What :func:`solve_spd` accepts: a policy, or one back-end by name (benchmarks, comparisons).
+SPD_SOLVERS = ("auto", "direct", "amg", *BACKENDS)
 
 
 @dataclass(frozen=True)
@@ -233,6 +233,11 @@ def choose_solver(solver: str, n_dof: int) -> str:
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(SPD_SOLVERS)}")
     if solver == "amg":
         return "amg-cg"
+    if solver in BACKENDS:
+        if not available(solver):
+            b = BACKENDS[solver]
+            raise ConfigError(f"solver: {solver!r}: {b.package} is not installed ({b.install})")
+        return solver
     direct = [b for name, b in BACKENDS.items() if available(name)]
     if solver == "direct":
         return direct[0].name
