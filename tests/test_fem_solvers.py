@@ -1,6 +1,6 @@
 """The solver layer: one naming, one probe of the optional back-ends, and the fallbacks.
 
-"direct" means the first available of CHOLMOD (optional, apt), PARDISO (pip, x86_64) and
+"direct" means the first available of PARDISO (pip, x86_64), CHOLMOD (optional, apt) and
 SuperLU (always); these tests hide back-ends (monkeypatch
 :func:`metasheet.fem.solvers.available`) so that every route runs wherever the tests run,
 and check that every route gives the same tensor.
@@ -46,9 +46,9 @@ def _nonsymmetric(n=120, seed=0):
 
 
 def test_one_naming():
-    assert tuple(solvers.BACKENDS) == ("cholmod", "pardiso", "superlu")  # best first
+    assert tuple(solvers.BACKENDS) == ("pardiso", "cholmod", "superlu")  # best first (measured)
     assert solvers.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")  # PARDISO: SPD systems only
-    assert solvers.SPD_SOLVERS == ("auto", "direct", "amg", "cholmod", "pardiso", "superlu")
+    assert solvers.SPD_SOLVERS == ("auto", "direct", "amg", "pardiso", "cholmod", "superlu")
     assert solvers.available("superlu")  # scipy: always there
     assert solvers.HAVE_CHOLMOD == solvers.available("cholmod")
 
@@ -139,10 +139,10 @@ def test_pip_only_routes_agree_on_a_foam(monkeypatch):
 
 @pytest.mark.parametrize("have_cholmod", [False, True])
 def test_pardiso_is_the_pip_only_direct_solver(monkeypatch, have_cholmod):
-    """With pypardiso (a pip dependency), "auto" takes PARDISO up to its limit, after CHOLMOD."""
+    """With pypardiso (a pip dependency), "auto" takes PARDISO up to its limit, CHOLMOD or not."""
     _cholmod(monkeypatch, have_cholmod, pardiso=True)
     mid, big = solvers.SUPERLU_MAX_DOF + 1, solvers.PARDISO_MAX_DOF + 1
-    first = "cholmod" if have_cholmod else "pardiso"
+    first = "pardiso"
     assert solvers.choose_solver("auto", 100) == first
     assert solvers.choose_solver("auto", mid) == first
     assert solvers.choose_solver("auto", big) == "amg-cg"
