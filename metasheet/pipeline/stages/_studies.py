@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import csv
 import shutil
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Literal
 
@@ -82,7 +82,7 @@ def build_spec(ctx: StageContext):
     if p.mesh_size is not None:
         sheets = remesh(orient, p.mesh_size)
     if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
-        sheets = type(sheets)(sheets.sheet, sheets.mirrored, sheets.fibers, sheets.fibers_mirrored)
+        sheets = replace(sheets, constants=None, constants_mirrored=None)
     return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=mat.density,
                                  rot_weight=p.rot_weight, max_step_deg=p.max_step_deg, **scene)
 
@@ -90,8 +90,6 @@ def build_spec(ctx: StageContext):
 def remesh(orient: OrientFile, mesh_size: float):
     """The orient sheet pair re-meshed at ``mesh_size`` [mm] with the same geometry and fibre
     law; per-element constants (when the sheets carry them) carried over by nearest centroid."""
-    from dataclasses import replace
-
     from scipy.spatial import cKDTree
 
     from ...robot.builder import SheetPair
