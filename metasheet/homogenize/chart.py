@@ -1,17 +1,24 @@
-"""Design chart: the five constants over (relative density, stretch), and its inverse.
+"""Design chart: the five constants over a cell family's two print settings, and its inverse.
 
-:func:`chart_points` lists the sweep's work items; :func:`evaluate_point` (module
-level, picklable) builds one foam with :mod:`metasheet.cells.design` and homogenises
-it, so the sweep runs through :class:`~metasheet.executor.Executor` in parallel.
-:func:`lookup` inverts the chart: target (E_t, E_l) or (relative density, alpha)
--> the cell parameters (relative density, stretch), by interpolating the log-moduli
-bilinearly on the grid and solving a small least-squares problem.
+A chart sweeps two settings of a cell family (:data:`FAMILY_AXES`):
+
+- ``foam`` (strut foams): ``target_density`` [-] x ``stretch`` [-];
+- ``polyfoam`` (IceSL's Polyfoam): ``infill_percentage`` [%] x ``kgon_x_shrink`` [-], the
+  slicer's own settings, so the inverse look-up returns values IceSL can print.
+
+:func:`chart_points` lists the sweep's work items; :func:`evaluate_point` (module level,
+picklable) builds one cell with :mod:`metasheet.cells.design` and homogenises it, so the
+sweep runs through :class:`~metasheet.executor.Executor` in parallel.
+:class:`ChartInterpolant` interpolates the seed-averaged constants bilinearly (log of the
+moduli, the Poisson ratios as they are) and :func:`lookup` inverts it: target (E_t, E_l) or
+(relative density, alpha) -> the two settings, by a small bounded least-squares solve.
 """
 
 from __future__ import annotations
 
 import itertools
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
@@ -20,62 +27,68 @@ from scipy.optimize import least_squares
 from ..errors import ConfigError, InfeasibleError
 from ..material import CONSTANT_NAMES
 
-#: Columns of a chart table (one row per grid point and seed).
-COLUMNS = ("target_density", "stretch", "seed", "relative_density", *CONSTANT_NAMES, "alpha", "misfit", "n_dof",
-           "solver")
+#: The two swept settings of each cell family, in chart order.
+FAMILY_AXES = {"foam": ("target_density", "stretch"), "polyfoam": ("infill_percentage", "kgon_x_shrink")}
+_RESULTS = ("seed", "relative_density", *CONSTANT_NAMES, "alpha", "misfit", "n_dof", "solver")
+_LOG = ("E_t", "E_l", "mu_l")  # interpolated as logarithms (power laws in density)
 
 
-def chart_points(design: Mapping, densities: Sequence[float], stretches: Sequence[float],
-                 seeds: Sequence[int], resolution: int) -> list[dict]:
-    """Work items of the sweep: every (density, stretch, seed), on the base ``design`` mapping."""
+def columns(family: str = "foam") -> tuple[str, ...]:
+    """Columns of a chart table of ``family`` (one row per grid point and seed)."""
+    if family not in FAMILY_AXES:
+        raise ConfigError(f"chart family: {family!r}: expected one of {', '.join(FAMILY_AXES)}")
+    return (*FAMILY_AXES[family], *_RESULTS)
+
+
+COLUMNS = columns("foam")
+
+
+def chart_points(design: Mapping, first: Sequence[float], second: Sequence[float], seeds: Sequence[int], *,
+                 resolution: int | None = None, voxel_mm: float | None = None) -> list[dict]:
+    """Work items of the sweep: every (first, second, seed) setting pair on the base ``design``.
+
+    ``first``, ``second``: values of the family's two axes (:data:`FAMILY_AXES`);
+    ``resolution`` (foam, voxels per side) or ``voxel_mm`` (polyfoam, voxel edge [mm]).
+    """
+    family = str(design.get("kind", "foam"))
+    a, b = FAMILY_AXES.get(family, (None, None))
+    if a is None:
+        raise ConfigError(f"chart.design: kind {family!r}: a chart needs one of {', '.join(FAMILY_AXES)}")
     return [
-        {"design": dict(design), "target_density": float(d), "stretch": float(s), "seed": int(k),
-         "resolution": int(resolution)}
-        for d, s, k in itertools.product(densities, stretches, seeds)
+        {"design": dict(design), "family": family, a: float(x), b: float(y), "seed": int(k),
+         "resolution": resolution, "voxel_mm": voxel_mm}
+        for x, y, k in itertools.product(first, second, seeds)
     ]
 
 
-def evaluate_point(item: dict) -> dict:
-    """Build and homogenise one foam of the chart (picklable, for the executor).
+def item_design(item: dict) -> tuple[dict, dict]:
+    """(design data, parse_design overrides) of one work item."""
+    data = dict(item["design"])
+    if item["family"] == "foam":
+        data["metric"] = {**dict(data.get("metric", {"kind": "stretched"})), "stretch": item["stretch"]}
+        return data, {"relative_density": item["target_density"], "seed": item["seed"],
+                      "resolution": item["resolution"]}
+    return data, {"infill_percentage": item["infill_percentage"], "kgon_x_shrink": item["kgon_x_shrink"],
+                  "seed": item["seed"], "voxel_mm": item["voxel_mm"]}
 
-    ``item``: ``design`` (a parsed ``cells/*.toml`` foam mapping), ``target_density`` [-],
-    ``stretch`` [-] (the design metric's stretch), ``seed``, ``resolution``.
-    Returns one chart row (see :data:`COLUMNS`); moduli in MPa.
+
+def evaluate_point(item: dict) -> dict:
+    """Build and homogenise one cell of the chart (picklable, for the executor).
+
+    ``item``: one entry of :func:`chart_points`. Returns one chart row
+    (:func:`columns` of the family); moduli in MPa.
     """
     from ..cells.design import design_cell, parse_design
     from .voxels import homogenize_voxels
 
-    data = dict(item["design"])
-    data["metric"] = {**dict(data.get("metric", {"kind": "stretched"})), "stretch": item["stretch"]}
-    design = parse_design(data, overrides={"relative_density": item["target_density"], "seed": item["seed"],
-                                           "resolution": item["resolution"]}, source="chart.design")
+    data, overrides = item_design(item)
+    design = parse_design(data, overrides=overrides, source="chart.design")
     cell = design_cell(design)
     r = homogenize_voxels(cell.phases, cell.size, cell.materials, axis=cell.axis_vector, localise=False)
     m = r.fit.material
-    return {"target_density": item["target_density"], "stretch": item["stretch"], "seed": item["seed"],
-            "relative_density": r.relative_density, **m.to_dict(), "alpha": m.alpha,
-            "misfit": r.fit.misfit, "n_dof": r.n_dof, "solver": r.solver}
-
-
-def _grid(table) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Seed-averaged values on the (target density, stretch) grid."""
-    rows = _rows(table)
-    dens = np.unique([float(r["target_density"]) for r in rows])
-    st = np.unique([float(r["stretch"]) for r in rows])
-    if len(dens) < 2 or len(st) < 2:
-        raise ConfigError(f"chart_table: needs >= 2 densities and >= 2 stretches (has {len(dens)} x {len(st)})")
-    keys = ("relative_density", *CONSTANT_NAMES)
-    acc = {k: np.zeros((len(dens), len(st))) for k in keys}
-    cnt = np.zeros((len(dens), len(st)))
-    for r in rows:
-        i = np.searchsorted(dens, float(r["target_density"]))
-        j = np.searchsorted(st, float(r["stretch"]))
-        cnt[i, j] += 1
-        for k in keys:
-            acc[k][i, j] += float(r[k])
-    if np.any(cnt == 0):
-        raise ConfigError("chart_table: the (density, stretch) grid has missing points")
-    return dens, st, {k: v / cnt for k, v in acc.items()}
+    a, b = FAMILY_AXES[item["family"]]
+    return {a: item[a], b: item[b], "seed": item["seed"], "relative_density": r.relative_density,
+            **m.to_dict(), "alpha": m.alpha, "misfit": r.fit.misfit, "n_dof": r.n_dof, "solver": r.solver}
 
 
 def _rows(table) -> list[Mapping]:
@@ -85,20 +98,97 @@ def _rows(table) -> list[Mapping]:
     return list(table)
 
 
+def table_family(table) -> str:
+    """The cell family whose axes a chart table carries."""
+    keys = set(table) if isinstance(table, Mapping) else set(_rows(table)[0]) if _rows(table) else set()
+    for family, axes in FAMILY_AXES.items():
+        if set(axes) <= keys:
+            return family
+    raise ConfigError(f"chart_table: columns {sorted(keys)} name no family's axes ({FAMILY_AXES})")
+
+
+@dataclass(frozen=True, eq=False)
+class ChartInterpolant:
+    """Seed-averaged chart values on the (first, second) settings grid, interpolated bilinearly.
+
+    Attributes
+    ----------
+    family : the cell family; ``axes`` its two setting names.
+    grid : ((na,), (nb,)) the swept setting values.
+    values : name -> (na, nb) seed means of ``relative_density`` and the five constants.
+    spread : name -> (na, nb) seed standard deviations (0 with one seed).
+    """
+
+    family: str
+    axes: tuple[str, str]
+    grid: tuple[np.ndarray, np.ndarray]
+    values: dict
+    spread: dict
+
+    @classmethod
+    def from_table(cls, table) -> ChartInterpolant:
+        family = table_family(table)
+        a, b = FAMILY_AXES[family]
+        rows = _rows(table)
+        ga = np.unique([float(r[a]) for r in rows])
+        gb = np.unique([float(r[b]) for r in rows])
+        if len(ga) < 2 or len(gb) < 2:
+            raise ConfigError(f"chart_table: needs >= 2 values of {a} and of {b} (has {len(ga)} x {len(gb)})")
+        keys = ("relative_density", *CONSTANT_NAMES)
+        samples = {k: [[[] for _ in gb] for _ in ga] for k in keys}
+        for r in rows:
+            i, j = np.searchsorted(ga, float(r[a])), np.searchsorted(gb, float(r[b]))
+            for k in keys:
+                samples[k][i][j].append(float(r[k]))
+        if any(not samples["E_t"][i][j] for i in range(len(ga)) for j in range(len(gb))):
+            raise ConfigError(f"chart_table: the ({a}, {b}) grid has missing points")
+        mean = {k: np.array([[np.mean(c) for c in row] for row in v]) for k, v in samples.items()}
+        std = {k: np.array([[np.std(c) for c in row] for row in v]) for k, v in samples.items()}
+        return cls(family, (a, b), (ga, gb), mean, std)
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower (2,), upper (2,)) of the swept settings."""
+        return (np.array([self.grid[0][0], self.grid[1][0]]), np.array([self.grid[0][-1], self.grid[1][-1]]))
+
+    def __call__(self, name: str, points) -> np.ndarray:
+        """``name`` at setting pairs ``points`` (m, 2) -> (m,), clipped into the swept box."""
+        interp = _interpolators(self)[name]
+        lo, hi = self.bounds
+        pts = np.clip(np.atleast_2d(np.asarray(points, float)), lo, hi)
+        v = interp(pts)
+        return np.exp(v) if name in _LOG else v
+
+    def describe(self) -> dict:
+        return {"family": self.family, "axes": list(self.axes), "grid": [g.tolist() for g in self.grid]}
+
+
+_INTERP_CACHE: dict[int, tuple[ChartInterpolant, dict]] = {}
+
+
+def _interpolators(chart: ChartInterpolant) -> dict:
+    hit = _INTERP_CACHE.get(id(chart))
+    if hit is None or hit[0] is not chart:
+        f = {k: RegularGridInterpolator(chart.grid, np.log(v) if k in _LOG else v) for k, v in chart.values.items()}
+        hit = _INTERP_CACHE[id(chart)] = (chart, f)
+    return hit[1]
+
+
 def lookup(chart_table, *, E_t: float | None = None, E_l: float | None = None,
            relative_density: float | None = None, alpha: float | None = None) -> dict:
-    """Cell parameters that give target constants, from a design chart.
+    """Cell settings that give target constants, from a design chart.
 
     Parameters
     ----------
-    chart_table : rows (dicts with :data:`COLUMNS`) or a mapping column -> values
-        (e.g. ``chart.csv`` parsed by :func:`parse_csv`).
+    chart_table : rows (dicts with :func:`columns`), a mapping column -> values (e.g.
+        ``chart.csv`` parsed by :func:`parse_csv`), or a :class:`ChartInterpolant`.
     E_t, E_l : target moduli [MPa] (give both), or
     relative_density [-], alpha [%] : target density and anisotropy 100 - 100 E_l / E_t.
 
     Returns
     -------
-    dict with ``target_density`` and ``stretch`` (the cell parameters to use), the
+    dict with the family's two settings (``target_density`` and ``stretch`` for foams,
+    ``infill_percentage`` and ``kgon_x_shrink`` for Polyfoam: the values to print), the
     interpolated ``relative_density, E_t, E_l, nu_t, nu_tl, mu_l, alpha`` there and the
     relative ``residual`` of the match.
 
@@ -111,13 +201,11 @@ def lookup(chart_table, *, E_t: float | None = None, E_l: float | None = None,
     if by_moduli == by_density or (by_moduli and (E_t is None or E_l is None)) or (
             by_density and (relative_density is None or alpha is None)):
         raise ConfigError("lookup: give either (E_t, E_l) [MPa] or (relative_density [-], alpha [%])")
-    dens, st, g = _grid(chart_table)
-    interp = {k: RegularGridInterpolator((dens, st), np.log(v) if k in ("E_t", "E_l", "mu_l") else v)
-              for k, v in g.items()}
+    chart = chart_table if isinstance(chart_table, ChartInterpolant) else ChartInterpolant.from_table(chart_table)
+    lo, hi = chart.bounds
 
     def value(k, x):
-        v = float(interp[k](np.clip(x, [dens[0], st[0]], [dens[-1], st[-1]]))[0])
-        return np.exp(v) if k in ("E_t", "E_l", "mu_l") else v
+        return float(chart(k, x)[0])
 
     if by_moduli:
         for name, v in (("E_t", E_t), ("E_l", E_l)):
@@ -137,20 +225,21 @@ def lookup(chart_table, *, E_t: float | None = None, E_l: float | None = None,
             return [(value("relative_density", x) - relative_density) / relative_density, (a - alpha) / 100.0]
 
     best = None
-    for x0 in itertools.product(np.linspace(dens[0], dens[-1], 4), np.linspace(st[0], st[-1], 4)):
-        sol = least_squares(res, x0, bounds=([dens[0], st[0]], [dens[-1], st[-1]]))
+    for x0 in itertools.product(np.linspace(lo[0], hi[0], 4), np.linspace(lo[1], hi[1], 4)):
+        sol = least_squares(res, x0, bounds=(lo, hi))
         if best is None or sol.cost < best.cost:
             best = sol
     resid = float(np.sqrt(2 * best.cost))
     if resid > 0.02:
+        (a, b), g = chart.axes, chart.values
         raise InfeasibleError(
             f"lookup: target outside the chart (best match misses by {resid:.1%}); the chart spans "
-            f"densities {dens[0]:g}..{dens[-1]:g}, stretches {st[0]:g}..{st[-1]:g}, "
+            f"{a} {lo[0]:g}..{hi[0]:g}, {b} {lo[1]:g}..{hi[1]:g}, "
             f"E_t {g['E_t'].min():.3g}..{g['E_t'].max():.3g} MPa, E_l {g['E_l'].min():.3g}..{g['E_l'].max():.3g} MPa"
         )
     x = best.x
-    out = {"target_density": float(x[0]), "stretch": float(x[1])}
-    out.update({k: value(k, x) for k in g})
+    out = {chart.axes[0]: float(x[0]), chart.axes[1]: float(x[1])}
+    out.update({k: value(k, x) for k in chart.values})
     out["alpha"] = 100.0 - 100.0 * out["E_l"] / out["E_t"]
     out["residual"] = resid
     return out
@@ -165,9 +254,10 @@ def parse_csv(text: str) -> dict[str, np.ndarray]:
 
 
 def to_csv(rows: Sequence[Mapping]) -> str:
-    """Chart rows -> CSV text with :data:`COLUMNS` (repr-exact floats, so bytes are reproducible)."""
-    out = [",".join(COLUMNS)]
+    """Chart rows -> CSV text with the family's :func:`columns` (repr-exact floats: reproducible bytes)."""
+    cols = columns(table_family(rows))
+    out = [",".join(cols)]
     for r in rows:
         out.append(",".join(str(r[c]) if isinstance(r[c], str) else repr(float(r[c])) if c not in (
-            "seed", "n_dof") else str(int(r[c])) for c in COLUMNS))
+            "seed", "n_dof") else str(int(r[c])) for c in cols))
     return "\n".join(out) + "\n"

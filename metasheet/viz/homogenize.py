@@ -123,29 +123,33 @@ def summary_picture(result: HomogenizationResult, title: str = "") -> bytes:
 
 def chart_picture(rows, title: str = "") -> bytes:
     """PNG with one panel per constant (E_t, E_l, nu_t, nu_tl, mu_l, alpha) against the
-    achieved relative density, one line per stretch (seed-averaged, spread as error bars)."""
+    achieved relative density, one line per value of the family's second setting (stretch,
+    or Polyfoam's kgon_x_shrink), seed-averaged, spread as error bars."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ..homogenize.chart import FAMILY_AXES, table_family
+
+    first, second = FAMILY_AXES[table_family(rows)]
     keys = [("E_t", "E_t [MPa]", True), ("E_l", "E_l [MPa]", True), ("mu_l", "mu_l [MPa]", True),
             ("nu_t", "nu_t [-]", False), ("nu_tl", "nu_tl [-]", False), ("alpha", "alpha = 100 - 100 E_l/E_t [%]", False)]
-    stretches = sorted({float(r["stretch"]) for r in rows})
-    dens = sorted({float(r["target_density"]) for r in rows})
+    stretches = sorted({float(r[second]) for r in rows})
+    dens = sorted({float(r[first]) for r in rows})
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
     cmap = plt.get_cmap("viridis")
     for ax, (k, label, log) in zip(axes.ravel(), keys):
         for i, s in enumerate(stretches):
             x, y, e = [], [], []
             for d in dens:
-                sel = [r for r in rows if float(r["stretch"]) == s and float(r["target_density"]) == d]
+                sel = [r for r in rows if float(r[second]) == s and float(r[first]) == d]
                 x.append(np.mean([float(r["relative_density"]) for r in sel]))
                 v = np.array([float(r[k]) for r in sel])
                 y.append(v.mean())
                 e.append(v.std())
             ax.errorbar(x, y, yerr=e, marker="o", ms=4, capsize=2,
-                        color=cmap(i / max(1, len(stretches) - 1)), label=f"stretch {s:g}")
+                        color=cmap(i / max(1, len(stretches) - 1)), label=f"{second} {s:g}")
         if log:
             ax.set_yscale("log")
         ax.set_xlabel("relative density [-]")

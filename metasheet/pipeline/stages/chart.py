@@ -1,10 +1,12 @@
-"""Stage ``chart``: the design chart of a foam family over (relative density, stretch).
+"""Stage ``chart``: the design chart of a cell family over its two print settings.
 
-Each grid point (and seed) builds a foam from the base ``design`` with
-:mod:`metasheet.cells.design` and homogenises it; the points run through
-``ctx.executor.map``. Writes ``chart.csv`` (one row per point and seed, columns
-:data:`metasheet.homogenize.chart.COLUMNS`, moduli in MPa) and ``chart.png`` (one
-panel per constant). :func:`metasheet.homogenize.chart.lookup` inverts the chart.
+Strut foams (``kind = "foam"``) sweep (relative density, stretch); IceSL Polyfoam cells
+(``kind = "polyfoam"``) sweep IceSL's own ``infill_percentage`` x ``kgon_x_shrink``
+(:data:`metasheet.homogenize.chart.FAMILY_AXES`). Each grid point (and seed) builds a cell
+from the base ``design`` with :mod:`metasheet.cells.design` and homogenises it; the points
+run through ``ctx.executor.map``. Writes ``chart.csv`` (one row per point and seed, columns
+:func:`metasheet.homogenize.chart.columns`, moduli in MPa) and ``chart.png`` (one panel per
+constant). :func:`metasheet.homogenize.chart.lookup` inverts the chart.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ...errors import ConfigError
-from ...homogenize.chart import chart_points, evaluate_point, to_csv
+from ...homogenize.chart import FAMILY_AXES, chart_points, evaluate_point, to_csv
 from ..registry import Params, Stage, StageContext, register
 
 
@@ -27,7 +29,12 @@ class ChartParams(Params):
     stretch_min: float = Field(1.0, ge=1, le=20, description="lowest metric stretch [-]")
     stretch_max: float = Field(3.0, ge=1, le=20, description="highest metric stretch [-]")
     stretch_steps: int = Field(3, ge=2, le=50, description="stretches in the sweep")
-    resolution: int = Field(24, ge=16, le=128, description="voxels per side of each cell")
+    resolution: int = Field(24, ge=16, le=128, description="voxels per side of each cell (foam)")
+    sweep: dict[str, list[float]] | None = Field(
+        None, description="the family's two settings -> swept values, e.g. infill_percentage = [9, 18, 26, 34], "
+        "kgon_x_shrink = [0.2, 0.6, 1.0] (polyfoam; foam default: the density_* and stretch_* ranges)")
+    voxel_mm: float | None = Field(None, gt=0, le=2, description="voxel edge of each cell [mm] (polyfoam; "
+                                   "default: the design's)")
     seeds: int = Field(1, ge=1, le=20, description="foam realisations per point (seeds base, base + 1, ...)")
 
     @model_validator(mode="after")
@@ -39,27 +46,67 @@ class ChartParams(Params):
         return self
 
 
+#: The default Polyfoam sweep: the authors' four measured densities (ICESL.md), their shrink
+#: 0.2 up to no shrink (isotropic in the print plane).
+POLYFOAM_SWEEP = {"infill_percentage": [9.0, 18.0, 26.0, 34.0], "kgon_x_shrink": [0.2, 0.5, 1.0]}
+
+
+def sweep_values(p: ChartParams, family: str) -> tuple[list[float], list[float]]:
+    """The two axes' values for ``family``, validated: >= 2 increasing values each."""
+    a, b = FAMILY_AXES[family]
+    sweep = p.sweep
+    if sweep is None:
+        if family == "foam":
+            return (np.linspace(p.density_min, p.density_max, p.density_steps).tolist(),
+                    np.linspace(p.stretch_min, p.stretch_max, p.stretch_steps).tolist())
+        sweep = POLYFOAM_SWEEP
+    if set(sweep) != {a, b}:
+        raise ConfigError(f"chart.sweep: keys {sorted(sweep)}: a {family} chart sweeps exactly {a} and {b}")
+    out = []
+    for name in (a, b):
+        v = [float(x) for x in sweep[name]]
+        if len(v) < 2 or any(y <= x for x, y in zip(v, v[1:])) or not all(np.isfinite(v)):
+            raise ConfigError(f"chart.sweep.{name}: {v!r}: expected >= 2 finite, strictly increasing values")
+        out.append(v)
+    return out[0], out[1]
+
+
 def run(ctx: StageContext) -> dict:
     p: ChartParams = ctx.params
     path = (ctx.root / p.design).resolve()
     if not path.exists():
         raise ConfigError(f"chart.design: {p.design!r}: no such file under {ctx.root}")
     design = tomllib.loads(path.read_text())
-    if design.get("kind", "foam") != "foam":
-        raise ConfigError(f"chart.design: {p.design!r}: kind {design.get('kind')!r}: the chart needs a foam")
+    family = design.get("kind", "foam")
+    if family not in FAMILY_AXES:
+        raise ConfigError(f"chart.design: {p.design!r}: kind {family!r}: the chart needs one of "
+                          f"{', '.join(FAMILY_AXES)}")
+    first, second = sweep_values(p, family)
     base_seed = int(design.get("seeds", {}).get("seed", 0))
-    items = chart_points(design, np.linspace(p.density_min, p.density_max, p.density_steps),
-                         np.linspace(p.stretch_min, p.stretch_max, p.stretch_steps),
-                         [base_seed + k for k in range(p.seeds)], p.resolution)
+    items = chart_points(design, first, second, [base_seed + k for k in range(p.seeds)],
+                         resolution=p.resolution if family == "foam" else None,
+                         voxel_mm=p.voxel_mm if family == "polyfoam" else None)
+    _check_corners(items, p.design)
     rows = ctx.executor.map(evaluate_point, items,
                             progress=lambda done, total: ctx.progress("chart: cells", done, total))
     ctx.path("chart.csv").write_text(to_csv(rows))
     from ...viz.homogenize import chart_picture
 
-    title = f"design chart of {design.get('name', path.stem)} ({p.resolution}^3 voxels, {p.seeds} seed(s) per point)"
+    grid = f"{p.resolution}^3 voxels" if family == "foam" else f"voxel {p.voxel_mm or 'of the design'} mm"
+    title = f"design chart of {design.get('name', path.stem)} ({grid}, {p.seeds} seed(s) per point)"
     ctx.path("chart.png").write_bytes(chart_picture(rows, title))
     return {"points": len(rows), "E_t_range_MPa": [min(r["E_t"] for r in rows), max(r["E_t"] for r in rows)],
             "alpha_range_percent": [min(r["alpha"] for r in rows), max(r["alpha"] for r in rows)]}
+
+
+def _check_corners(items: list[dict], source: str) -> None:
+    """Validate the sweep's extreme settings up front: a bad range fails here, named, not in a worker."""
+    from ...cells.design import parse_design
+    from ...homogenize.chart import item_design
+
+    for item in (items[0], items[-1]):
+        data, overrides = item_design(item)
+        parse_design(data, overrides=overrides, source=f"chart.design ({source})")
 
 
 register(
@@ -68,6 +115,6 @@ register(
         params=ChartParams,
         run=run,
         outputs=("chart.csv", "chart.png"),
-        doc="design chart: five TI constants over (relative density, stretch) -> chart.csv, chart.png",
+        doc="design chart: five TI constants over a family's two settings -> chart.csv, chart.png",
     )
 )
