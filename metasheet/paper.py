@@ -46,3 +46,9 @@ REST_ANGLE = 60.0
 HORN_LENGTH = 25.0
 #: Motor stroke [deg]: 0 = horizontal horn, 90 = vertical (paper Section IV-A).
 ANGLE_MIN, ANGLE_MAX = 0.0, 90.0
+
+
+def is_published(material: TransverseIsotropic, rtol: float = 1e-6) -> bool:
+    """True when ``material`` holds the paper's published foam constants (within ``rtol``)."""
+    ref = PAPER_FOAM.to_dict()
+    return all(abs(v - ref[k]) <= rtol * abs(ref[k]) for k, v in material.to_dict().items() if k in ref)

@@ -71,3 +71,22 @@ def test_goto_helper_reaches_a_small_offset(orient_dir):
     assert "motor angles" in format_result(res) and "certified by" in format_result(res)
     assert res.residual <= InverseSettings().eq_tol * res.reference
     assert np.all(res.angles_deg >= 0) and np.all(res.angles_deg <= 90)
+
+
+def test_published_case_added_when_the_material_is_not_the_papers(orient_dir, tmp_path):
+    """A homogenised material adds a 'published' robot; here the sheets carry the published
+    constants per element, so the two cases are one robot built two ways: equal Jacobians."""
+    from dataclasses import replace
+
+    mat = tmp_path / "material"
+    mat.mkdir()
+    write_material(mat / "material.json", replace(PAPER_FOAM, E_t=2.0), density=FOAM_DENSITY, source="homogenize")
+    work = tmp_path / "work"
+    work.mkdir()
+    ctx = StageContext("robot", robot_stage.RobotParams(picture=False), work,
+                       {"orient": orient_dir, "material": mat}, tmp_path)
+    summary = robot_stage.run(ctx)
+    assert set(summary) >= {"foam", "silicone", "published"}
+    data = json.loads((work / "jacobian.json").read_text())["materials"]
+    np.testing.assert_allclose(data["published"]["J_mm_per_rad_and_rad_per_rad"],
+                               data["foam"]["J_mm_per_rad_and_rad_per_rad"], rtol=1e-7, atol=1e-9)

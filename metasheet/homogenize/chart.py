@@ -91,7 +91,7 @@ def evaluate_point(item: dict) -> dict:
             **m.to_dict(), "alpha": m.alpha, "misfit": r.fit.misfit, "n_dof": r.n_dof, "solver": r.solver}
 
 
-def _rows(table) -> list[Mapping]:
+def rows_of(table) -> list[Mapping]:
     if isinstance(table, Mapping):  # columns -> arrays
         n = len(next(iter(table.values())))
         return [{k: table[k][i] for k in table} for i in range(n)]
@@ -100,7 +100,7 @@ def _rows(table) -> list[Mapping]:
 
 def table_family(table) -> str:
     """The cell family whose axes a chart table carries."""
-    keys = set(table) if isinstance(table, Mapping) else set(_rows(table)[0]) if _rows(table) else set()
+    keys = set(table) if isinstance(table, Mapping) else set(rows_of(table)[0]) if rows_of(table) else set()
     for family, axes in FAMILY_AXES.items():
         if set(axes) <= keys:
             return family
@@ -129,7 +129,7 @@ class ChartInterpolant:
     def from_table(cls, table) -> ChartInterpolant:
         family = table_family(table)
         a, b = FAMILY_AXES[family]
-        rows = _rows(table)
+        rows = rows_of(table)
         ga = np.unique([float(r[a]) for r in rows])
         gb = np.unique([float(r[b]) for r in rows])
         if len(ga) < 2 or len(gb) < 2:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..material import CONSTANT_NAMES
-from ..paper import PAPER_FOAM
+from .constants_report import constants_section
 
 
 def _table(rows: list[tuple[str, object]]) -> str:
@@ -30,10 +30,6 @@ def _fmt(v) -> str:
     return str(v)
 
 
-#: The paper's transverse-isotropic foam [MPa, -] (:data:`metasheet.paper.PAPER_FOAM`).
-PAPER_CONSTANTS = PAPER_FOAM.to_dict()
-
-
 def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, str], *,
                  title: str = "metasheet: reproduction of the paper's studies") -> str:
     """Markdown report.
@@ -49,19 +45,10 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         m = s["material"]
         keys = (*CONSTANT_NAMES, "alpha_percent", "source")
         lines += ["## Constants (paper Section II, FACTS)", "", _table([(k, m[k]) for k in keys if k in m]), ""]
-    if "homogenize" in s:
-        h, paper = s["homogenize"], PAPER_CONSTANTS
-        rows = [(k, f"{h[k]:.4g}", f"{paper[k]:.4g}", f"{h[k] / paper[k]:.2f}") for k in paper if k in h]
-        lines += ["## Homogenised foam cell vs the paper's constants (paper Section III-A)", "",
-                  "| constant | homogenised | paper | ratio |", "|---|---|---|---|",
-                  *[f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows], "",
-                  f"relative density {h.get('relative_density', float('nan')):.3f}, transverse-isotropic "
-                  f"misfit {h.get('misfit', float('nan')):.3f}.", ""]
-        if "E_t" in h and abs(h["E_t"] / paper["E_t"] - 1) > 0.2:
-            diffs.append(
-                f"The homogenised open-cell foam has E_t = {h['E_t']:.3g} MPa against the paper's "
-                f"{paper['E_t']:.3g} MPa: an open Voronoi foam of this density bends (E ~ E_s rho^2), while "
-                "the printed IceSL foam is stiffer in-plane; the robot uses the published constants.")
+    section, found = constants_section(s.get("homogenize"), s.get("chart", {}).get("rows"), s.get("material"),
+                                       s.get("robot"), s.get("anisotropy"), s.get("chart", {}).get("shrink"))
+    lines += section
+    diffs += found
     if "robot" in s:
         flat = []
         for k, v in sorted(s["robot"].items()):

@@ -2,6 +2,9 @@
 
 Writes ``anisotropy.csv`` (alpha, for pull and push: applied motor change, rod rotation,
 lateral and axial translation, full pose change), ``anisotropy.png`` and ``anisotropy.json``.
+When the sheets' material is not the paper's published foam, ``anisotropy.json`` also holds
+the sweep's end point computed with the published constants (``published_end_point``), so
+the two materials' Fig. 7 end points can be compared.
 """
 
 from __future__ import annotations
@@ -9,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
+from ... import paper
 from ...studies.anisotropy import anisotropy_sweep
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
@@ -20,6 +24,8 @@ class AnisotropyParams(StudyRobotParams):
     pull_deg: float = Field(15.0, ge=0, le=90, description="all motors pull by [deg]")
     push_deg: float = Field(35.0, ge=0, le=90, description="all motors push by [deg]")
     ramp_deg: float = Field(5.0, gt=0, le=90, description="largest motor increment per forward solve [deg]")
+    compare_published: bool = Field(True, description="also compute the end point with the paper's published "
+                                    "constants when the material differs from them")
 
 
 def run(ctx: StageContext) -> dict:
@@ -56,9 +62,35 @@ def run(ctx: StageContext) -> dict:
         "applied_deg": {"pull": float(applied[0]), "push": float(applied[1])},
         "requested_deg": {"pull": p.pull_deg, "push": p.push_deg}, "model": p.model,
     }
+    published = _published_spec(ctx, spec) if p.compare_published else None
+    if published is not None:
+        end = anisotropy_sweep(published, [published.design_alpha], pull_deg=p.pull_deg, push_deg=p.push_deg,
+                               ramp_deg=p.ramp_deg, executor=ctx.executor, progress=progress(ctx),
+                               cache=unit_cache(ctx))
+        summary["published_end_point"] = {
+            "alpha_percent": round(float(end.alpha[0]), 4),
+            "rod_rotation_deg": {"pull": round(float(end.rod_rotation_deg[0, 0]), 4),
+                                 "push": round(float(end.rod_rotation_deg[0, 1]), 4)},
+            "lateral_mm": {"pull": round(float(end.lateral_mm[0, 0]), 4), "push": round(float(end.lateral_mm[0, 1]), 4)},
+        }
     write_json_atomic(ctx.path("anisotropy.json"), summary)
     drop_cache(ctx)
     return summary
+
+
+def _published_spec(ctx: StageContext, spec):
+    """The same robot with the paper's published constants, or None (stand-in model, uniform
+    published material already, or a graded design whose per-element constants it would erase)."""
+    if ctx.params.model != "robot" or "material" not in ctx.inputs:
+        return None
+    from ..artefacts import read_material, read_orient
+
+    mat = read_material(ctx.inputs["material"])
+    if paper.is_published(mat.material):
+        return None
+    if "orient" in ctx.inputs and read_orient(ctx.inputs["orient"]).graded:
+        return None
+    return spec.with_material(paper.PAPER_FOAM, mat.density)
 
 
 register(Stage(

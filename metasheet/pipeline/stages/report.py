@@ -12,7 +12,7 @@ import shutil
 from pydantic import Field
 
 from ...studies.report import build_report
-from ..artefacts import read_constants, read_material, read_summary
+from ..artefacts import read_chart, read_constants, read_material, read_summary
 from ..registry import Params, Stage, StageContext, register
 
 STUDIES = ("workspace", "ranges", "anisotropy", "maze")
@@ -32,6 +32,10 @@ def run(ctx: StageContext) -> dict:
             pictures[name] = png.name
     if "homogenize" in ctx.inputs:
         summaries["homogenize"] = read_constants(ctx.inputs["homogenize"])
+    if "chart" in ctx.inputs:
+        from ...homogenize.chart import rows_of
+
+        summaries["chart"] = {"rows": rows_of(read_chart(ctx.inputs["chart"])), "shrink": _cell_shrink(ctx)}
     if "material" in ctx.inputs:
         m = read_material(ctx.inputs["material"])
         summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source}
@@ -40,8 +44,19 @@ def run(ctx: StageContext) -> dict:
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}
 
 
+def _cell_shrink(ctx: StageContext) -> float | None:
+    """The printed cell's ``kgon_x_shrink`` (Polyfoam cells), else None."""
+    if "cell" not in ctx.inputs:
+        return None
+    import json
+
+    design = json.loads((ctx.inputs["cell"] / "cell.json").read_text()).get("design", {})
+    shrink = design.get("kgon_x_shrink")
+    return None if shrink is None else float(shrink)
+
+
 register(Stage(
     name="report", params=ReportParams, run=run,
-    optional=("homogenize", "material", "robot", "workspace", "ranges", "anisotropy", "maze"),
+    optional=("cell", "homogenize", "chart", "material", "robot", "workspace", "ranges", "anisotropy", "maze"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))

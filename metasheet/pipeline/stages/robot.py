@@ -12,6 +12,11 @@ constants along the spiral fibres) and with isotropic silicone, and writes
   frame), cell data ``sheet`` (0 = A, 1 = B), point data ``attach`` (0 free, k + 1 horn of
   motor k = 0..5, 99 effector) and ``displacement`` from the unloaded rest [mm];
 * ``robot.png``: rest vs deformed (all motors by ``delta_deg``) for both materials (Fig. 4/8).
+
+When the sheets' constants are not the paper's published ones (e.g. homogenised from the
+printed Polyfoam cell), a third case ``published`` builds the same robot with the paper's
+constants (:data:`metasheet.paper.PAPER_FOAM`) along the same fibres, so the report can put
+the robot's figures for both side by side.
 """
 
 from __future__ import annotations
@@ -43,6 +48,8 @@ class RobotParams(Params):
     silicone_nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
     silicone_density: float = Field(paper.SILICONE_DENSITY, gt=0, le=1e-7, description="silicone density [t/mm^3]")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
+    compare_published: bool = Field(True, description="also evaluate the robot with the paper's published "
+                                    "constants when the material differs from them")
     picture: bool = Field(True, description="write robot.png")
 
 
@@ -50,22 +57,26 @@ def run(ctx: StageContext) -> dict:
     p: RobotParams = ctx.params
     if p.angle_min >= p.angle_max:
         raise ConfigError(f"robot.angle_min/angle_max: ({p.angle_min:g}, {p.angle_max:g}) deg: need min < max")
-    density = read_material(ctx.inputs["material"]).density
+    material = read_material(ctx.inputs["material"])
+    density = material.density
     if not p.angle_min <= p.rest_angle <= p.angle_max:
         raise ConfigError(f"robot.rest_angle: {p.rest_angle:g} deg: allowed range [angle_min, angle_max] = "
                           f"[{p.angle_min:g}, {p.angle_max:g}] deg")
     geo = ServoGeometry(p.rest_angle, p.horn_length, p.angle_min, p.angle_max)
     orient = read_orient(ctx.inputs["orient"])
-    ctx.progress("building robots", 0, 4)
+    ctx.progress("building robots", 0, 5)
     scene = {"rod_length": p.rod_length, "geometry": geo}
     robots = {  # the foam: the sheets' own per-element constants along their fibres
         "foam": six_dof_robot(orient.sheets(), density=density, **scene),
         "silicone": six_dof_robot(orient.sheets(need_constants=False), Isotropic(p.silicone_E, p.silicone_nu),
                                   density=p.silicone_density, **scene),
     }
+    if p.compare_published and not paper.is_published(material.material):
+        robots["published"] = six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, density=density,
+                                            **scene)
     cases = {}
     for i, (name, rob) in enumerate(robots.items()):
-        ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, 4)
+        ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, len(robots) + 2)
         cases[name] = evaluate(rob, name, delta_deg=p.delta_deg, length_scale=p.length_scale)
     foam = robots["foam"]
     out = {
@@ -78,13 +89,13 @@ def run(ctx: StageContext) -> dict:
     write_jacobian(ctx.path("jacobian.json"), out)
     write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
     if p.picture:
-        ctx.progress("picture", 3, 4)
+        ctx.progress("picture", len(robots) + 1, len(robots) + 2)
         from ...viz.robot import robot_picture
 
         ctx.path("robot.png").write_bytes(robot_picture(
             [(f"{n} (all motors {c.delta_deg:+.0f} deg)", robots[n], c.rest, c.moved)
              for n, c in (("silicone", cases["silicone"]), ("foam", cases["foam"]))]))
-    ctx.progress("done", 4, 4)
+    ctx.progress("done", len(robots) + 2, len(robots) + 2)
     return {
         name: {"singular_values": [round(v, 4) for v in c.kin.singular_values],
                "rod_rotation_deg_per_deg": round(c.rod_rotation_per_degree, 5),

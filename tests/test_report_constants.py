@@ -1,0 +1,50 @@
+"""The constants section of the report: the literature table, and the comparison it prints."""
+
+import numpy as np
+import pytest
+
+from metasheet.literature import E_S, authors_constants, authors_table
+from metasheet.paper import PAPER_FOAM
+from metasheet.studies.constants_report import constants_section
+
+
+def test_the_published_constants_are_the_authors_table_at_15_percent():
+    """The paper's constants are the authors' transverse table interpolated at rho = 0.15."""
+    at = authors_constants(0.15)
+    for k, v in PAPER_FOAM.to_dict().items():
+        assert float(at[k]) == pytest.approx(v, rel=0.01), k
+
+
+def test_isotropic_table_is_isotropic_and_outside_range_is_refused():
+    c = authors_constants(0.2, "isotropic")
+    assert c["E_t"] == c["E_l"]
+    with pytest.raises(Exception, match="relative_density"):
+        authors_constants(0.5)
+
+
+def _rows_from_the_authors():
+    """A chart whose shrink-0.2 column is the authors' transverse foam at its four densities."""
+    rows = []
+    t = authors_table("transverse")
+    for i, rho in enumerate(t["density"]):
+        c = {k: float(v) for k, v in authors_constants(rho).items()}
+        for s in (0.2, 1.0):
+            rows.append({"infill_percentage": round(100 * rho, 3), "kgon_x_shrink": s, "seed": 1,
+                         "relative_density": rho, **c, "alpha": 0.0, "misfit": 0.0, "n_dof": 1, "solver": "x"})
+    return rows
+
+
+def test_section_compares_three_sources_and_fits_the_same_law():
+    h = {"relative_density": 0.15, **{k: 2 * v for k, v in PAPER_FOAM.to_dict().items()}}
+    robot = {"foam": {"singular_values": [1.0, 2.0], "rod_rotation_deg_per_deg": 0.5},
+             "published": {"singular_values": [1.5, 2.5], "rod_rotation_deg_per_deg": 0.25}}
+    lines, diffs = constants_section(h, _rows_from_the_authors(), {"source": "homogenize"}, robot, None, 0.2)
+    text = "\n".join(lines)
+    assert "| E_t [MPa] | 2.78 | 1.39 | 1.388 | 2.00 |" in text
+    assert "| rod rotation per motor degree [deg/deg] | 0.5 | 0.25 |" in text
+    # the chart built from the authors' table fits the authors' own power law
+    t = authors_table("transverse")
+    n_ref, _ = np.polyfit(np.log(t["density"]), np.log(0.5 * (t["E_y"] + t["E_z"])), 1)
+    assert f"rho^{n_ref:.2f} (authors: " in text
+    assert any("2.00 x the published" in d for d in diffs)
+    assert f"E_t / E_s = {2 * 1.39 / E_S:.4f}" in text
