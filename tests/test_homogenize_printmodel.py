@@ -72,3 +72,15 @@ def test_settings_outside_the_chart_are_named():
     # within the quantisation slack: clipped, not refused
     c = m.constants_at({"infill_percentage": np.array([8.95]), "kgon_x_shrink": np.array([1.004])})
     assert c["E_t"][0] == pytest.approx(_law(9.0, 1.0)["E_t"], rel=1e-12)
+
+
+def test_settings_at_density_inverts_density_and_calibrated_alpha():
+    m = model_from_chart(_rows())
+    cm = m.calibrated({"infill_percentage": 15.0, "kgon_x_shrink": 0.5},
+                      {"E_t": 2.0, "E_l": 0.1, "nu_t": 0.3, "nu_tl": 0.3, "mu_l": 0.05})
+    s = cm.settings_at_density(0.2, 80.0)
+    assert s["infill_percentage"] == pytest.approx(20.0, rel=1e-4)  # rho = p / 100 in this chart
+    c = cm.constants_at({k: np.array([v]) for k, v in s.items()})
+    assert 100 - 100 * c["E_l"][0] / c["E_t"][0] == pytest.approx(80.0, abs=1e-3)
+    with pytest.raises(InfeasibleError, match="no polyfoam setting"):
+        cm.settings_at_density(0.6, 80.0)

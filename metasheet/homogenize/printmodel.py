@@ -109,6 +109,34 @@ class PrintModel:
         flat = solved[np.ravel(inverse)]
         return {name: flat[:, j].reshape(e_t.shape) for j, name in enumerate(self.axes)}
 
+    def settings_at_density(self, relative_density: float, alpha: float) -> dict[str, float]:
+        """The settings whose cell has relative density ``relative_density`` [-] and anisotropy
+        ``alpha`` = 100 - 100 E_l / E_t [%] of the calibrated model (graded designs)."""
+        from scipy.optimize import least_squares
+
+        if not 0 < relative_density < 1:
+            raise ConfigError(f"relative_density: {relative_density!r}: allowed range is (0, 1)")
+        if not -100 <= alpha < 100:
+            raise ConfigError(f"alpha: {alpha!r}: allowed range is [-100, 100) %")
+        lo, hi = self.chart.bounds
+        ratio = self.calibration.get("E_l", 1.0) / self.calibration.get("E_t", 1.0)
+
+        def res(x):
+            rho = float(self.chart("relative_density", x)[0])
+            a = 100.0 - 100.0 * ratio * float(self.chart("E_l", x)[0]) / float(self.chart("E_t", x)[0])
+            return [(rho - relative_density) / relative_density, (a - alpha) / 100.0]
+
+        best = min((least_squares(res, x0, bounds=(lo, hi)) for x0 in
+                    np.stack(np.meshgrid(np.linspace(lo[0], hi[0], 3), np.linspace(lo[1], hi[1], 3)), -1).reshape(-1, 2)),
+                   key=lambda r: r.cost)
+        resid = float(np.sqrt(2 * best.cost))
+        if resid > 0.02:
+            raise InfeasibleError(
+                f"relative_density {relative_density:g}, alpha {alpha:g} %: no {self.family} setting in the chart "
+                f"gives them (best match misses by {resid:.1%}); the chart spans {self.axes[0]} {lo[0]:g}..{hi[0]:g}, "
+                f"{self.axes[1]} {lo[1]:g}..{hi[1]:g}")
+        return {self.axes[0]: float(best.x[0]), self.axes[1]: float(best.x[1])}
+
     def calibrated(self, settings: Mapping[str, float], constants: Mapping[str, float]) -> PrintModel:
         """This chart anchored on a homogenised cell: ``M(settings) = constants`` exactly."""
         raw = PrintModel(self.chart).constants_at({k: np.array([float(settings[k])]) for k in self.axes})

@@ -125,6 +125,35 @@ def read_chart(directory: Path) -> dict[str, np.ndarray]:
     return parse_csv(path.read_text())
 
 
+def read_cell_design(directory: Path) -> dict:
+    """The validated design a cell stage built (``cell.json``'s ``design``), as a dict."""
+    return dict(_json(directory / "cell.json").get("design", {}))
+
+
+def read_print_model(chart_dir: Path, cell_dir: Path | None = None, homogenize_dir: Path | None = None):
+    """The print model of a chart stage, calibrated on the homogenised cell when both are given.
+
+    Returns a :class:`~metasheet.homogenize.printmodel.PrintModel`. The chart must sweep the
+    cell's own family (a strut-foam chart cannot describe a Polyfoam cell): ConfigError otherwise.
+    """
+    from ..homogenize.chart import FAMILY_AXES
+    from ..homogenize.printmodel import model_from_chart
+
+    model = model_from_chart(read_chart(chart_dir))
+    if cell_dir is None or homogenize_dir is None:
+        return model
+    design = read_cell_design(cell_dir)
+    family = design.get("kind", "foam")
+    if family != model.family:
+        raise ConfigError(f"chart.design: a {model.family} chart cannot describe the cell stage's {family} cell; "
+                          f"give the chart the cell's design")
+    if family == "foam":
+        settings = {"target_density": float(design["relative_density"]), "stretch": float(design.get("metric", {}).get("stretch", 1.0))}
+    else:
+        settings = {k: float(design[k]) for k in FAMILY_AXES[family]}
+    return model.calibrated(settings, read_constants(homogenize_dir))
+
+
 # --------------------------------------------------------------------------- material
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from ...material import TransverseIsotropic, interpolate
 from ...sheet import fibers as fb
 from ...sheet import geometry as geo
 from ...sheet import grading as gr
-from ..artefacts import SHEET_FILES, read_chart, read_material, write_sheet
+from ..artefacts import SHEET_FILES, read_material, read_print_model, write_sheet
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
@@ -94,19 +94,25 @@ def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
 def _chart_lookup(ctx: StageContext):
     """The design chart's inverse look-up as (rho [-], alpha [%]) -> TransverseIsotropic, or None.
 
-    Reads ``chart.csv`` of the chart stage; a target outside the chart is an error
-    (:class:`~metasheet.errors.InfeasibleError` from the look-up), not a silent fallback.
+    Reads ``chart.csv`` of the chart stage through the print model
+    (:func:`~metasheet.pipeline.artefacts.read_print_model`), calibrated on the homogenised
+    cell when the cell and homogenize stages ran, so the constants given to each element are
+    the ones the print map's round trip finds again. A target outside the chart is an error
+    (:class:`~metasheet.errors.InfeasibleError`), not a silent fallback.
     """
     if "chart" not in ctx.inputs:
         return None, "no chart stage"
-    from ...homogenize.chart import lookup
-
-    table = read_chart(ctx.inputs["chart"])
+    calibrate = "cell" in ctx.inputs and "homogenize" in ctx.inputs
+    model = read_print_model(ctx.inputs["chart"], ctx.inputs.get("cell") if calibrate else None,
+                             ctx.inputs.get("homogenize") if calibrate else None)
 
     def material_at(rho: float, alpha: float) -> TransverseIsotropic:
-        return TransverseIsotropic.from_mapping(lookup(table, relative_density=rho, alpha=alpha))
+        settings = model.settings_at_density(rho, alpha)
+        c = model.constants_at({k: np.array([v]) for k, v in settings.items()})
+        return TransverseIsotropic.from_mapping({k: float(v[0]) for k, v in c.items()})
 
-    return material_at, "design chart (homogenize)"
+    how = "design chart (homogenize)" + (", calibrated on the homogenised cell" if calibrate else "")
+    return material_at, how
 
 
 def run(ctx: StageContext) -> dict:
@@ -194,7 +200,7 @@ register(
         params=OrientParams,
         run=run,
         requires=(),
-        optional=("material", "chart"),
+        optional=("material", "chart", "cell", "homogenize"),
         outputs=(*SHEET_FILES.values(), "sheet.json", "sheet.png"),
         doc="tripod sheet mesh + spiral fibre field (normal and mirrored) -> sheet.vtu, sheet.png",
     )
