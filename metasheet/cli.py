@@ -1,13 +1,30 @@
 """The ``metasheet`` command: run pipelines, list stages, drive the robot.
 
-Errors metasheet raises on purpose (bad config, infeasible target, failed stage)
-print as one red message and exit with status 2; anything else is a bug and keeps
-its traceback.
+Every message prints verbatim: user and library text is never read as rich markup, so
+square brackets, units ("X Y Z [mm]") and values ("nan") reach the terminal unchanged.
+Errors metasheet raises on purpose (a :class:`~metasheet.errors.MetasheetError`: bad
+config, missing file, failed stage, outputs not writable, disk full, folder in use,
+unreachable goal) print as one message without a traceback (``metasheet --debug ...``
+shows it) and exit with the status their class carries:
+
+| status | meaning |
+|---|---|
+| 0 | success (``robot goto``: the goal was reached) |
+| 1 | ``metasheet diff``: the trees differ |
+| 2 | an error: bad config or command line, missing file, failed stage, outputs not writable, disk full |
+| 3 | another run holds the output folder (``run --no-wait``, ``clean --no-wait``) |
+| 4 | ``robot goto``: the goal was not reached (the closest pose and the remaining error are printed) |
+| 130 | interrupted (Ctrl-C) |
+
+Anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
 
+import math
+import signal
 import sys
+import traceback
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -15,17 +32,52 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+from rich.text import Text
 
 from .errors import MetasheetError
 
+# rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
+# panels that wrap long messages); pretty_exceptions off: a bug prints a plain traceback.
+_TYPER = dict(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False)
 app = typer.Typer(
     help="metasheet: soft robots from 3D-printed anisotropic foam, cell to controller.",
     no_args_is_help=True,
-    add_completion=False,
+    **_TYPER,
 )
-robot_app = typer.Typer(help="Drive the robot model.", no_args_is_help=True)
+robot_app = typer.Typer(help="Drive the robot model.", no_args_is_help=True, **_TYPER)
 app.add_typer(robot_app, name="robot")
-console = Console(stderr=True)
+# markup=False, highlight=False, emoji=False: a string prints as given
+console = Console(stderr=True, markup=False, highlight=False, emoji=False)
+stdout = Console(markup=False, highlight=False, emoji=False)
+_STATE = {"debug": False}
+
+
+def say(message: str, *, err: bool = True, prefix: str = "", style: str = "") -> None:
+    """Print ``message`` verbatim (no markup, no highlighting, no wrapping), after an
+    optional styled ``prefix``."""
+    text = Text()
+    if prefix:
+        text.append(prefix, style=style)
+    text.append(str(message))
+    (console if err else stdout).print(text, soft_wrap=True)
+
+
+def _table(title: str, columns, rows) -> Table:
+    """A rich table whose title, headers and cells are plain text (``time [s]`` stays)."""
+    table = Table(title=Text(title) if title else None)
+    for col in columns:
+        table.add_column(Text(col), overflow="fold")
+    for row in rows:
+        table.add_row(*(c if isinstance(c, Text) else Text(str(c)) for c in row))
+    return table
+
+
+@app.callback()
+def _options(
+    debug: Annotated[bool, typer.Option("--debug", help="show the traceback of an error")] = False,
+) -> None:
+    """metasheet: soft robots from 3D-printed anisotropic foam, cell to controller."""
+    _STATE["debug"] = _STATE["debug"] or debug
 
 
 def _progress_factory(progress: Progress):
@@ -43,6 +95,13 @@ def _progress_factory(progress: Progress):
     return factory
 
 
+def _reporter(target: Console):
+    def report(stage: str, message: str) -> None:
+        target.print(Text.assemble((stage, "bold"), ": ", str(message)), soft_wrap=True)
+
+    return report
+
+
 @app.command()
 def run(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
@@ -51,31 +110,48 @@ def run(
     workers: Annotated[Optional[int], typer.Option("--workers", min=1, help="local worker processes")] = None,
     scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="dask scheduler, tcp://HOST:PORT")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
+    no_wait: Annotated[bool, typer.Option("--no-wait", help="exit (status 3) instead of waiting when another "
+                                          "run holds the output folder")] = False,
 ) -> None:
-    """Run the stages of PIPELINE in dependency order; up-to-date stages are skipped."""
+    """Run the stages of PIPELINE in dependency order; up-to-date stages are skipped.
+
+    One run per output folder at a time: a second run waits for the first (or exits with
+    status 3 with --no-wait). Temporary folders left by killed runs are removed first.
+    """
     from .executor import Executor
     from .pipeline.config import load_pipeline
     from .pipeline.runner import run_pipeline
 
     p = load_pipeline(pipeline)
     ex = Executor(workers or p.section.workers, scheduler or p.section.scheduler)
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=console, transient=True) as progress:
-        outcomes = run_pipeline(
-            p,
-            out_root=out,
-            only=stage,
-            force=force,
-            executor=ex,
-            report=lambda s, msg: progress.console.print(f"[bold]{s}[/bold]: {msg}"),
-            progress_factory=_progress_factory(progress),
-        )
-    table = Table(title=f"pipeline {p.name}")
-    for col in ("stage", "status", "time [s]", "outputs"):
-        table.add_column(col)
-    for o in outcomes:
-        table.add_row(o.name, o.status, f"{o.wall_time:.1f}", str(o.directory))
-    Console().print(table)
+    options = dict(out_root=out, only=stage, force=force, executor=ex, wait=not no_wait)
+    if console.is_terminal:  # progress bars on a terminal; plain lines in a log
+        columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
+                   TimeElapsedColumn())
+        with Progress(*columns, console=console, transient=True) as progress:
+            outcomes = run_pipeline(p, report=_reporter(progress.console),
+                                    progress_factory=_progress_factory(progress), **options)
+    else:
+        outcomes = run_pipeline(p, report=_reporter(console), **options)
+    stdout.print(_table(f"pipeline {p.name}", ("stage", "status", "time [s]", "outputs"),
+                        [(o.name, o.status, f"{o.wall_time:.1f}", o.directory) for o in outcomes]))
+
+
+@app.command()
+def clean(
+    pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
+    everything: Annotated[bool, typer.Option("--all", help="also remove every stage's outputs")] = False,
+    out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
+    no_wait: Annotated[bool, typer.Option("--no-wait", help="exit (status 3) instead of waiting for a "
+                                          "running run")] = False,
+) -> None:
+    """Remove the temporary folders killed runs left in PIPELINE's outputs (--all: the outputs too)."""
+    from .pipeline.config import load_pipeline
+    from .pipeline.runner import clean as clean_outputs
+
+    p = load_pipeline(pipeline)
+    removed = clean_outputs(p, out_root=out, everything=everything, wait=not no_wait, report=_reporter(console))
+    say(f"{p.name}: removed {len(removed)} item(s)" if removed else f"{p.name}: nothing to remove", err=False)
 
 
 @app.command("stages")
@@ -83,22 +159,18 @@ def list_stages() -> None:
     """List the stages, what they read and what they write."""
     from .pipeline.registry import stages
 
-    table = Table(title="metasheet stages")
-    for col in ("stage", "reads", "writes", "what"):
-        table.add_column(col)
-    for s in stages().values():
-        reads = ", ".join([*s.requires, *(f"({o})" for o in s.optional)]) or "-"
-        table.add_row(s.name, reads, ", ".join(s.outputs), s.doc)
-    Console().print(table)
+    rows = [(s.name, ", ".join([*s.requires, *(f"({o})" for o in s.optional)]) or "-", ", ".join(s.outputs), s.doc)
+            for s in stages().values()]
+    stdout.print(_table("metasheet stages", ("stage", "reads", "writes", "what"), rows))
 
 
 @app.command()
 def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")]) -> None:
-    """Check a pipeline file without running it."""
+    """Check a pipeline file without running it (fields, stages, files it names)."""
     from .pipeline.config import load_pipeline
 
     p = load_pipeline(pipeline)
-    Console().print(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}")
+    say(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}", err=False)
 
 
 @app.command()
@@ -115,15 +187,15 @@ def diff(
         if not d.is_dir():
             raise ConfigError(f"{d}: not a directory")
     rows = compare_trees(a, b)
-    table = Table("file", "result", "max relative difference", "note")
+    out = []
     bad = 0
     for r in rows:
         ok = r.status == "identical" or (r.status == "numbers" and r.max_rel <= rtol)
         bad += not ok
         shown = "" if r.status in ("identical", "different") or r.status.startswith("missing") else f"{r.max_rel:.2e}"
-        table.add_row(r.path, r.status if ok else f"[red]{r.status}[/red]", shown, r.note)
-    Console().print(table)
-    Console().print(f"{len(rows) - bad} of {len(rows)} files identical or within rtol {rtol:g}")
+        out.append((r.path, Text(r.status, style="" if ok else "red"), shown, r.note))
+    stdout.print(_table("", ("file", "result", "max relative difference", "note"), out))
+    say(f"{len(rows) - bad} of {len(rows)} files identical or within rtol {rtol:g}", err=False)
     if bad:
         raise typer.Exit(1)
 
@@ -145,41 +217,104 @@ def goto_robot(orient: Path | None = None, mesh_size: float = 8.0):
                          density=paper.FOAM_DENSITY)
 
 
+def _pose_text(pose) -> str:
+    return ("X Y Z [mm] " + " ".join(f"{v:.3f}" for v in pose[:3])
+            + " | RX RY RZ [deg] " + " ".join(f"{v:.3f}" for v in pose[3:]))
+
+
 def format_result(res) -> str:
     """Human-readable lines of an :class:`~metasheet.robot.inverse.InverseResult`."""
     lines = [f"status: {res.status} after {res.steps} control steps",
              "motor angles [deg]: " + " ".join(f"{a:.2f}" for a in res.angles_deg),
-             "pose reached: X Y Z [mm] " + " ".join(f"{v:.3f}" for v in res.pose[:3])
-             + " | RX RY RZ [deg] " + " ".join(f"{v:.3f}" for v in res.pose[3:]),
+             "pose reached: " + _pose_text(res.pose),
              f"remaining error: {res.pos_error:.3f} mm, {res.rot_error:.3f} deg",
              f"equilibrium: residual {res.residual:.2e} N = {res.residual / max(res.reference, 1e-300):.1e} x "
              f"force scale (certified by {res.certified or '-'})"]
     return "\n".join(lines)
 
 
+#: The six pose components ``robot goto`` takes, in order, with their units.
+POSE_COMPONENTS = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
+
+
+def parse_pose(values: list[str]) -> list[float]:
+    """Six finite numbers from the command line; a bad one is named with its position and unit."""
+    from .errors import ConfigError
+
+    if len(values) != 6:
+        raise ConfigError(f"pose: {len(values)} numbers given: expected 6 (X Y Z [mm] RX RY RZ [deg])")
+    pose = []
+    for i, (text, name) in enumerate(zip(values, POSE_COMPONENTS), 1):
+        try:
+            v = float(text)
+        except ValueError:
+            raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: expected a number") from None
+        if not math.isfinite(v):
+            raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: expected a finite number")
+        pose.append(v)
+    return pose
+
+
 @robot_app.command("goto")
 def robot_goto(
-    pose: Annotated[list[float], typer.Argument(help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
+    pose: Annotated[list[str], typer.Argument(
+        metavar="POSE", help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
     orient: Annotated[Optional[Path], typer.Option("--orient", help="an orient stage's output directory")] = None,
     mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no --orient")] = 8.0,
 ) -> None:
-    """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles."""
-    from .errors import ConfigError
+    """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles.
+
+    Exits with status 4 when the goal is not reached, after printing the closest pose
+    and the remaining error.
+    """
+    from .errors import UnreachableError
     from .robot.inverse import InverseController
 
-    if len(pose) != 6:
-        raise ConfigError(f"pose: {len(pose)} numbers given: expected 6 (X Y Z RX RY RZ)")
+    goal = parse_pose(pose)
     robot = goto_robot(orient, mesh_size)
-    typer.echo(format_result(InverseController(robot).goto(pose)))
+    res = InverseController(robot).goto(goal)
+    say(format_result(res), err=False)
+    if not res.reached:
+        raise UnreachableError(
+            f"goal not reached ({res.status}): remaining error {res.pos_error:.3f} mm, {res.rot_error:.3f} deg; "
+            f"closest pose {_pose_text(res.pose)}"
+        )
 
 
-def main() -> None:
+def _pop_debug(args: list[str]) -> bool:
+    """Remove ``--debug`` from ``args`` wherever it stands before ``--``; True if it was there."""
+    end = args.index("--") if "--" in args else len(args)
+    found = "--debug" in args[:end]
+    if found:
+        args[:] = [a for a in args[:end] if a != "--debug"] + args[end:]
+    return found
+
+
+def _terminate(signum, frame):  # SIGTERM: unwind like Ctrl-C (temporary folders removed, lock released)
+    raise SystemExit(128 + signum)
+
+
+def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    _STATE["debug"] = _pop_debug(args)
+    previous = signal.signal(signal.SIGTERM, _terminate) if hasattr(signal, "SIGTERM") else None
     try:
-        app()
+        app(args=args, prog_name="metasheet")
     except MetasheetError as err:
-        console.print(f"[red]error:[/red] {err}", markup=True, highlight=False)
+        if _STATE["debug"]:
+            traceback.print_exc()
+        say(str(err), prefix="error: ", style="bold red")
+        sys.exit(err.exit_code)
+    except OSError as err:  # the environment, not a bug: a file that cannot be read or written
+        if _STATE["debug"]:
+            traceback.print_exc()
+        where = f"{err.filename}: " if err.filename else ""
+        say(f"{where}{err.strerror or err}", prefix="error: ", style="bold red")
         sys.exit(2)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -1,12 +1,27 @@
 """The library's error hierarchy.
 
 Every error a user can provoke with bad input or a hard problem is a
-:class:`MetasheetError`, so the CLI can print one clean line instead of a traceback.
+:class:`MetasheetError`, so the CLI can print one clean line instead of a traceback
+(``metasheet --debug`` shows it). Each class carries the exit status the CLI returns:
+
+| status | meaning |
+|---|---|
+| 0 | success (``robot goto``: the goal was reached) |
+| 1 | ``metasheet diff``: the trees differ |
+| 2 | an error: bad config or command line, missing file, failed stage, outputs not writable, disk full |
+| 3 | :class:`LockedError`: another run holds the output folder (``--no-wait``) |
+| 4 | :class:`UnreachableError`: ``robot goto`` stopped short of the goal |
+| 130 | interrupted (Ctrl-C) |
 """
+
+import errno as _errno
+import os as _os
 
 
 class MetasheetError(Exception):
-    """Base of every error metasheet raises on purpose."""
+    """Base of every error metasheet raises on purpose; ``exit_code``: the CLI's exit status."""
+
+    exit_code = 2
 
 
 class ConfigError(MetasheetError, ValueError):
@@ -34,6 +49,48 @@ class InfeasibleError(MetasheetError):
 
 class StageError(MetasheetError):
     """A pipeline stage failed; the message names the stage and the cause."""
+
+
+class OutputError(MetasheetError):
+    """An output folder or file cannot be written: no permission, read-only, disk full.
+
+    The message names the path and the cause; nothing half-written is left behind.
+    """
+
+
+class LockedError(MetasheetError):
+    """Another run holds the output folder (``metasheet run --no-wait``); names its pid and start."""
+
+    exit_code = 3
+
+
+class UnreachableError(InfeasibleError):
+    """A goal pose was not reached; the message gives the closest pose and the remaining error."""
+
+    exit_code = 4
+
+
+#: errno -> what a user can do about it, for :func:`output_error`.
+_OS_HINTS = {
+    _errno.ENOSPC: "no space left on device: free some space or choose another output root (--out)",
+    _errno.EDQUOT: "disk quota exceeded: free some space or choose another output root (--out)",
+    _errno.EACCES: "permission denied: make it writable or choose another output root (--out)",
+    _errno.EPERM: "operation not permitted (immutable or not owned): choose another output root (--out)",
+    _errno.EROFS: "read-only file system: choose another output root (--out)",
+}
+
+
+def output_error(exc: OSError, what: str) -> OutputError:
+    """An :class:`OutputError` for an ``OSError`` met while writing ``what`` (a path or a stage).
+
+    The message is ``what: cannot write PATH: cause (ERRNO)``; the path is the one the
+    operating system named, else ``what`` alone.
+    """
+    name = _errno.errorcode.get(exc.errno or 0, "")
+    cause = _OS_HINTS.get(exc.errno, exc.strerror or str(exc))
+    path = _os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes, _os.PathLike)) else ""
+    where = f"cannot write {path}: " if path and str(path) != what else "cannot write: "
+    return OutputError(f"{what}: {where}{cause}" + (f" ({name})" if name else ""))
 
 
 def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=False):

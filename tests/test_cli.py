@@ -1,5 +1,10 @@
-"""The metasheet command: clean errors, stage listing, a real run."""
+"""The metasheet command: clean errors, stage listing, a real run.
 
+The error paths, message by message, are in ``test_reliability_errors.py``; the lock,
+debris and clean in ``test_reliability_lock.py``.
+"""
+
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -31,4 +36,27 @@ def test_run_writes_manifest(tmp_path):
     r = cli("run", "pipelines/quick.toml", "--stage", "material", "--out", str(tmp_path))
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "quick/material/material.json").is_file()
-    assert (tmp_path / "quick/material/manifest.json").is_file()
+    manifest = json.loads((tmp_path / "quick/material/manifest.json").read_text())
+    assert {"started", "wall_time_s", "timings_s"} <= manifest.keys()
+    assert "time [s]" in r.stdout  # the results table keeps its unit
+    assert not (tmp_path / ".quick.lock.json").exists()  # the lock's holder file leaves with the run
+    constants = json.loads((tmp_path / "quick/homogenize/constants.json").read_text())
+    assert "timings_s" not in constants  # wall-clock times: manifests only
+    h = json.loads((tmp_path / "quick/homogenize/manifest.json").read_text())
+    assert set(h["timings_s"]) == {"assembly", "setup", "solve", "post"}
+
+
+def test_validate_checks_the_files_a_pipeline_names(tmp_path):
+    r = cli("validate", "pipelines/quick.toml")
+    assert r.returncode == 0 and "ok; stages in order: cell -> homogenize" in r.stdout
+    (tmp_path / "cells").mkdir()
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[pipeline]\nname = "x"\nstages = ["cell"]\n[cell]\ndesign = "cells/missing.toml"\n')
+    r = cli("validate", str(bad))
+    assert r.returncode == 2
+    assert r.stderr == f"error: {bad}: cell.design: 'cells/missing.toml': no such file under {tmp_path}\n"
+
+
+def test_clean_on_a_folder_never_written(tmp_path):
+    r = cli("clean", "pipelines/quick.toml", "--out", str(tmp_path))
+    assert r.returncode == 0 and "nothing to remove" in r.stdout

@@ -75,7 +75,8 @@ class HomogenizationResult:
     localisation : local strain field and ratios, or None when not kept.
     element_ids : (m,) int, which input element (flat voxel index or tet index) each
         localisation row belongs to.
-    timings : seconds spent in "assembly", "setup", "solve", "post".
+    timings : wall-clock seconds spent in "assembly", "setup", "solve", "post"; not in
+        :meth:`constants` (the homogenize stage records them in its manifest only).
     """
 
     C: np.ndarray

@@ -9,7 +9,9 @@ A pipeline file has one ``[pipeline]`` table and one table per stage::
     [material]
     E_t = 1.39                           # [MPa]
 
-A stage listed without a table runs with its defaults.
+A stage listed without a table runs with its defaults. A parameter naming a project file
+(its description says "relative to the project root": ``cell.design``, ``chart.design``)
+must name an existing file: loading the pipeline (``metasheet validate`` too) checks it.
 """
 
 from __future__ import annotations
@@ -98,6 +100,8 @@ def load_pipeline(path: str | Path) -> Pipeline:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{path}: invalid TOML: {err}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: cannot read: {getattr(err, 'strerror', None) or err}") from None
     registry = stages()
     if "pipeline" not in data:
         raise ConfigError(f"{path}: pipeline: <missing>: a [pipeline] table with name and stages is required")
@@ -117,7 +121,27 @@ def load_pipeline(path: str | Path) -> Pipeline:
         for name in section.stages
     }
     order = resolve_order(section.stages, registry, str(path))
-    return Pipeline(path, find_root(path), section, order, params)
+    root = find_root(path)
+    for name in section.stages:
+        check_project_files(str(path), name, params[name], root)
+    return Pipeline(path, root, section, order, params)
+
+
+#: Words in a parameter's description that mark it as a project file (see :class:`.registry.Params`).
+PROJECT_FILE_MARK = "relative to the project root"
+
+
+def check_project_files(source: str, table: str, params: Params, root: Path) -> None:
+    """Raise :class:`ConfigError` ``file: table.field: value: no such file under ROOT`` for a
+    project-file parameter (see :data:`PROJECT_FILE_MARK`) naming no existing file."""
+    for fname, info in type(params).model_fields.items():
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        if not (extra.get("project_file") or PROJECT_FILE_MARK in (info.description or "")):
+            continue
+        value = getattr(params, fname)
+        if isinstance(value, str) and value and not (root / value).is_file():
+            what = "is a directory, not a file" if (root / value).is_dir() else "no such file"
+            raise ConfigError(f"{source}: {table}.{fname}: {value!r}: {what} under {root}")
 
 
 def resolve_order(names: list[str], registry: dict[str, Stage], source: str) -> tuple[str, ...]:

@@ -1,14 +1,21 @@
 """Hashes, cache keys and ``manifest.json``: what a stage read, with which parameters, what it wrote.
 
 A stage's cache key hashes its name, its parameters, the contents of any file a
-parameter names (a cell design, say), the hashes of its upstream stages' outputs
+parameter names (a cell design, say), the content hashes of its upstream stages' outputs
 and the metasheet version. Equal key and intact outputs mean the stage is skipped.
+
+The content hash of a JSON artefact is canonical (:func:`canonical_sha256`): its numbers
+rounded to :data:`SIGNIFICANT_DIGITS` significant digits, keys sorted. A last-bit change
+in a fitted constant (another BLAS, another thread count) then does not rerun every stage
+downstream; any other file is hashed byte for byte. Wall-clock times are never in an
+artefact, only in the manifest (``started``, ``wall_time_s``, ``timings_s``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import platform
 from importlib import metadata
@@ -18,6 +25,9 @@ from typing import Any
 from .. import __version__
 
 MANIFEST = "manifest.json"
+
+#: Significant digits of the numbers in a JSON artefact's canonical hash (:func:`canonical_sha256`).
+SIGNIFICANT_DIGITS = 12
 
 #: Packages whose versions every manifest records.
 TRACKED = (
@@ -41,6 +51,39 @@ def sha256_json(obj: Any) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def _canonical(obj: Any) -> Any:
+    if isinstance(obj, bool) or obj is None or isinstance(obj, (int, str)):
+        return obj
+    if isinstance(obj, float):
+        if not math.isfinite(obj):
+            return repr(obj)
+        v = float(f"{obj:.{SIGNIFICANT_DIGITS}g}")
+        return 0.0 if v == 0.0 else v  # -0.0 and 0.0 alike
+    if isinstance(obj, dict):
+        return {str(k): _canonical(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_canonical(v) for v in obj]
+    return str(obj)
+
+
+def canonical_sha256(path: Path) -> str:
+    """Hex SHA-256 of a JSON file's content: numbers rounded to :data:`SIGNIFICANT_DIGITS`
+    significant digits, keys sorted, no whitespace. Equal for files that differ only in
+    formatting or in the last bits of their numbers. Not JSON: the bytes' SHA-256."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError):
+        return sha256_file(path)
+    text = json.dumps(_canonical(data), sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def content_hash(info: dict) -> str:
+    """What a downstream cache key uses of one output entry of a manifest: its canonical
+    hash when it has one (JSON), else its SHA-256."""
+    return info.get("canonical", info["sha256"])
+
+
 def param_files(params: dict, root: Path) -> dict[str, str]:
     """Files named by string parameters (relative to ``root``) -> their hashes."""
     found: dict[str, str] = {}
@@ -62,12 +105,15 @@ def param_files(params: dict, root: Path) -> dict[str, str]:
 
 
 def output_hashes(directory: Path) -> dict[str, dict]:
-    """Every file under ``directory`` except the manifest -> {sha256, bytes}."""
+    """Every file under ``directory`` except the manifest -> {sha256, bytes}, plus
+    ``canonical`` (:func:`canonical_sha256`) for a JSON file."""
     out = {}
     for p in sorted(directory.rglob("*")):
         if p.is_file() and p.name != MANIFEST:
             rel = p.relative_to(directory).as_posix()
             out[rel] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
+            if p.suffix.lower() == ".json":
+                out[rel]["canonical"] = canonical_sha256(p)
     return out
 
 
@@ -110,10 +156,22 @@ def is_fresh(directory: Path, key: str) -> bool:
 
 
 def write_json_atomic(path: Path, obj: Any) -> None:
-    """Write JSON to a temporary name, then rename it into place."""
+    """Write JSON to a temporary name, flush it to disk, then rename it into place.
+
+    A failed write (a full disk, say) removes the temporary file and re-raises: ``path``
+    holds the old content or the new one, never a part.
+    """
+    text = json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n"
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n")
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _json_default(o: Any):

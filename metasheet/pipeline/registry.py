@@ -21,7 +21,12 @@ from ..executor import Executor
 
 
 class Params(BaseModel):
-    """Base of every stage's parameter model: unknown keys are errors, models are frozen."""
+    """Base of every stage's parameter model: unknown keys are errors, models are frozen.
+
+    A string parameter that names a project file says so in its description with the
+    words "relative to the project root" (``cell.design``, ``chart.design``): loading the
+    pipeline (``metasheet validate`` too) then checks the file exists.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -39,6 +44,9 @@ class StageContext:
     root : directory of the pipeline file; relative paths in params resolve here.
     executor : where to run independent work units.
     progress : ``progress(description, done, total)`` reports progress to the user.
+    timings : phase -> wall-clock seconds the stage may fill; the runner records them in
+        the manifest (``timings_s``). Wall-clock times never go into an artefact: the same
+        config gives the same bytes.
     """
 
     name: str
@@ -48,6 +56,7 @@ class StageContext:
     root: Path
     executor: Executor = field(default_factory=Executor)
     progress: Callable[[str, int, int], None] = lambda desc, done, total: None
+    timings: dict[str, float] = field(default_factory=dict)
 
     def path(self, filename: str) -> Path:
         """Where to write the output file ``filename``."""

@@ -215,7 +215,11 @@ if HAVE_NUMBA:
         M[r + 2, c + 0] -= sign * v1
         M[r + 2, c + 1] += sign * v0
 
-    @numba.njit(cache=True, fastmath=True, error_model="numpy")
+    # No fastmath: with it, the freshly compiled kernel and the one numba loads from its cache
+    # rounded differently (forces 1e-13 apart), so a first run and a second run wrote different
+    # bytes (issue 15). Without it: the same bits every run, no measurable cost (2.3 ms per
+    # tangent on the quick sheets, both ways).
+    @numba.njit(cache=True, error_model="numpy")
     def corotational_numba(x, tets, X_e, grads, Ke, block_map, f_out, data_out, tangent):
         """Fused kernel: global forces and CSR data of the consistent tangent.
 

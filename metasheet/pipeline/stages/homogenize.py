@@ -5,7 +5,8 @@ or ``cell/cell.vtu`` with ``mesh_route = true``. Writes:
 
 - ``constants.json``: ``E_t, E_l, nu_t, nu_tl, mu_l`` [MPa, -], ``C`` (6 x 6) [MPa],
   ``axis``, ``misfit``, ``relative_density``, ``symmetry_error``, ``solver``,
-  ``resolution``, per-load-case diagnostics and localisation ratios;
+  ``resolution``, per-load-case diagnostics and localisation ratios (no wall-clock times:
+  those go to the manifest's ``timings_s``, so the same cell gives the same bytes);
 - ``fields.vtu``: the solid mesh with the local strain of every unit load case;
 - ``homogenize.png``: C, the fitted constants and the strain localisation.
 """
@@ -80,9 +81,9 @@ def run(ctx: StageContext) -> dict:
         alpha_percent=r.fit.material.alpha,
         units={"E_t": "MPa", "E_l": "MPa", "nu_t": "-", "nu_tl": "-", "mu_l": "MPa", "C": "MPa"},
         voigt_order=["11", "22", "33", "23", "13", "12"],
-        timings_s=r.timings,
         cell=info.get("name"),
     )
+    ctx.timings.update({k: round(float(v), 3) for k, v in r.timings.items()})  # manifest only
     write_json_atomic(ctx.path("constants.json"), constants)
     if p.fields:
         from ...viz.homogenize import tet_field_mesh, voxel_field_mesh
