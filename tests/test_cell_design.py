@@ -11,7 +11,8 @@ from metasheet.cells.foam import voxelize
 from metasheet.errors import ConfigError, InfeasibleError
 
 CELLS = Path(__file__).resolve().parents[1] / "cells"
-CATALOGUE = ("paper_foam", "iso_foam", "closed_foam", "laminate", "solid", "quick_foam")
+CATALOGUE = ("paper_foam", "iso_foam", "closed_foam", "laminate", "solid", "quick_foam", "quick_polyfoam",
+             "paper_polyfoam")
 
 
 def _load(name, **overrides):

@@ -1,8 +1,10 @@
 """orient + printmap stages end to end, and the IceSL script run by a real Lua interpreter.
 
 The Lua test runs the generated ``print.lua`` against a small stand-in for IceSL's
-functions (tex3d_r8f, v, load, emit, set_setting_value, set_service) and checks that
-every field file is read, has 64^3 values, and is bound to the right setting and box.
+functions (tex3d_r8f, v, load, emit, difference, intersection, set_setting_value,
+set_service) and checks that every field file is read, has 64^3 values, and is bound to
+the right setting and box; that the script binds every setting the model uses and nothing
+else; and that the sheet is split into a foam brush (0) and a solid brush (1).
 Each check runs through two Lua runtimes: ``lupa`` (Lua 5.4 bundled in a PyPI wheel, part
 of the ``test`` extra, never skipped) and, when installed, the ``lua5.4`` binary (Debian:
 ``apt-get install lua5.4``), which is skipped without one.
@@ -17,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from metasheet.errors import ConfigError
+from metasheet.pipeline import printsource
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import orient, printmap
 from metasheet.sheet import icesl
@@ -43,9 +47,15 @@ function tex3d_r8f(a, b, c)
   return t
 end
 local loaded, emitted, settings = {}, 0, {}
-function load(path) loaded[#loaded + 1] = path; return {mesh = path} end
+local emits = {}
+function load(path) loaded[#loaded + 1] = path; return {mesh = path, op = 'load'} end
 function load_centered(path) error('load_centered would move the part off its texture box') end
-function emit(shape, brush) assert(shape and shape.mesh, 'emit without a shape'); emitted = emitted + 1 end
+function difference(a, b) assert(a.mesh and b.mesh, 'difference of non-shapes'); return {mesh = a.mesh .. '-' .. b.mesh, op = 'difference'} end
+function intersection(a, b) assert(a.mesh and b.mesh, 'intersection of non-shapes'); return {mesh = a.mesh .. '*' .. b.mesh, op = 'intersection'} end
+function emit(shape, brush)
+  assert(shape and shape.mesh, 'emit without a shape'); emitted = emitted + 1
+  emits[#emits + 1] = shape.op .. ' ' .. shape.mesh .. ' ' .. tostring(brush or 0)
+end
 function set_service(name) end
 function set_setting_value(name, value, lo, hi) settings[#settings + 1] = {name = name, value = value, lo = lo, hi = hi} end
 dofile(arg[1])
@@ -58,8 +68,9 @@ for _, s in ipairs(settings) do
     print('SET ' .. s.name .. ' ' .. tostring(s.value))
   end
 end
-print('LOAD ' .. tostring(loaded[1]) .. ' ' .. #loaded)
+print('LOAD ' .. table.concat(loaded, ' ') .. ' ' .. #loaded)
 print('EMIT ' .. emitted)
+for _, e in ipairs(emits) do print('BRUSH ' .. e) end
 """
 
 # What `lua5.4 driver script` does, inside a lupa runtime: `arg` and the chunk's `...` as
@@ -123,16 +134,37 @@ def run_lua(request):
     return _run_binary
 
 
+# the constants of a polyfoam cell (the paper's foam numbers, standing in for a homogenised cell)
+CELL = {"E_t": 1.39, "E_l": 0.0942, "nu_t": 0.26162, "nu_tl": 0.4161, "mu_l": 0.01628}
+
+
+def polyfoam_inputs(root: Path, *, kind="polyfoam", settings=None, constants=None) -> dict:
+    """cell/ and homogenize/ outputs as the stages write them: cell.json with the design's IceSL
+    settings, constants.json with the homogenised constants."""
+    (root / "cell").mkdir(parents=True, exist_ok=True)
+    (root / "homogenize").mkdir(parents=True, exist_ok=True)
+    icesl_settings = {"infill_percentage": 80.0, "kgon_x_shrink": 0.2} if settings is None else settings
+    design = {"kind": kind, "name": f"test_{kind}", "icesl": icesl_settings}
+    (root / "cell" / "cell.json").write_text(json.dumps({"kind": kind, "name": design["name"], "design": design}))
+    (root / "homogenize" / "constants.json").write_text(json.dumps(constants or CELL))
+    return {"cell": root / "cell", "homogenize": root / "homogenize"}
+
+
+class _Ctx:
+    def __init__(self, inputs):
+        self.inputs = inputs
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     root = tmp_path_factory.mktemp("stages")
     o, pm = root / "orient", root / "printmap"
     o.mkdir()
     pm.mkdir()
-    po = orient.OrientParams(mesh_size=8.0, pitch_deg=40.0,
-                             grading={"table": {"tips": {"density": 0.25}}})
+    po = orient.OrientParams(mesh_size=8.0, pitch_deg=40.0, constants=CELL)
     so = orient.run(StageContext("orient", po, o, {}, root))
-    sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(), pm, {"orient": o}, root))
+    inputs = {"orient": o, **polyfoam_inputs(root)}
+    sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(), pm, inputs, root))
     return o, pm, so, sp
 
 
@@ -158,8 +190,7 @@ def test_orient_outputs(runs):
     assert fa.shape == (summary["n_tets"], 3)
     assert np.allclose(fb_, fa * [1, -1, 1])  # element i of the mirror is the image of i
     assert np.allclose(b.points, a.points * [1, -1, 1])
-    E_t = a.cell_data["E_t"][0]
-    assert set(np.round(np.unique(E_t / 1.39), 9)) == {1.0, round((0.25 / 0.15) ** 2, 9)}
+    assert np.allclose(a.cell_data["E_t"][0], CELL["E_t"])
     assert set(np.unique(a.point_data["attach"])) == {0, 1, 2, 3, 4}
     _nonblank_png(o / "sheet.png")
 
@@ -167,14 +198,22 @@ def test_orient_outputs(runs):
 def test_printmap_outputs(runs):
     _, pm, _, summary = runs
     for label in ("normal", "mirrored"):
-        for f in ("sheet.stl", "print.lua", "density.txt", "theta.txt", "phi.txt", "iso.txt"):
+        for f in ("sheet.stl", "solid.stl", "print.lua", "infill_percentage.txt", "infill_angle.txt"):
             assert (pm / label / f).exists(), f"{label}/{f}"
-        assert summary[f"{label}_percent_range"] == [15.0, 25.0]
+        assert not (pm / label / "kgon_x_shrink.txt").exists()  # uniform shrink: a value, not a field
+        assert summary[f"{label}_infill_percentage_range"] == [80.0, 80.0]
+    assert not list(pm.rglob(".*tmp*"))  # atomic writes leave no temporary file
     _nonblank_png(pm / "printmap.png")
 
 
+# the settings the point model of a polyfoam cell (shrink 0.2, kgon defaults) binds on brush 0
+FOAM_FIELDS = {"infill_percentage_0": "infill_percentage.txt", "infill_angle_0": "infill_angle.txt"}
+FOAM_VALUES = {"infill_type_0": "Polyfoam", "print_perimeter_0": "false", "num_shells_0": "0",
+               "cover_thickness_mm_0": "0.0", "kgon_x_shrink_0": "0.2"}
+
+
 @pytest.mark.parametrize("label", ["normal", "mirrored"])
-def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label, run_lua):
+def test_lua_script_runs_and_binds_exactly_the_modelled_settings(runs, tmp_path, label, run_lua):
     _, pm, _, _ = runs
     info = json.loads((pm / "printmap.json").read_text())["sheets"][label]
     driver = tmp_path / "standin.lua"
@@ -183,10 +222,8 @@ def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label, run_lua):
     assert res.returncode == 0, res.stderr
     lines = res.stdout.splitlines()
     fields = {ln.split()[1]: ln.split()[2:] for ln in lines if ln.startswith("FIELD")}
-    expected = {"infill_percentage_0": "density.txt", "phasor_infill_theta_0": "theta.txt",
-                "phasor_infill_phi_0": "phi.txt", "phasor_infill_iso_0": "iso.txt"}
-    assert set(fields) == set(expected)
-    for setting, fname in expected.items():
+    assert set(fields) == set(FOAM_FIELDS)
+    for setting, fname in FOAM_FIELDS.items():
         f = fields[setting]
         assert f[0] == fname
         assert [int(x) for x in f[1:6]] == [64, 64, 64, 64**3, 64**3]
@@ -194,14 +231,20 @@ def test_lua_script_runs_and_binds_every_field(runs, tmp_path, label, run_lua):
         assert float(f[6]) == pytest.approx(values.sum(), rel=1e-9, abs=1e-6)
         assert np.allclose([float(x) for x in f[7:10]], info["box_lo_mm"], atol=1e-6)
         assert np.allclose([float(x) for x in f[10:13]], info["box_hi_mm"], atol=1e-6)
-    assert "SET infill_type_0 Phasor" in lines
-    assert "SET z_layer_height_mm 0.3" in lines
-    assert "LOAD sheet.stl 1" in lines and "EMIT 1" in lines
+    sets = dict(ln.split()[1:3] for ln in lines if ln.startswith("SET"))
+    brush0 = {k: v for k, v in sets.items() if k.endswith("_0") and k != "extruder_temp_degree_c_0"}
+    assert brush0 == FOAM_VALUES  # the model's settings, and nothing unmodelled (kgon defaults unset)
+    brush1 = {k: v for k, v in sets.items() if k.endswith("_1")}
+    assert brush1 == {"infill_percentage_1": "100.0", "num_shells_1": "10", "print_perimeter_1": "true"}
+    assert sets["z_layer_height_mm"] == "0.3"
+    assert "LOAD sheet.stl solid.stl 2" in lines and "EMIT 2" in lines
+    brushes = sorted(ln for ln in lines if ln.startswith("BRUSH"))
+    assert brushes == ["BRUSH difference sheet.stl-solid.stl 0", "BRUSH intersection sheet.stl*solid.stl 1"]
 
 
-def test_polyfoam_script_binds_density_and_angle(tmp_path, run_lua):
+def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, run_lua):
     rng = np.random.default_rng(0)
-    files = {"density": "density.txt", "theta": "angle.txt"}
+    files = {"infill_percentage": "p.txt", "kgon_x_shrink": "s.txt", "infill_angle": "a.txt"}
     sums = {}
     for k, fname in files.items():
         v = np.round(rng.random((64, 64, 64)), 4)
@@ -209,24 +252,84 @@ def test_polyfoam_script_binds_density_and_angle(tmp_path, run_lua):
         sums[fname] = v.sum()
     box = icesl.GridBox(np.array([-1.0, -2.0, -3.0]), np.array([1.0, 2.0, 3.0]))
     (tmp_path / "print.lua").write_text(icesl.lua_script(
-        stl="sheet.stl", infill="polyfoam", files=files, box=box, settings={"z_layer_height_mm": 0.3}))
+        sheet_stl="sheet.stl", solid_stl="solid.stl", infill_type="Polyfoam",
+        foam={**icesl.FOAM_BRUSH, "kgon_min_angle": 60.0}, fields=files,
+        solid={"num_shells": 10}, box=box, settings={"z_layer_height_mm": 0.3}))
     (tmp_path / "standin.lua").write_text(STANDIN)
     res = run_lua("standin.lua", "print.lua", cwd=tmp_path, timeout=60)
     assert res.returncode == 0, res.stderr
     fields = {ln.split()[1]: ln.split()[2:] for ln in res.stdout.splitlines() if ln.startswith("FIELD")}
-    assert {k: v[0] for k, v in fields.items()} == {"infill_percentage_0": "density.txt", "infill_angle_0": "angle.txt"}
+    assert {k: v[0] for k, v in fields.items()} == {f"{k}_0": f for k, f in files.items()}
     for f in fields.values():
         assert float(f[6]) == pytest.approx(sums[f[0]], rel=1e-9)
         assert [float(x) for x in f[7:13]] == [-1.0, -2.0, -3.0, 1.0, 2.0, 3.0]
-    assert "SET infill_type_0 Polyfoam" in res.stdout.splitlines()
+    assert "SET kgon_min_angle_0 60.0" in res.stdout.splitlines()
+    assert "kgon_norm_alpha" not in res.stdout
+    with pytest.raises(ConfigError, match="both a value and a field"):
+        icesl.lua_script(sheet_stl="s", solid_stl="t", infill_type="Polyfoam", foam={"kgon_x_shrink": 0.2},
+                         fields={"kgon_x_shrink": "s.txt"}, solid={}, box=box, settings={})
 
 
 def test_lua_script_fails_loudly_on_a_short_field(tmp_path, run_lua):
     box = icesl.GridBox(np.zeros(3), np.ones(3))
-    files = {"density": "density.txt", "theta": "angle.txt"}
+    files = {"infill_percentage": "density.txt", "infill_angle": "angle.txt"}
     (tmp_path / "density.txt").write_text(icesl.field_text(np.zeros((64, 64, 64))))
     (tmp_path / "angle.txt").write_text("0.5 0.5\n")
-    (tmp_path / "print.lua").write_text(icesl.lua_script(stl="s.stl", infill="polyfoam", files=files, box=box, settings={}))
+    (tmp_path / "print.lua").write_text(icesl.lua_script(
+        sheet_stl="s.stl", solid_stl="t.stl", infill_type="Polyfoam", foam={}, fields=files, solid={},
+        box=box, settings={}))
     (tmp_path / "standin.lua").write_text(STANDIN)
     res = run_lua("standin.lua", "print.lua", cwd=tmp_path, timeout=60)
     assert res.returncode != 0 and "expected 262144 values, read 2" in res.stderr
+
+
+# ------------------------------------------------------------------ the print source
+
+def test_print_source_point_model_from_the_cell(tmp_path):
+    ctx = _Ctx(polyfoam_inputs(tmp_path, settings={"infill_percentage": 40.0, "kgon_x_shrink": 0.3,
+                                                  "kgon_min_angle": 60.0, "kgon_norm_alpha": 0.5}))
+    src = printsource.print_source(ctx, "auto")
+    assert isinstance(src, printsource.PrintSource)
+    assert (src.family, src.infill_type) == ("polyfoam", "Polyfoam")
+    assert src.fixed == {"kgon_x_shrink": 0.3, "kgon_min_angle": 60.0}  # alpha at its default: not written
+    assert src.field_names == ("infill_percentage",)
+    assert printsource.print_source(ctx, "polyfoam").fixed == src.fixed
+    # the cell itself maps to the cell's setting and back
+    one = {k: np.array([v]) for k, v in CELL.items()}
+    assert src.settings_for(one)["infill_percentage"] == pytest.approx([40.0])
+    # local power law: moduli x (p / p_cell)^1.1, Poisson ratios unchanged
+    c = src.constants_at({"infill_percentage": np.array([40.0, 60.0])})
+    assert c["E_t"] == pytest.approx(CELL["E_t"] * np.array([1.0, 1.5 ** printsource.WALL_EXPONENT]))
+    assert c["nu_tl"] == pytest.approx([CELL["nu_tl"]] * 2)
+    back = src.settings_for(c)["infill_percentage"]
+    assert back == pytest.approx([40.0, 60.0])
+    with pytest.raises(ConfigError, match="no chart to map a different shrink"):
+        src.constants_at({"infill_percentage": np.array([40.0]), "kgon_x_shrink": np.array([0.25])})
+
+
+def test_phasor_and_unprintable_cells_are_refused(tmp_path):
+    ctx = _Ctx(polyfoam_inputs(tmp_path / "a"))
+    with pytest.raises(ConfigError, match=r"printmap\.infill: 'phasor': no modelled phasor cell family"):
+        printsource.print_source(ctx, "phasor")
+    foam = _Ctx(polyfoam_inputs(tmp_path / "b", kind="foam"))
+    with pytest.raises(ConfigError, match=r"printmap\.infill: 'auto': the cell 'test_foam' is of family 'foam'"):
+        printsource.print_source(foam, "auto")
+    with pytest.raises(ConfigError, match=r"printmap\.infill: 'polyfoam': the cell 'test_foam' is of family 'foam'"):
+        printsource.print_source(foam, "polyfoam")
+    with pytest.raises(ConfigError, match=r"needs the cell and homogenize stages: add 'cell', 'homogenize'"):
+        printsource.print_source(_Ctx({}), "auto")
+    with pytest.raises(ConfigError, match=r"needs the homogenize stage"):
+        printsource.print_source(_Ctx({"cell": tmp_path / "a" / "cell"}), "auto")
+
+
+def test_stage_refuses_phasor_and_overriding_modelled_settings(runs, tmp_path):
+    o, _, _, _ = runs
+    inputs = {"orient": o, **polyfoam_inputs(tmp_path)}
+    out = tmp_path / "pm"
+    out.mkdir()
+    with pytest.raises(ConfigError, match="no modelled phasor cell family"):
+        printmap.run(StageContext("printmap", printmap.PrintmapParams(infill="phasor"), out, inputs, tmp_path))
+    with pytest.raises(ConfigError, match=r"printmap\.settings: \['num_shells_0'\]"):
+        printmap.run(StageContext("printmap", printmap.PrintmapParams(settings={"num_shells_0": 2}), out,
+                                  inputs, tmp_path))
+    assert not list(out.iterdir())

@@ -2,6 +2,8 @@
 
 - :mod:`.seeds`: periodic seed samplers (uniform, jittered grid, Poisson disk) and images.
 - :mod:`.metrics`: stretched Euclidean and polyhedral (k-gon) distances.
+- :mod:`.kgon`: the k-gon trapezohedron gauge of IceSL's Polyfoam (:class:`KgonMetric`).
+- :mod:`.polyfoam`: the Polyfoam density solve (one-bead walls, cell size from the density).
 - :mod:`.skeleton`: distances to the Voronoi skeleton (walls, struts) and nearest seeds.
 - :mod:`.foam`: :class:`Foam`, its level set :func:`foam_field`, :func:`voxelize`.
 - :mod:`.thickness`: the strut radius / wall thickness for a relative density
@@ -13,8 +15,9 @@
 """
 
 from .connectivity import ConnectivityReport, check_percolation
-from .design import CellDesign, CellResult, design_cell, parse_design
+from .design import CellDesign, CellResult, PolyfoamDesign, design_cell, parse_design
 from .foam import Foam, foam_field, voxelize
+from .kgon import KgonMetric
 from .metrics import PolyhedralMetric, StretchedMetric
 from .thickness import solve_thickness
 
@@ -23,6 +26,8 @@ __all__ = [
     "CellResult",
     "ConnectivityReport",
     "Foam",
+    "KgonMetric",
+    "PolyfoamDesign",
     "PolyhedralMetric",
     "StretchedMetric",
     "check_percolation",

@@ -1,10 +1,14 @@
 """Cell designs (the ``cells/*.toml`` catalogue) and :func:`design_cell`, which builds one.
 
-A design is a plain mapping (a parsed TOML file) validated into one of three frozen models,
+A design is a plain mapping (a parsed TOML file) validated into one of four frozen models,
 told apart by ``kind``:
 
 - ``foam``: a periodic Voronoi foam (:mod:`metasheet.cells.foam`) whose strut radius or
   wall thickness is solved for a relative density (:mod:`metasheet.cells.thickness`);
+- ``polyfoam``: IceSL's Polyfoam as modelled here: Voronoi walls one bead thick under the
+  k-gon gauge (:mod:`metasheet.cells.kgon`), the cell size solved for the infill density
+  (:mod:`metasheet.cells.polyfoam`) on a non-cubic grid of edge ``voxel_mm``; the
+  longitudinal (soft) axis is x;
 - ``laminate``: layers of isotropic materials stacked along ``axis`` (exact Backus
   averages downstream);
 - ``solid``: the bulk base material.
@@ -21,14 +25,16 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from ..errors import ConfigError, InfeasibleError
 from ..material import Isotropic
 from .connectivity import ConnectivityReport, check_percolation, keep_largest
 from .foam import Foam, foam_field, voxel_centres
+from .kgon import KgonMetric
 from .measure import mean_chord_lengths
 from .metrics import PolyhedralMetric, StretchedMetric
+from .polyfoam import PolyfoamField, PolyfoamSolution, solve_polyfoam
 from .seeds import make_seeds
 from .skeleton import SkeletonIndex
 from .thickness import ThicknessSolution, solve_thickness
@@ -132,9 +138,71 @@ class SolidDesign(_CellBase):
     material: MaterialSpec = MaterialSpec()
 
 
-CellDesign = FoamDesign | LaminateDesign | SolidDesign
+class PolyfoamDesign(_Model):
+    """IceSL's Polyfoam (as modelled here); see ``cells/paper_polyfoam.toml`` for every field.
+
+    IceSL's names: ``infill_percentage`` [%] (the solid volume fraction x 100 under
+    ``density_model = "volume_fraction"``), ``kgon_x_shrink`` [-], ``kgon_min_angle`` [deg],
+    ``kgon_norm_alpha`` [-] (only 0.5, IceSL's default: its effect is unpublished),
+    ``infill_angle`` [deg] (recorded; applied by the sheet's orientation field),
+    ``kgon_sides`` (k, an assumption), ``bead_width`` [mm] (the wall thickness),
+    ``layer_height`` [mm] (recorded; modelled only with ``layer_model = "staircase"``).
+    ``wall_measure`` ("normal" | "horizontal") says how the bead width is measured;
+    ``seed_space`` where the seeds are spread evenly: "gauge" (the gauge's scaled space
+    ``(1/s, 1, beta)``, as for foams: cells ``1/beta`` tall) or "print" (``(1/s, 1, 1)``:
+    spacing along z as along y, only the shrink applied). The box
+    follows from the seeds and the density; the grid from ``voxel_mm`` (default
+    ``bead_width / 2``). ``axis`` is 1 (x).
+    """
+
+    kind: Literal["polyfoam"] = "polyfoam"
+    name: str
+    description: str = ""
+    axis: Literal[1] = 1
+    density_model: Literal["volume_fraction"] = "volume_fraction"
+    infill_percentage: float = Field(20.0, ge=1.0, le=90.0)
+    kgon_x_shrink: float = Field(1.0, gt=0.0, le=1.0)
+    kgon_min_angle: float = Field(45.0, ge=10.0, le=80.0)
+    kgon_norm_alpha: float = 0.5
+    infill_angle: float = Field(0.0, ge=-360.0, le=360.0)
+    kgon_sides: int = Field(6, ge=3, le=64)
+    bead_width: float = Field(0.4, gt=0.0, le=5.0)
+    layer_height: float = Field(0.3, gt=0.0, le=5.0)
+    wall_measure: Literal["normal", "horizontal"] = "normal"
+    layer_model: Literal["none", "staircase"] = "none"
+    seed_space: Literal["gauge", "print"] = "gauge"
+    voxel_mm: float | None = Field(None, gt=0.0, le=5.0)
+    max_voxels: int = Field(4_000_000, ge=1000, le=100_000_000)
+    tolerance: float = Field(0.005, gt=0.0, lt=1.0)
+    max_island_fraction: float = Field(0.01, ge=0.0, le=1.0)
+    seeds: SeedSpec = SeedSpec(count=16)
+    material: MaterialSpec = MaterialSpec()
+
+    @field_validator("kgon_norm_alpha")
+    @classmethod
+    def _alpha(cls, v: float) -> float:
+        if v != 0.5:
+            raise ValueError("only 0.5 (IceSL's default) is modelled: what kgon_norm_alpha does is unpublished")
+        return v
+
+    @property
+    def voxel_edge(self) -> float:
+        """The wanted voxel edge [mm]: ``voxel_mm``, default ``bead_width / 2``."""
+        return self.bead_width / 2.0 if self.voxel_mm is None else float(self.voxel_mm)
+
+    @property
+    def fraction(self) -> float:
+        """The target solid volume fraction [-] (``infill_percentage / 100``)."""
+        return self.infill_percentage / 100.0
+
+    def metric(self) -> KgonMetric:
+        return KgonMetric(self.kgon_sides, self.kgon_x_shrink, self.kgon_min_angle)
+
+
+CellDesign = FoamDesign | LaminateDesign | SolidDesign | PolyfoamDesign
 _METRIC_KINDS = ("stretched", "polyhedral")
-_KINDS = {"foam": FoamDesign, "laminate": LaminateDesign, "solid": SolidDesign}
+_KINDS = {"foam": FoamDesign, "laminate": LaminateDesign, "solid": SolidDesign, "polyfoam": PolyfoamDesign}
+_POLYFOAM_ONLY = ("infill_percentage", "kgon_x_shrink", "voxel_mm")
 
 
 def _config_error(err: ValidationError, prefix: str) -> ConfigError:
@@ -155,29 +223,55 @@ def parse_design(data: Mapping[str, Any], *, overrides: Mapping[str, Any] | None
                  source: str = "design") -> CellDesign:
     """Validate a design mapping (a parsed ``cells/*.toml``), with optional overrides.
 
-    ``overrides`` may set ``resolution``, ``seed`` (the seeds' RNG seed) and
-    ``relative_density``; ``None`` values are ignored. Errors are :class:`ConfigError`
-    naming the field as ``{source}.field.subfield``.
+    ``overrides`` may set ``seed`` (the seeds' RNG seed) and ``relative_density`` (foams and
+    polyfoams), ``resolution`` (all but polyfoams, whose grid follows ``voxel_mm``),
+    ``infill_percentage``, ``kgon_x_shrink`` and ``voxel_mm`` (polyfoams). For a polyfoam
+    ``relative_density`` rho means ``infill_percentage = 100 rho`` (the volume-fraction
+    density model). ``None`` values are ignored. Errors are :class:`ConfigError` naming the
+    field as ``{source}.field.subfield`` and the allowed range.
     """
     data = dict(data)
     kind = data.get("kind", "foam")
     if kind not in _KINDS:
         raise ConfigError(f"{source}.kind: {kind!r}: expected one of {', '.join(_KINDS)}")
-    for key, value in (overrides or {}).items():
-        if value is None:
-            continue
+    given = {k: v for k, v in (overrides or {}).items() if v is not None}
+    if kind == "polyfoam" and "relative_density" in given:
+        rho = given.pop("relative_density")
+        try:
+            infill = 100.0 * float(rho)
+        except (TypeError, ValueError):
+            raise ConfigError(f"relative_density: {rho!r}: expected a number in [0.01, 0.9]") from None
+        if "infill_percentage" in given and abs(float(given["infill_percentage"]) - infill) > 1e-9:
+            raise ConfigError(
+                f"relative_density: {rho!r}: disagrees with infill_percentage {given['infill_percentage']!r} "
+                "(under the volume_fraction model infill_percentage = 100 relative_density); give one"
+            )
+        given["infill_percentage"] = infill
+    for key, value in given.items():
         if key == "seed":
-            if kind != "foam":
-                raise ConfigError(f"seed: {value!r}: only foam designs have seeds (this is a {kind})")
+            if kind not in ("foam", "polyfoam"):
+                raise ConfigError(f"seed: {value!r}: only foam and polyfoam designs have seeds (this is a {kind})")
             data["seeds"] = {**dict(data.get("seeds", {})), "seed": value}
         elif key == "relative_density":
             if kind != "foam":
                 raise ConfigError(f"relative_density: {value!r}: only foam designs have one (this is a {kind})")
             data[key] = value
         elif key == "resolution":
+            if kind == "polyfoam":
+                raise ConfigError(
+                    f"resolution: {value!r}: a polyfoam's grid follows voxel_mm (its voxel edge [mm]); "
+                    "override voxel_mm instead"
+                )
+            data[key] = value
+        elif key in _POLYFOAM_ONLY:
+            if kind != "polyfoam":
+                raise ConfigError(f"{key}: {value!r}: only polyfoam designs have one (this is a {kind})")
             data[key] = value
         else:
-            raise ConfigError(f"overrides: {key!r}: expected resolution, seed or relative_density")
+            raise ConfigError(
+                f"overrides: {key!r}: expected resolution, seed, relative_density, infill_percentage, "
+                "kgon_x_shrink or voxel_mm"
+            )
     if isinstance(data.get("metric"), Mapping) and "kind" not in data["metric"]:
         data["metric"] = {"kind": "stretched", **data["metric"]}
     try:
@@ -193,17 +287,19 @@ class CellResult:
     Attributes
     ----------
     design : the validated design.
-    phases : (n, n, n) uint8, 0 void, 1.. material phases; ``[i, j, k]`` along x, y, z.
+    phases : (nx, ny, nz) uint8, 0 void, 1.. material phases; ``[i, j, k]`` along x, y, z
+        (cubic, n = nx = ny = nz, for all but polyfoams).
     size : (3,) [mm] the periodic box.
     axis : longitudinal axis index (0, 1, 2).
     materials : phase -> :class:`~metasheet.material.Isotropic`.
     relative_density : solid voxels / all voxels [-].
-    foam : the :class:`Foam` (foam designs), else None.
+    foam : the :class:`Foam` (foam and polyfoam designs), else None.
     solution : the thickness solve (foam designs), else None.
     connectivity : report of the final phases.
     removed_voxels : solid voxels of small islands dropped after voxelisation.
     chords : (3,) mean void chord lengths along x, y, z [mm] (NaN without void).
     layer_fractions : achieved volume fraction of each phase (laminates), else ().
+    polyfoam : the scale solve (polyfoam designs), else None.
     """
 
     design: CellDesign
@@ -218,10 +314,23 @@ class CellResult:
     removed_voxels: int = 0
     chords: np.ndarray | None = None
     layer_fractions: tuple[float, ...] = ()
+    polyfoam: PolyfoamSolution | None = None
 
     @property
-    def resolution(self) -> int:
-        return int(self.phases.shape[0])
+    def shape(self) -> tuple[int, int, int]:
+        """(nx, ny, nz) voxels along x, y, z."""
+        return tuple(int(v) for v in self.phases.shape)
+
+    @property
+    def resolution(self) -> int | tuple[int, int, int]:
+        """Voxels per side of a cubic grid, else the grid's :attr:`shape`."""
+        sh = self.shape
+        return sh[0] if sh[0] == sh[1] == sh[2] else sh
+
+    @property
+    def voxel_mm(self) -> np.ndarray:
+        """(3,) voxel edges [mm]."""
+        return self.size / np.array(self.shape)
 
     @property
     def axis_vector(self) -> np.ndarray:
@@ -230,7 +339,10 @@ class CellResult:
 
     @property
     def field(self) -> Callable[[np.ndarray], np.ndarray] | None:
-        """The foam's level set (:func:`foam_field`), None for laminates and solids."""
+        """The foam's level set (:func:`foam_field`; polyfoams: :class:`PolyfoamField`), None for
+        laminates and solids."""
+        if self.polyfoam is not None:
+            return PolyfoamField(self.foam, self.polyfoam)
         return None if self.foam is None else foam_field(self.foam)
 
     def summary(self) -> dict:
@@ -241,8 +353,9 @@ class CellResult:
             "size_mm": [float(v) for v in self.size],
             "axis": int(self.axis) + 1,
             "axis_vector": self.axis_vector.tolist(),
-            "resolution": self.resolution,
-            "voxel_mm": [float(v) for v in self.size / self.resolution],
+            "resolution": self.resolution if isinstance(self.resolution, int) else list(self.resolution),
+            "grid_shape": list(self.shape),
+            "voxel_mm": [float(v) for v in self.voxel_mm],
             "relative_density": float(self.relative_density),
             "materials": {str(k): {"E": m.E, "nu": m.nu} for k, m in sorted(self.materials.items())},
             "connectivity": self.connectivity.to_dict(),
@@ -261,6 +374,34 @@ class CellResult:
                 "metric": self.foam.metric.describe(),
                 "mean_void_chord_mm": [float(v) for v in self.chords],
             })
+        if self.polyfoam is not None:
+            d, p = self.design, self.polyfoam
+            out.update({
+                "icesl": {k: getattr(d, k) for k in (
+                    "infill_percentage", "kgon_x_shrink", "kgon_min_angle", "kgon_norm_alpha",
+                    "infill_angle", "bead_width", "layer_height")},
+                "kgon_sides": int(d.kgon_sides),
+                "density_model": d.density_model,
+                "wall_measure": d.wall_measure,
+                "layer_model": d.layer_model,
+                "seed_space": d.seed_space,
+                "layers": p.layers,
+                "layer_mm": p.layer_mm,
+                "topology": "closed",
+                "wall_thickness_mm": p.wall_thickness,
+                "cell_scale_mm": p.cell_scale,
+                "cell_scale_first_estimate_mm": p.first_estimate,
+                "target_relative_density": p.target,
+                "volume_estimate": p.volume_estimate,
+                "scale_iterations": p.iterations,
+                "removed_island_voxels": int(self.removed_voxels),
+                "seed_count": int(len(self.foam.seeds)),
+                "metric": self.foam.metric.describe(),
+                "mean_void_chord_mm": [float(v) for v in self.chords],
+                "modelled": f"walls one bead thick ({d.wall_measure} to the wall); infill_angle applied "
+                            "by the sheet's orientation field; layer_height "
+                            + ("as a staircase" if d.layer_model == "staircase" else "not modelled"),
+            })
         if self.layer_fractions:
             out["layer_fractions"] = list(self.layer_fractions)
         return out
@@ -278,7 +419,13 @@ def design_cell(design: CellDesign, resolution: int | None = None) -> CellResult
     ------
     InfeasibleError : the density is out of reach at this resolution, or the foam does not
         hold together (several large pieces) or does not percolate along x, y and z.
+
+    A polyfoam's grid is non-cubic and follows its ``voxel_mm``; ``resolution`` is refused.
     """
+    if isinstance(design, PolyfoamDesign):
+        if resolution is not None:
+            raise ConfigError(f"resolution: {resolution!r}: a polyfoam's grid follows voxel_mm; set that instead")
+        return _design_polyfoam(design)
     n = design.resolution if resolution is None else int(resolution)
     if not 4 <= n <= 512:
         raise ConfigError(f"resolution: {resolution!r}: expected an integer in [4, 512]")
@@ -332,6 +479,54 @@ def _design_foam(design: FoamDesign, n: int, size: np.ndarray, axis: int) -> Cel
         design=design, phases=phases, size=size, axis=axis,
         materials={1: design.material.material()}, relative_density=rho, foam=foam, solution=sol,
         connectivity=report, removed_voxels=removed, chords=mean_chord_lengths(phases == 0, size),
+    )
+
+
+def _design_polyfoam(design: PolyfoamDesign) -> CellResult:
+    metric = design.metric()
+    t = float(design.bead_width)
+    if design.voxel_edge > t:
+        raise ConfigError(
+            f"voxel_mm: {design.voxel_edge:g}: must not exceed bead_width {t:g} mm (walls at least one voxel thick)"
+        )
+    sd = design.seeds
+    scale = metric.scale if design.seed_space == "gauge" else np.array([1.0 / design.kgon_x_shrink, 1.0, 1.0])
+    unit_size = float(sd.count) ** (1.0 / 3.0) / scale  # a cube in the seeds' scaled space
+    seeds = make_seeds(sd.sampler, sd.count, unit_size, sd.seed, scale=scale, jitter=sd.jitter,
+                       min_distance=sd.min_distance)
+    sol, phases = solve_polyfoam(seeds, unit_size, metric, fraction=design.fraction, wall_thickness=t,
+                                 voxel_mm=design.voxel_edge, max_voxels=design.max_voxels,
+                                 wall_measure=design.wall_measure,
+                                 layer_height=design.layer_height if design.layer_model == "staircase" else None)
+    size = sol.size
+    foam = Foam(seeds * sol.cell_scale, size, metric, "closed", t, 0)
+    where = (f"design {design.name!r} (polyfoam, kgon_x_shrink {design.kgon_x_shrink:g}, grid "
+             f"{'x'.join(map(str, sol.shape))})")
+    report = check_percolation(phases)
+    removed = 0
+    if report.components > 1:
+        if 1.0 - report.largest_fraction > design.max_island_fraction:
+            raise InfeasibleError(
+                f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())} "
+                f"(more than max_island_fraction = {design.max_island_fraction:g}); lower voxel_mm"
+            )
+        phases, removed = keep_largest(phases)
+        report = check_percolation(phases)
+    if not report.ok:
+        raise InfeasibleError(
+            f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())}; "
+            "lower voxel_mm or use more seeds"
+        )
+    rho = float(np.count_nonzero(phases)) / phases.size
+    if abs(rho - design.fraction) > design.tolerance:
+        raise InfeasibleError(
+            f"infill_percentage: {design.infill_percentage:g}: {where}: reached a solid fraction {rho:.4f}, "
+            f"outside tolerance {design.tolerance:g} after dropping {removed} island voxels; lower voxel_mm"
+        )
+    return CellResult(
+        design=design, phases=phases, size=size, axis=0, materials={1: design.material.material()},
+        relative_density=rho, foam=foam, solution=None, connectivity=report, removed_voxels=removed,
+        chords=mean_chord_lengths(phases == 0, size), polyfoam=sol,
     )
 
 

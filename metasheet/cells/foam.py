@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, check_range
+from .kgon import KgonMetric
 from .metrics import Metric, PolyhedralMetric, StretchedMetric
 from .seeds import wrap
 from .skeleton import SkeletonIndex
@@ -60,8 +61,8 @@ class Foam:
             raise ConfigError(f"seeds: shape is {seeds.shape} and should be (N, 3), N >= 1 [mm]")
         if not np.all(np.isfinite(seeds)):
             raise ConfigError("seeds: non-finite coordinates")
-        if not isinstance(self.metric, (StretchedMetric, PolyhedralMetric)):
-            raise ConfigError(f"metric: {self.metric!r}: expected a StretchedMetric or PolyhedralMetric")
+        if not isinstance(self.metric, (StretchedMetric, PolyhedralMetric, KgonMetric)):
+            raise ConfigError(f"metric: {self.metric!r}: expected a StretchedMetric, PolyhedralMetric or KgonMetric")
         if self.topology not in TOPOLOGIES:
             raise ConfigError(f"topology: {self.topology!r}: expected one of {', '.join(TOPOLOGIES)}")
         check_range("thickness", self.thickness, 0.0, float(size.max()))
@@ -115,15 +116,15 @@ def foam_field(foam: Foam) -> Callable[[np.ndarray], np.ndarray]:
     return FoamField(foam)
 
 
-def voxel_centres(size, n: int) -> np.ndarray:
-    """Centres of an ``n^3`` grid over the box, (n^3, 3) [mm], C order of ``(i, j, k)``.
+def voxel_centres(size, n) -> np.ndarray:
+    """Centres of an ``n^3`` (or ``nx x ny x nz``) grid over the box, (n^3, 3) [mm], C order of ``(i, j, k)``.
 
-    Voxel ``(i, j, k)`` is centred at ``((i + 1/2) sx, (j + 1/2) sy, (k + 1/2) sz)`` with
-    ``s = size / n``.
+    ``n`` : int, or (3,) ints for a non-cubic grid. Voxel ``(i, j, k)`` is centred at
+    ``((i + 1/2) sx, (j + 1/2) sy, (k + 1/2) sz)`` with ``s = size / n``.
     """
     size = np.asarray(size, dtype=float)
-    n = int(n)
-    axes = [(np.arange(n) + 0.5) * (L / n) for L in size]
+    shape = np.broadcast_to(np.asarray(n, dtype=int), (3,))
+    axes = [(np.arange(m) + 0.5) * (L / m) for L, m in zip(size, shape)]
     g = np.meshgrid(*axes, indexing="ij")
     return np.stack([c.ravel() for c in g], axis=1)
 

@@ -58,11 +58,14 @@ class SkeletonDistances:
     wall : distance to the boundary of the point's Voronoi cell (its nearest face).
     strut : distance to the edges of that nearest face (the Voronoi 1-skeleton).
     cell : index of the nearest seed (the cell the point lies in).
+    wall_nz : z component of the unit normal of that nearest face: ``sqrt(1 - wall_nz^2)`` is
+        the sine of the face's angle from horizontal (0 where no face was found).
     """
 
     wall: np.ndarray
     strut: np.ndarray
     cell: np.ndarray
+    wall_nz: np.ndarray | None = None
 
 
 class SkeletonIndex:
@@ -122,38 +125,39 @@ class SkeletonIndex:
         wall = np.empty(n)
         strut = np.empty(n)
         cell = np.empty(n, dtype=np.int64)
+        nz = np.empty(n)
         for lo in range(0, n, _CHUNK):
             sl = slice(lo, min(lo + _CHUNK, n))
             if self.neighbours is not None:
-                wall[sl], strut[sl], cell[sl] = self._block_delaunay(p[sl])
+                wall[sl], strut[sl], cell[sl], nz[sl] = self._block_delaunay(p[sl])
             else:
-                wall[sl], strut[sl], cell[sl] = self._block_knn(p[sl], cap, k)
-        return SkeletonDistances(wall, strut, cell)
+                wall[sl], strut[sl], cell[sl], nz[sl] = self._block_knn(p[sl], cap, k)
+        return SkeletonDistances(wall, strut, cell, nz)
 
     def _block_delaunay(self, x: np.ndarray):
         _, i0 = self.tree.query(x * self.metric.scale, k=1, workers=-1)
         owner = self.owner[i0]
         m = self.metric
         facets = np.zeros((1, 3)) if m.quadratic else m.facets
-        a, strut, _ = _skeleton_delaunay(x, self.images[i0], owner, self.neighbours,
-                                         m.quadratic, m.scale, facets)
-        return a, strut, owner
+        a, strut, _, nz = _skeleton_delaunay(x, self.images[i0], owner, self.neighbours,
+                                             m.quadratic, m.scale, facets)
+        return a, strut, owner, nz
 
     def _block_knn(self, x: np.ndarray, cap: float, k: int):
         k = min(k, len(self.images))
-        wall, strut, cell, e_k, d0 = self._knn(x, k)
+        wall, strut, cell, e_k, d0, nz = self._knn(x, k)
         # A seed beyond the k-th candidate has N >= lower * e_k; it can bound the struts or
         # walls near x only if its bisector is within `strut` of x, i.e. N <= N_0 + bound * strut.
         need = self.metric.lower * e_k <= d0 + self.plane_bound * np.minimum(strut, cap)
         while np.any(need) and k < len(self.images):
             k = min(2 * k, len(self.images))
             idx = np.flatnonzero(need)
-            w2, s2, c2, e2, d2 = self._knn(x[idx], k)
-            wall[idx], strut[idx], cell[idx] = w2, s2, c2
+            w2, s2, c2, e2, d2, n2 = self._knn(x[idx], k)
+            wall[idx], strut[idx], cell[idx], nz[idx] = w2, s2, c2, n2
             need_sub = self.metric.lower * e2 <= d2 + self.plane_bound * np.minimum(s2, cap)
             need = np.zeros(len(x), dtype=bool)
             need[idx[need_sub]] = True
-        return wall, strut, cell
+        return wall, strut, cell, nz
 
     def _knn(self, x: np.ndarray, k: int):
         e, idx = self.tree.query(x * self.metric.scale, k=k, workers=-1)
@@ -161,8 +165,8 @@ class SkeletonIndex:
         idx = idx.reshape(len(x), k)
         m = self.metric
         facets = np.zeros((1, 3)) if m.quadratic else m.facets
-        a, strut, d0, j0 = _skeleton_knn(x, self.images, idx, m.quadratic, m.scale, facets)
-        return a, strut, self.owner[idx[np.arange(len(x)), j0]], e[:, -1], d0
+        a, strut, d0, j0, nz = _skeleton_knn(x, self.images, idx, m.quadratic, m.scale, facets)
+        return a, strut, self.owner[idx[np.arange(len(x)), j0]], e[:, -1], d0, nz
 
 
 # --- compiled kernels --------------------------------------------------------------------
@@ -187,8 +191,9 @@ def _gauge(vx, vy, vz, quadratic, scale, facets):
 
 @njit(cache=True)
 def _point(x, c0, cands, skip, quadratic, scale, facets, hs, ns):
-    """(a, strut, d0) of point x (3,) with own seed c0 (3,), candidates cands (m, 3) (NaN rows
-    and row ``skip`` ignored); hs (m,) and ns (m, 3) are scratch."""
+    """(a, strut, d0, nz) of point x (3,) with own seed c0 (3,), candidates cands (m, 3) (NaN
+    rows and row ``skip`` ignored), nz the z component of the nearest face's unit normal;
+    hs (m,) and ns (m, 3) are scratch."""
     v0x, v0y, v0z = x[0] - c0[0], x[1] - c0[1], x[2] - c0[2]
     d0, i0 = _gauge(v0x, v0y, v0z, quadratic, scale, facets)
     best, ja = np.inf, -1
@@ -216,7 +221,7 @@ def _point(x, c0, cands, skip, quadratic, scale, facets, hs, ns):
         if hs[k] < best:
             best, ja = hs[k], k
     if ja < 0:
-        return np.inf, np.inf, d0
+        return np.inf, np.inf, d0, 0.0
     # The three nearest planes: the nearest is a face of the cell, so the foot of x on it
     # lies in that face; the others count when their foot lies in their face too (all
     # in-plane distances >= 0), which catches the nearest edge near a node.
@@ -253,7 +258,7 @@ def _point(x, c0, cands, skip, quadratic, scale, facets, hs, ns):
             r = np.sqrt(hp * hp + delta * delta)
             if r < strut:
                 strut = r
-    return a, strut, d0
+    return a, strut, d0, ns[ja, 2]
 
 
 @njit(cache=True)
@@ -262,6 +267,7 @@ def _skeleton_delaunay(x, y0, owner, rel, quadratic, scale, facets):
     a = np.empty(n)
     strut = np.empty(n)
     d0 = np.empty(n)
+    nz = np.empty(n)
     cands = np.empty((m, 3))
     hs = np.empty(m)
     ns = np.empty((m, 3))
@@ -270,8 +276,8 @@ def _skeleton_delaunay(x, y0, owner, rel, quadratic, scale, facets):
         for k in range(m):
             for j in range(3):
                 cands[k, j] = y0[i, j] + rel[o, k, j]
-        a[i], strut[i], d0[i] = _point(x[i], y0[i], cands, -1, quadratic, scale, facets, hs, ns)
-    return a, strut, d0
+        a[i], strut[i], d0[i], nz[i] = _point(x[i], y0[i], cands, -1, quadratic, scale, facets, hs, ns)
+    return a, strut, d0, nz
 
 
 @njit(cache=True)
@@ -280,6 +286,7 @@ def _skeleton_knn(x, images, idx, quadratic, scale, facets):
     a = np.empty(n)
     strut = np.empty(n)
     d0 = np.empty(n)
+    nz = np.empty(n)
     j0 = np.empty(n, dtype=np.int64)
     cands = np.empty((m, 3))
     hs = np.empty(m)
@@ -294,6 +301,6 @@ def _skeleton_knn(x, images, idx, quadratic, scale, facets):
             if d < best:
                 best, jb = d, k
         j0[i] = jb
-        a[i], strut[i], d0[i] = _point(x[i], cands[jb].copy(), cands, jb, quadratic, scale,
-                                       facets, hs, ns)
-    return a, strut, d0, j0
+        a[i], strut[i], d0[i], nz[i] = _point(x[i], cands[jb].copy(), cands, jb, quadratic, scale,
+                                              facets, hs, ns)
+    return a, strut, d0, j0, nz

@@ -1,46 +1,64 @@
-"""IceSL print map: field textures on a 64^3 grid and the Lua script that binds them.
+"""IceSL print map: the foam's setting fields on a 64^3 grid, the solid parts and the Lua script.
 
 IceSL (https://icesl.loria.fr) varies print settings in space through 3D textures made in
 its Lua modelling script: ``tex = tex3d_r8f(64, 64, 64)``, ``tex:set(i, j, k, v(x, 0, 0))``
 and ``set_setting_value(name, tex, v(xmin, ymin, zmin), v(xmax, ymax, zmax))``, the box in
 world millimetres, i, j, k along x, y, z. Texture values lie in [0, 1].
 
-Scales written here (all fields in [0, 1]):
+Texture scales (:data:`FIELD_SCALE`; setting value = scale * texture value):
 
-- density (``infill_percentage_0``): value = infill percentage / 100, so 0 is the minimum
-  (0 %) and 1 the maximum (100 %). The percentage is ``clip(100 * gain * rho, pmin, pmax)``
-  with rho the element's relative density; gain = 1 by default, i.e. the infill
-  percentage is taken as the printed volume fraction.
-- theta (``phasor_infill_theta_0``, and ``infill_angle_0`` for Polyfoam): the fibre's
-  in-plane angle atan2(l_y, l_x) / 360 deg, in [0, 1) (1 = 360 deg). A fibre is an axis,
-  so theta and theta + 0.5 describe the same microstructure; the field keeps the spiral's
-  continuous vector orientation, which wraps once around the centre.
-- phi (``phasor_infill_phi_0``): inclination above the layer plane, asin(l_z), as
-  (angle mod 360 deg) / 360 deg: 0 for an in-plane fibre.
-- iso (``phasor_infill_iso_0``): isotropy, 0 = fully oriented, 1 = isotropic;
-  1 - alpha / alpha_design per element.
+- ``infill_percentage`` [%]: value / 100 (0 = 0 %, 1 = 100 %).
+- ``infill_angle`` [deg]: value / 360 (1 = 360 deg). The angle is that of the foam's soft
+  axis l (the k-gon's shrunk local x) in the print plane; an axis, so only the angle
+  modulo 180 deg matters. How its branch is chosen: :class:`AngleBranch`.
+- ``kgon_x_shrink`` [-]: the ratio itself. Assumption (ICESL.md: the ranges of the settings
+  are not documented): IceSL maps a shrink texture linearly onto [0, 1].
 
-Texel (i, j, k) is sampled at its centre ``lo + (i + 1/2) (hi - lo) / 64``. Texels whose
-centre lies outside the part take the value of the nearest inside texel (Euclidean
-distance in mm), so the slicer's interpolation at the boundary sees no spurious values.
+``tex3d_r8f`` stores 8 bits: IceSL holds :func:`quantise` (v) = round(255 v) / 255, an error
+of at most 1 / 510 of the scale (0.196 %, 0.706 deg, 0.00196). The files hold 4 decimals.
+
+Texel (i, j, k) is sampled at its centre ``lo + (i + 1/2) (hi - lo) / 64``; the slicer is
+taken to interpolate trilinearly between texel centres, clamped at the box faces
+(:func:`sample`). Texels whose centre lies outside the part take the value of the nearest
+inside texel (Euclidean distance in mm), so the interpolation at the boundary sees no
+spurious values.
 
 Field files are text: 64 numbers per line (i = 0..63), lines ordered j fastest then k,
 so value number c (from 0) is texel (c mod 64, (c // 64) mod 64, c // 4096).
+
+Solid parts (:func:`solid_mask`, :func:`solid_parts_mesh`): the centre ring (r <= the sheet's
+``centre_radius``, where the model ties the nodes to the effector) and the arm-end tabs (the
+``tip_box`` of each arm, where the servo horn holds it) print solid, as brush 1; the rest
+of the sheet is the foam, brush 0. The script splits the sheet with IceSL's CSG
+(``difference`` / ``intersection`` of the sheet and ``solid.stl``), as IceSL's own
+two-brush "paint brushes" effect does (shapeforge/icesl-effects, paintbrush.lua), so the
+result does not depend on how IceSL resolves overlapping brushes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
-from ..errors import ConfigError, check_range
+from ..errors import ConfigError
 from .fibers import fiber_angles
+from .geometry import ARM_ANGLES, SheetParams
 
 N = 64
-INFILLS = ("phasor", "polyfoam")
+LEVELS = 255  # tex3d_r8f: 8 bits per texel
+
+FIELD_SCALE = {"infill_percentage": 100.0, "infill_angle": 360.0, "kgon_x_shrink": 1.0}
+FIELD_UNITS = {"infill_percentage": "%", "infill_angle": "deg", "kgon_x_shrink": "-"}
+ANGLE = "infill_angle"
+#: IceSL's defaults of the Polyfoam settings (ICESL.md); a setting equal to its default is not written
+POLYFOAM_DEFAULTS = {"infill_percentage": 20.0, "infill_angle": 0.0, "kgon_x_shrink": 1.0,
+                     "kgon_min_angle": 45.0, "kgon_norm_alpha": 0.5}
+#: the foam brush prints no skin: no perimeter, no shells, no top/bottom cover (ICESL.md)
+FOAM_BRUSH = {"print_perimeter": False, "num_shells": 0, "cover_thickness_mm": 0.0}
+FOAM, SOLID = 0, 1  # brush numbers
 
 
 @dataclass(frozen=True)
@@ -69,20 +87,9 @@ class GridBox:
         ijk = np.floor((np.asarray(points) - self.lo) / self.spacing).astype(np.int64)
         return np.clip(ijk, 0, self.n - 1)
 
-
-@dataclass(frozen=True)
-class PrintFields:
-    """Texture fields of one sheet.
-
-    box : the :class:`GridBox`; cell : (n, n, n) int, element containing each texel
-    centre (-1 outside); fields : name ("density", "theta", "phi", "iso") -> (n, n, n)
-    float in [0, 1]; percent_range : (min, max) infill percentage over the part [%].
-    """
-
-    box: GridBox
-    cell: np.ndarray
-    fields: dict[str, np.ndarray]
-    percent_range: tuple[float, float]
+    def texel_coordinates(self, points: np.ndarray) -> np.ndarray:
+        """Continuous texel coordinates (m, 3) of points (m, 3) [mm]: texel centre i -> i."""
+        return (np.asarray(points, dtype=float) - self.lo) / self.spacing - 0.5
 
 
 def grid_box(points: np.ndarray, n: int = N) -> GridBox:
@@ -100,82 +107,296 @@ def locate(points: np.ndarray, tets: np.ndarray, box: GridBox) -> np.ndarray:
     return np.asarray(cell, dtype=np.int64).reshape((box.n,) * 3)
 
 
+def nearest_inside(inside: np.ndarray, spacing: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Index arrays of the nearest inside texel of every texel (inside (n, n, n) bool, spacing (3,) [mm])."""
+    if not inside.any():
+        raise ConfigError("inside: no texel centre lies inside the part; the grid misses the mesh")
+    _, idx = ndimage.distance_transform_edt(~inside, sampling=spacing, return_indices=True)
+    return tuple(idx)
+
+
 def extend_nearest(values: np.ndarray, inside: np.ndarray, spacing: np.ndarray) -> np.ndarray:
     """Copy of ``values`` (n, n, n) where outside texels take their nearest inside value.
 
     ``inside`` (n, n, n) bool must hold at least one True; distance measured in mm
     with the texel ``spacing`` (3,).
     """
-    if not inside.any():
-        raise ConfigError("inside: no texel centre lies inside the part; the grid misses the mesh")
-    _, idx = ndimage.distance_transform_edt(~inside, sampling=spacing, return_indices=True)
-    return values[tuple(idx)]
+    return values[nearest_inside(inside, spacing)]
 
 
-def normalise_angle(angle: np.ndarray) -> np.ndarray:
-    """Angle [rad] -> texture value in [0, 1) with 1 = 360 deg."""
-    return np.mod(np.asarray(angle, dtype=float), 2 * np.pi) / (2 * np.pi)
+def quantise(values: np.ndarray) -> np.ndarray:
+    """What a ``tex3d_r8f`` texel holds for texture values in [0, 1]: round(255 v) / 255."""
+    return np.round(np.asarray(values, dtype=float) * LEVELS) / LEVELS
 
 
-def density_percent(rho: np.ndarray, *, gain: float = 1.0, min_percent: float = 0.0,
-                    max_percent: float = 100.0) -> np.ndarray:
-    """IceSL infill percentage [%] for relative densities rho [-] (see module doc)."""
-    check_range("gain", gain, 0.0, None, lo_open=True)
-    check_range("min_percent", min_percent, 0.0, 100.0)
-    check_range("max_percent", max_percent, min_percent, 100.0)
-    return np.clip(100.0 * gain * np.asarray(rho, dtype=float), min_percent, max_percent)
+def sample(texture: np.ndarray, box: GridBox, points: np.ndarray) -> np.ndarray:
+    """Trilinear interpolation (m,) of a texture (n, n, n) at points (m, 3) [mm].
+
+    Between texel centres (``lo + (i + 1/2) h``), clamped to the edge texels outside them,
+    as a GPU sampler with linear filtering and clamp-to-edge does.
+    """
+    u = box.texel_coordinates(points)
+    return ndimage.map_coordinates(np.asarray(texture, dtype=float), u.T, order=1, mode="nearest")
+
+
+def stencil_span(texture: np.ndarray, box: GridBox, points: np.ndarray) -> np.ndarray:
+    """max - min (m,) of the 8 texels :func:`sample` interpolates between at each point (m, 3)."""
+    u = box.texel_coordinates(points)
+    i0 = np.clip(np.floor(u).astype(np.int64), 0, box.n - 1)
+    i1 = np.clip(i0 + 1, 0, box.n - 1)
+    vals = np.stack([texture[a[:, 0], b[:, 1], c[:, 2]]
+                     for a in (i0, i1) for b in (i0, i1) for c in (i0, i1)], axis=1)
+    return vals.max(axis=1) - vals.min(axis=1)
+
+
+# ------------------------------------------------------------------ the axis angle
+
+@dataclass(frozen=True)
+class AngleBranch:
+    """How an axis angle (period 180 deg) is written into a [0, 360) deg texture.
+
+    The written angle is ``offset + mod(theta + flip - offset, period)`` [deg] with theta the
+    fibre's vector angle: always congruent to the fibre's axis angle modulo 180 deg.
+
+    - ``period`` 180: values in [offset, offset + 180), offset in [0, 180]: the axis itself.
+    - ``period`` 360 (offset 0): the vector angle of the fibre, flipped by ``flip`` (0 or
+      180 deg): values in [0, 360).
+
+    A fibre field that turns once around the sheet centre (the spiral: its axis angle grows
+    by 360 deg per turn) cannot be written without a seam, where neighbouring texels differ
+    by one period and the interpolation between them gives a wrong axis: period 180 gives two
+    seams (opposite rays from the centre), period 360 one. :func:`choose_branch` picks the
+    branch whose seams touch the fewest foam texels.
+    """
+
+    period: float
+    offset: float = 0.0
+    flip: float = 0.0
+
+    def __post_init__(self):
+        if self.period not in (180.0, 360.0):
+            raise ConfigError(f"period: {self.period!r}: allowed values are 180, 360 [deg]")
+        if not 0.0 <= self.offset <= 360.0 - self.period:
+            raise ConfigError(f"offset: {self.offset!r}: allowed range is [0, {360.0 - self.period:g}] [deg]")
+
+    def write(self, theta_deg: np.ndarray) -> np.ndarray:
+        """Written angle [deg], in [offset, offset + period), of vector angles theta [deg]."""
+        t = np.asarray(theta_deg, dtype=float) + self.flip
+        return self.offset + np.mod(t - self.offset, self.period)
+
+    def to_dict(self) -> dict:
+        return {"period_deg": self.period, "offset_deg": self.offset, "flip_deg": self.flip}
+
+
+def branch_candidates(step: float = 1.0) -> list[AngleBranch]:
+    """The branches :func:`choose_branch` tries: the two vector lifts, then period 180 offsets."""
+    out = [AngleBranch(360.0, 0.0, 0.0), AngleBranch(360.0, 0.0, 180.0)]
+    out += [AngleBranch(180.0, float(c)) for c in np.arange(0.0, 180.0, step)]
+    return out
+
+
+SEAM_JUMP = 90.0  # [deg] neighbouring texels further apart than this straddle a seam
+
+
+def _neighbour_pairs(weight: np.ndarray):
+    """Pairs of face-neighbouring texels (flat indices a, b) with weight[a] | weight[b]."""
+    n = weight.shape
+    flat = np.arange(weight.size).reshape(n)
+    a_all, b_all = [], []
+    for ax in range(3):
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[ax], hi[ax] = slice(0, -1), slice(1, None)
+        a, b = flat[tuple(lo)].ravel(), flat[tuple(hi)].ravel()
+        keep = weight.ravel()[a] | weight.ravel()[b]
+        a_all.append(a[keep])
+        b_all.append(b[keep])
+    return np.concatenate(a_all), np.concatenate(b_all)
+
+
+def seam_pairs(written_deg: np.ndarray, foam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Face-neighbour texel pairs (flat indices a, b) that straddle a seam and touch the foam."""
+    a, b = _neighbour_pairs(foam)
+    w = written_deg.ravel()
+    jump = np.abs(w[a] - w[b]) > SEAM_JUMP
+    return a[jump], b[jump]
+
+
+def choose_branch(theta_deg: np.ndarray, foam: np.ndarray, *, step: float = 1.0) -> tuple[AngleBranch, int]:
+    """The branch (:func:`branch_candidates`) whose seams touch the fewest foam texel pairs.
+
+    theta_deg : (n, n, n) the fibre's vector angle at every texel [deg] (continuous where
+        the fibre field is); foam : (n, n, n) bool, texels printed as foam. Returns the
+        branch and its count of seam pairs touching the foam; ties go to the earlier
+        candidate (a single seam first).
+    """
+    a, b = _neighbour_pairs(foam)
+    t = np.asarray(theta_deg, dtype=float).ravel()
+    ta, tb = t[a], t[b]
+    best, best_n = None, None
+    for br in branch_candidates(step):
+        k = int(np.count_nonzero(np.abs(br.write(ta) - br.write(tb)) > SEAM_JUMP))
+        if best_n is None or k < best_n:
+            best, best_n = br, k
+    return best, int(best_n)
+
+
+def seam_report(written_deg: np.ndarray, foam: np.ndarray, box: GridBox) -> dict:
+    """Where the seams of a written angle field cross the foam: pair count, polar angles and
+    radii [deg, mm] of their midpoints (sheet centre at the origin)."""
+    a, b = seam_pairs(written_deg, foam)
+    out = {"foam_texel_pairs": int(len(a)), "foam_texels": int(len(np.unique(np.concatenate([a, b]))))}
+    if len(a):
+        c = box.centers().reshape(-1, 3)
+        mid = 0.5 * (c[a] + c[b])
+        t = np.degrees(np.arctan2(mid[:, 1], mid[:, 0]))
+        r = np.hypot(mid[:, 0], mid[:, 1])
+        # seams run outwards from the centre: their polar angles, rounded to 5 deg
+        out["polar_angle_deg"] = sorted({float(x) for x in np.mod(5.0 * np.round(t / 5.0), 360.0)})
+        out["radius_mm"] = [float(r.min()), float(r.max())]
+    return out
+
+
+# ---------------------------------------------------------------------- solid parts
+
+def solid_mask(points: np.ndarray, params: SheetParams) -> np.ndarray:
+    """(m,) bool: points (m, 3) [mm] in the solid parts: the centre ring (r_xy <= centre_radius)
+    or an arm-end tab (the tip box of an arm, as ``geometry.attach_tags``). Symmetric under
+    y -> -y, so it serves the mirrored sheet too."""
+    p = np.asarray(points, dtype=float)
+    out = np.hypot(p[:, 0], p[:, 1]) <= params.centre_radius
+    half = 0.5 * np.asarray(params.tip_box)
+    for a in ARM_ANGLES:
+        s = p[:, 0] * np.cos(a) + p[:, 1] * np.sin(a)
+        q = -p[:, 0] * np.sin(a) + p[:, 1] * np.cos(a)
+        out |= (np.abs(s - params.reach) <= half[0]) & (np.abs(q) <= half[1]) & (np.abs(p[:, 2]) <= half[2])
+    return out
+
+
+def solid_parts_mesh(params: SheetParams, *, sections: int = 96) -> tuple[np.ndarray, np.ndarray]:
+    """``solid.stl``: the solid regions as closed, disjoint shells (vertices (k, 3) [mm], faces (f, 3)).
+
+    A prism circumscribing the cylinder r <= centre_radius and the three tip boxes, all taller
+    than the sheet; the Lua script intersects them with the sheet (the hole stays a hole).
+    """
+    import trimesh
+
+    t = float(params.thickness)
+    height = t + 2.0
+    r = params.centre_radius / np.cos(np.pi / sections)  # circumscribed polygon
+    parts = [trimesh.creation.cylinder(radius=r, height=height, sections=sections)]
+    box = np.array(params.tip_box, dtype=float)
+    box[2] = max(box[2], height)
+    for a in ARM_ANGLES:
+        m = trimesh.creation.box(extents=box)
+        rot = trimesh.transformations.rotation_matrix(a, [0, 0, 1])
+        m.apply_transform(rot @ trimesh.transformations.translation_matrix([params.reach, 0.0, 0.0]))
+        parts.append(m)
+    # the ring and the tabs must not overlap: one STL of overlapping shells is ambiguous
+    corner = 0.5 * np.hypot(box[0], box[1])
+    if params.reach - corner <= r:
+        raise ConfigError(
+            f"tip_box: {tuple(params.tip_box)!r}: the tip boxes reach the centre ring "
+            f"(centre_radius {params.centre_radius:g} mm, reach {params.reach:g} mm)")
+    verts, faces, off = [], [], 0
+    for m in parts:
+        verts.append(np.asarray(m.vertices))
+        faces.append(np.asarray(m.faces) + off)
+        off += len(m.vertices)
+    return np.concatenate(verts), np.concatenate(faces)
+
+
+# --------------------------------------------------------------------- the fields
+
+@dataclass(frozen=True)
+class PrintFields:
+    """Texture fields of one sheet.
+
+    box : the :class:`GridBox`; cell : (n, n, n) int, element containing each texel centre
+    (-1 outside); solid : (n, n, n) bool, texel centres in the solid parts; textures :
+    setting (no brush suffix) -> (n, n, n) float in [0, 1] (unquantised); branch : the
+    :class:`AngleBranch` of ``infill_angle``.
+    """
+
+    box: GridBox
+    cell: np.ndarray
+    solid: np.ndarray
+    textures: dict[str, np.ndarray]
+    branch: AngleBranch
+
+    @property
+    def inside(self) -> np.ndarray:
+        return self.cell >= 0
+
+    @property
+    def foam(self) -> np.ndarray:
+        """(n, n, n) bool: texel centres printed as foam (brush 0)."""
+        return self.inside & ~self.solid
+
+    def values(self, name: str) -> np.ndarray:
+        """Field ``name`` in IceSL units (percent, degrees, ratio), unquantised."""
+        return self.textures[name] * FIELD_SCALE[name]
+
+
+def to_texture(name: str, values: np.ndarray) -> np.ndarray:
+    """Texture values (value / scale) of setting ``name``; an error unless all lie in [0, 1]."""
+    if name not in FIELD_SCALE:
+        raise ConfigError(f"field {name!r}: no texture scale; known fields are {sorted(FIELD_SCALE)}")
+    v = np.asarray(values, dtype=float) / FIELD_SCALE[name]
+    if not np.all(np.isfinite(v)) or v.min() < 0.0 or v.max() > 1.0:
+        s = FIELD_SCALE[name]
+        raise ConfigError(f"{name}: values in [{np.nanmin(v) * s:g}, {np.nanmax(v) * s:g}] "
+                          f"{FIELD_UNITS[name]}: allowed range is [0, {s:g}]")
+    return v
 
 
 def print_fields(
     points: np.ndarray,
     tets: np.ndarray,
     *,
+    element_settings: Mapping[str, np.ndarray],
     fiber_fn: Callable[[np.ndarray], np.ndarray],
-    density: np.ndarray,
-    iso: np.ndarray,
-    gain: float = 1.0,
-    min_percent: float = 0.0,
-    max_percent: float = 100.0,
+    params: SheetParams,
     n: int = N,
+    branch: AngleBranch | None = None,
 ) -> PrintFields:
-    """Sample a sheet's design on the n^3 texture grid over its bounding box.
+    """Sample a sheet's print settings on the n^3 texture grid over its bounding box.
 
     Parameters
     ----------
     points : (k, 3) float [mm]; tets : (m, 4) int.
-    fiber_fn : fibre field, points (q, 3) [mm] -> unit fibres (q, 3); evaluated at the
-        texel centres inside the part, so the texture resolves the continuous field
-        rather than the element-wise constant one.
-    density : (m,) relative density [-] per element; iso : (m,) isotropy in [0, 1].
-    gain, min_percent, max_percent : density -> infill percentage (:func:`density_percent`).
+    element_settings : setting -> (m,) value per element in IceSL units (percent, ratio);
+        each texel takes the value of the element containing its centre.
+    fiber_fn : fibre field, points (q, 3) [mm] -> unit fibres (q, 3); evaluated at every
+        texel centre (inside the part and, continued, outside it), so the texture resolves
+        the continuous field rather than the element-wise constant one. Its in-plane angle
+        becomes ``infill_angle``.
+    params : the sheet geometry (its solid parts, :func:`solid_mask`).
+    branch : the angle branch; default :func:`choose_branch` (fewest seam texels in foam).
     """
     tets = np.asarray(tets)
-    density, iso = np.asarray(density, dtype=float), np.asarray(iso, dtype=float)
-    if density.shape != (len(tets),) or iso.shape != (len(tets),):
-        raise ConfigError(
-            f"density, iso: shapes {density.shape}, {iso.shape} should both be ({len(tets)},)"
-        )
-    if np.any((iso < 0) | (iso > 1)):
-        raise ConfigError(f"iso: values in [{iso.min():g}, {iso.max():g}]: allowed range is [0, 1]")
+    for name, v in element_settings.items():
+        if np.shape(v) != (len(tets),):
+            raise ConfigError(f"element_settings[{name!r}]: shape is {np.shape(v)} and should be ({len(tets)},)")
     box = grid_box(points, n)
     cell = locate(points, tets, box)
     inside = cell >= 0
-    centres = box.centers()[inside]
-    theta, phi = fiber_angles(fiber_fn(centres))
-    percent = density_percent(density, gain=gain, min_percent=min_percent, max_percent=max_percent)
-    raw = {
-        "density": percent[cell[inside]] / 100.0,
-        "theta": normalise_angle(theta),
-        "phi": normalise_angle(phi),
-        "iso": iso[cell[inside]],
-    }
-    fields = {}
-    for name, val in raw.items():
-        full = np.zeros((n, n, n))
-        full[inside] = val
-        fields[name] = extend_nearest(full, inside, box.spacing)
-    used = percent[np.unique(cell[inside])]
-    return PrintFields(box, cell, fields, (float(used.min()), float(used.max())))
+    idx = nearest_inside(inside, box.spacing)
+    centres = box.centers()
+    solid = solid_mask(centres.reshape(-1, 3), params).reshape(inside.shape)
+    textures = {}
+    for name, v in element_settings.items():
+        full = np.zeros(inside.shape)
+        full[inside] = np.asarray(v, dtype=float)[cell[inside]]
+        textures[name] = to_texture(name, full[idx])
+    # the fibre field is continuous across the part's boundary: texels outside take its value
+    # too (not the nearest inside one), so the interpolation there follows the field
+    theta, _ = fiber_angles(fiber_fn(centres.reshape(-1, 3)))
+    theta_deg = np.degrees(theta).reshape(inside.shape)
+    if branch is None:
+        branch, _ = choose_branch(theta_deg, inside & ~solid)
+    textures[ANGLE] = to_texture(ANGLE, branch.write(theta_deg))
+    return PrintFields(box, cell, solid, textures, branch)
 
 
 def field_text(values: np.ndarray) -> str:
@@ -187,6 +408,14 @@ def field_text(values: np.ndarray) -> str:
         raise ConfigError(f"values: range [{np.nanmin(v):g}, {np.nanmax(v):g}]: allowed range is [0, 1]")
     rows = v.transpose(2, 1, 0).reshape(-1, v.shape[0])  # row (k, j) holds i = 0..n-1
     return "\n".join(" ".join(f"{x:.4f}" for x in row) for row in rows) + "\n"
+
+
+def parse_field_text(text: str, n: int = N) -> np.ndarray:
+    """The (n, n, n) texture a field file holds (inverse of :func:`field_text`)."""
+    flat = np.array(text.split(), dtype=float)
+    if flat.size != n**3:
+        raise ConfigError(f"field text: {flat.size} values: expected {n**3}")
+    return flat.reshape(n, n, n).transpose(2, 1, 0)
 
 
 def surface(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -204,46 +433,53 @@ def surface(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.asarray(points, dtype=float)[used], inv.reshape(-1, 3)
 
 
+# ---------------------------------------------------------------------- the script
+
 def _lua_value(name: str, value) -> str:
-    if isinstance(value, bool):
+    if isinstance(value, (bool, np.bool_)):
         return "true" if value else "false"
-    if isinstance(value, (int, float)):
+    if isinstance(value, (int, float, np.integer, np.floating)):
         if not np.isfinite(value):
             raise ConfigError(f"settings.{name}: {value!r}: must be finite")
-        return repr(value)
+        return repr(int(value) if isinstance(value, (int, np.integer)) else float(value))
     if isinstance(value, str):
         return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
     raise ConfigError(f"settings.{name}: {value!r}: expected a number, a boolean or a string")
 
 
-SETTINGS = {  # IceSL setting bound to each field, per infill
-    "phasor": {"density": "infill_percentage_0", "theta": "phasor_infill_theta_0",
-               "phi": "phasor_infill_phi_0", "iso": "phasor_infill_iso_0"},
-    "polyfoam": {"density": "infill_percentage_0", "theta": "infill_angle_0"},
-}
-INFILL_TYPE = {"phasor": "Phasor", "polyfoam": "Polyfoam"}
+def _setting_name(name: str) -> str:
+    if not name or not name.replace("_", "").isalnum():
+        raise ConfigError(f"settings: {name!r}: a setting name has letters, digits and '_' only")
+    return name
 
 
-def lua_script(*, stl: str, infill: str, files: dict[str, str], box: GridBox,
-               settings: dict[str, object], title: str = "") -> str:
-    """IceSL modelling script that prints ``stl`` with the field textures ``files``.
+def lua_script(*, sheet_stl: str, solid_stl: str, infill_type: str, foam: Mapping[str, object],
+               fields: Mapping[str, str], solid: Mapping[str, object], box: GridBox,
+               settings: Mapping[str, object], title: str = "") -> str:
+    """IceSL modelling script printing ``sheet_stl`` as foam (brush 0) and solid parts (brush 1).
 
-    ``files`` maps field names of :data:`SETTINGS` [infill] to file names sitting next to
-    the script; ``settings`` are plain IceSL settings (name -> number, bool or str) set
-    before the fields. Paths resolve against IceSL's ``Path`` (the script's folder) when
-    defined, else the working directory. The mesh is loaded with ``load`` (not
-    ``load_centered``) so its coordinates, and hence the texture box, are preserved.
+    sheet_stl, solid_stl : file names next to the script: the sheet, and the solid regions
+        (the script emits ``difference(sheet, solid)`` as brush 0 and
+        ``intersection(sheet, solid)`` as brush 1).
+    infill_type : IceSL's infill of the foam brush ('Polyfoam').
+    foam : brush-0 settings without suffix (name -> number, bool or str), set as ``name_0``.
+    fields : brush-0 settings without suffix -> field file name, bound over ``box``.
+    solid : brush-1 settings without suffix, set as ``name_1``.
+    settings : global IceSL settings, written as given (e.g. ``z_layer_height_mm``).
+
+    Paths resolve against IceSL's ``Path`` (the script's folder) when defined, else the
+    working directory. Meshes are loaded with ``load`` (not ``load_centered``) so their
+    coordinates, and hence the texture box, are preserved.
     """
-    if infill not in SETTINGS:
-        raise ConfigError(f"infill: {infill!r}: allowed values are {list(SETTINGS)}")
-    missing = set(SETTINGS[infill]) - set(files)
-    if missing:
-        raise ConfigError(f"files: missing fields {sorted(missing)} for infill {infill!r}")
+    clash = set(foam) & set(fields)
+    if clash:
+        raise ConfigError(f"foam settings {sorted(clash)} are both a value and a field")
     lo = ", ".join(f"{x:.6f}" for x in box.lo)
     hi = ", ".join(f"{x:.6f}" for x in box.hi)
     out = [
         f"-- {title or 'metasheet print map'}",
-        "-- generated by metasheet; fields are 64^3 textures in [0, 1] (see metasheet.sheet.icesl)",
+        "-- generated by metasheet: brush 0 = foam (fields are 64^3 textures in [0, 1], scales in",
+        "-- metasheet.sheet.icesl), brush 1 = solid parts (centre ring, arm-end tabs)",
         "local here = Path or ''",
         f"local N = {box.n}",
         "",
@@ -267,14 +503,20 @@ def lua_script(*, stl: str, infill: str, files: dict[str, str], box: GridBox,
         "  return tex",
         "end",
         "",
-        f"emit(load(here .. {_lua_value('stl', stl)}))",
-        f"set_setting_value('infill_type_0', '{INFILL_TYPE[infill]}')",
+        f"local sheet = load(here .. {_lua_value('sheet_stl', sheet_stl)})",
+        f"local solid = load(here .. {_lua_value('solid_stl', solid_stl)})",
+        f"emit(difference(sheet, solid), {FOAM})    -- foam",
+        f"emit(intersection(sheet, solid), {SOLID})  -- solid parts",
+        "",
     ]
     for name, value in settings.items():
-        if not name.replace("_", "").isalnum():
-            raise ConfigError(f"settings: {name!r}: a setting name has letters, digits and '_' only")
-        out.append(f"set_setting_value('{name}', {_lua_value(name, value)})")
+        out.append(f"set_setting_value('{_setting_name(name)}', {_lua_value(name, value)})")
+    out.append(f"set_setting_value('infill_type_{FOAM}', {_lua_value('infill_type', infill_type)})")
+    for name, value in foam.items():
+        out.append(f"set_setting_value('{_setting_name(name)}_{FOAM}', {_lua_value(name, value)})")
+    for name, value in solid.items():
+        out.append(f"set_setting_value('{_setting_name(name)}_{SOLID}', {_lua_value(name, value)})")
     out += ["", f"local lo, hi = v({lo}), v({hi})  -- texture box [mm]"]
-    for field, setting in SETTINGS[infill].items():
-        out.append(f"set_setting_value('{setting}', read_field({_lua_value(field, files[field])}), lo, hi)")
+    for name, fname in fields.items():
+        out.append(f"set_setting_value('{_setting_name(name)}_{FOAM}', read_field({_lua_value(name, fname)}), lo, hi)")
     return "\n".join(out) + "\n"

@@ -82,31 +82,45 @@ def sheet_picture(
 
 
 def printmap_picture(
-    slices: Sequence[tuple[str, dict[str, np.ndarray], np.ndarray, np.ndarray]],
+    slices: Sequence[tuple[str, dict[str, np.ndarray], np.ndarray, np.ndarray, tuple]],
 ) -> bytes:
     """Mid-plane slices of the print-map fields, one row per sheet.
 
     Parameters
     ----------
-    slices : (title, fields, inside, extent) per sheet: ``fields`` name -> (n, n) slice in
-        [0, 1] (indexed [i, j]); ``inside`` (n, n) bool part mask; ``extent``
-        (xmin, xmax, ymin, ymax) [mm].
+    slices : (title, fields, inside, solid, extent) per sheet: ``fields`` name -> (n, n)
+        slice in display units (indexed [i, j]): ``infill_percentage`` [%],
+        ``kgon_x_shrink`` [-], ``axis angle`` [deg] in [0, 180) (the soft axis, a cyclic
+        colour map); ``inside`` (n, n) bool part mask; ``solid`` (n, n) bool, the solid parts
+        (brush 1, hatched); ``extent`` (xmin, xmax, ymin, ymax) [mm].
     """
     names = list(slices[0][1])
     fig, axes = _figure(len(names), len(slices), size=4.2)
-    cmaps = {"density": "viridis", "theta": "twilight", "phi": "twilight", "iso": "magma"}
-    labels = {"density": "density (1 = 100 %)", "theta": "theta (1 = 360 deg)",
-              "phi": "phi (1 = 360 deg)", "iso": "isotropy (1 = isotropic)"}
-    for row, (title, fields, inside, extent) in zip(axes, slices):
+    styles = {  # name -> (label, colour map, range or None for the data's)
+        "infill_percentage": ("infill percentage [%]", "viridis", None),
+        "kgon_x_shrink": ("kgon x shrink [-]", "magma", None),
+        "axis angle": ("soft axis angle [deg], mod 180", "twilight", (0.0, 180.0)),
+    }
+    for row, (title, fields, inside, solid, extent) in zip(axes, slices):
         for ax, name in zip(row, names):
-            im = ax.imshow(fields[name].T, origin="lower", extent=extent, vmin=0, vmax=1,
-                           cmap=cmaps.get(name, "viridis"), interpolation="nearest")
-            ax.contour(inside.T.astype(float), levels=[0.5], colors="w", linewidths=1.2,
+            label, cmap, rng = styles.get(name, (name, "viridis", None))
+            val = np.where(inside, fields[name], np.nan)
+            if rng is None:
+                lo, hi = np.nanmin(val), np.nanmax(val)
+                rng = (lo - 0.5, hi + 0.5) if hi - lo < 1e-9 else (lo, hi)
+            im = ax.imshow(val.T, origin="lower", extent=extent, vmin=rng[0], vmax=rng[1],
+                           cmap=cmap, interpolation="nearest")
+            ax.contour(inside.T.astype(float), levels=[0.5], colors="k", linewidths=1.2,
                        extent=extent, origin="lower")
-            ax.set_title(f"{title}: {labels.get(name, name)}", fontsize=9)
+            if solid.any():
+                ax.contourf(solid.T.astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"],
+                            extent=extent, origin="lower")
+                ax.contour(solid.T.astype(float), levels=[0.5], colors="0.3", linewidths=0.8,
+                           extent=extent, origin="lower")
+            ax.set_title(f"{title}: {label}", fontsize=9)
             ax.set_aspect("equal")
             ax.set_xlabel("x [mm]")
             fig.colorbar(im, ax=ax, shrink=0.75)
         row[0].set_ylabel("y [mm]")
-    fig.suptitle("IceSL print map, mid-plane slice (white: part outline; outside = nearest inside value)")
+    fig.suptitle("IceSL print map, mid-plane slice (black: part outline; hatched: solid parts, brush 1)")
     return _png(fig)

@@ -1,12 +1,13 @@
-"""Stage ``cell``: a periodic unit cell (Voronoi foam, laminate or solid) from ``cells/*.toml``.
+"""Stage ``cell``: a periodic unit cell (Voronoi foam, polyfoam, laminate or solid) from ``cells/*.toml``.
 
 Writes into ``outputs/<pipeline>/cell/``:
 
 - ``cell.json``: the design, achieved relative density, strut radius or wall thickness,
   connectivity/percolation report, and ``materials`` (phase -> {E, nu} [MPa, -]) for
   homogenize;
-- ``voxels.npz``: ``phases`` (n, n, n) uint8 (0 void), ``size`` (3,) [mm], ``axis`` (3,)
-  unit vector of the longitudinal axis; byte-identical for identical inputs;
+- ``voxels.npz``: ``phases`` (nx, ny, nz) uint8 (0 void; cubic but for polyfoams), ``size``
+  (3,) [mm], ``axis`` (3,) unit vector of the longitudinal axis; byte-identical for
+  identical inputs;
 - ``cell.stl``: watertight surface of the solid clipped to the box (``surface = true``);
 - ``cell.vtu``: periodic tetrahedral mesh (``tet_mesh = true``);
 - ``cell.png``: the cell tiled 2 x 2 x 2.
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
-from ...cells.design import CellResult, FoamDesign, LaminateDesign, design_cell, parse_design
+from ...cells.design import CellResult, FoamDesign, LaminateDesign, PolyfoamDesign, design_cell, parse_design
 from ...errors import ConfigError, MeshError
 from ..manifest import sha256_file, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
@@ -31,7 +32,9 @@ from ..registry import Params, Stage, StageContext, register
 
 class CellParams(Params):
     design: str = Field(description="cell design file, relative to the project root (e.g. cells/paper_foam.toml)")
-    resolution: int | None = Field(None, ge=16, le=128, description="voxels per side (default: the design's)")
+    resolution: int | None = Field(None, ge=16, le=128, description="voxels per side (default: the design's; "
+                                   "not for polyfoams, see voxel_mm)")
+    voxel_mm: float | None = Field(None, gt=0, description="polyfoam voxel edge [mm] (default: the design's)")
     seed: int | None = Field(None, ge=0, description="RNG seed of the foam's seeds (default: the design's)")
     relative_density: float | None = Field(
         None, gt=0, lt=1, description="target solid fraction [-] (default: the design's)"
@@ -54,7 +57,8 @@ def load_design(root: Path, p: CellParams):
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"cell.design: {p.design!r}: not valid TOML: {err}") from None
-    overrides = {"resolution": p.resolution, "seed": p.seed, "relative_density": p.relative_density}
+    overrides = {"resolution": p.resolution, "seed": p.seed, "relative_density": p.relative_density,
+                 "voxel_mm": p.voxel_mm}
     return parse_design(data, overrides=overrides, source=p.design), path
 
 
@@ -82,7 +86,7 @@ def _box_surface(size: np.ndarray):
 
 def _surface(cell: CellResult, p: CellParams):
     """(trimesh surface, report dict) of the solid clipped to the box."""
-    n = p.surface_resolution or cell.resolution
+    n = p.surface_resolution or cell.resolution  # n, or (nx, ny, nz) for a non-cubic grid
     if cell.foam is None:  # laminate or solid: the solid fills the box
         mesh = _box_surface(cell.size)
         return mesh, {"kind": "box", "watertight": bool(mesh.is_watertight), "volume_mm3": float(mesh.volume)}
@@ -93,7 +97,7 @@ def _surface(cell: CellResult, p: CellParams):
     box_volume = float(np.prod(cell.size))
     return mesh, {
         "kind": "isosurface",
-        "grid": int(n),
+        "grid": int(n) if np.ndim(n) == 0 else [int(v) for v in n],
         "watertight": bool(rep.watertight),
         "manifold": bool(rep.manifold),
         "components": int(rep.n_components),
@@ -109,7 +113,7 @@ def _tet_mesh(cell: CellResult, p: CellParams):
         raise ConfigError("cell.tet_mesh: true: a laminate has two phases; use its voxels (voxels.npz)")
     from ...cells.tetmesh import periodic_tet_mesh  # colleague's module, lazily
 
-    h = p.tet_size or float(np.min(cell.size)) / cell.resolution
+    h = p.tet_size or float(np.min(cell.voxel_mm))
     field = cell.field
     if field is None:  # solid: negative everywhere, so the mesh fills the box
         depth = float(np.max(cell.size))
@@ -131,6 +135,12 @@ def _title(cell: CellResult) -> str:
         lines.append(f"{d.topology}-cell, {len(cell.foam.seeds)} seeds, {what} {cell.solution.thickness:.3f} mm")
         m = cell.foam.metric.describe()
         lines.append(", ".join(f"{k} {v}" for k, v in m.items() if k not in ("extent", "axis", "kind")))
+    if isinstance(d, PolyfoamDesign) and cell.polyfoam is not None:
+        pf = cell.polyfoam
+        lines.append(f"polyfoam: infill {d.infill_percentage:g} %, kgon_x_shrink {d.kgon_x_shrink:g}, "
+                     f"min angle {d.kgon_min_angle:g} deg, k {d.kgon_sides}")
+        lines.append(f"{len(cell.foam.seeds)} seeds, walls {pf.wall_thickness:g} mm (one bead), "
+                     f"scale L {pf.cell_scale:.3g} mm, grid {'x'.join(map(str, cell.shape))}")
     lines.append(f"box {' x '.join(f'{v:g}' for v in cell.size)} mm, shown 2x2x2, axis l = {'xyz'[cell.axis]}")
     return "\n".join(lines)
 

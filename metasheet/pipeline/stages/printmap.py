@@ -1,56 +1,64 @@
-"""Stage ``printmap``: everything needed to print both sheets in IceSL.
+"""Stage ``printmap``: everything needed to print both sheets in IceSL, as modelled.
+
+What is printed comes from a print source (:mod:`metasheet.pipeline.printsource`): the
+modelled cell family (``infill = "auto"``: the cell stage's) and the map between its IceSL
+settings and the five constants. Each element's constants (orient's, which the robot
+uses) become IceSL settings through ``source.settings_for``; the fibre l becomes the
+in-plane axis angle ``infill_angle`` (the k-gon's shrunk local x = the soft axis).
 
 For each sheet (``normal/`` and ``mirrored/``): ``sheet.stl`` (the surface, world
-coordinates in mm), the 64^3 field files (``density.txt``, ``theta.txt``, ``phi.txt``,
-``iso.txt`` for Phasor; ``density.txt``, ``angle.txt`` for Polyfoam; scales in
-``metasheet.sheet.icesl``) and ``print.lua``, the IceSL script that loads the STL, picks
-the infill, reads the fields next to it and binds them over the sheet's bounding box.
-Plus ``printmap.json`` (boxes, scales, density mapping) and ``printmap.png`` (mid-plane
-slices of the fields).
+coordinates in mm), ``solid.stl`` (the solid parts: centre ring r <= centre_radius and
+the arm-end tip boxes, from sheet.json), one 64^3 field file per varying setting
+(``infill_percentage.txt``, ``infill_angle.txt``, ``kgon_x_shrink.txt`` when graded;
+scales in :mod:`metasheet.sheet.icesl`) and ``print.lua``, the IceSL script: brush 0 =
+sheet minus solid parts, the foam (no perimeter, no shells, no cover); brush 1 = the
+solid parts (100 % infill, ``solid_shells`` shells).
 
-Density: each element's relative density rho (from orient's grading; when the ``cell``
-stage runs, scaled so that the design density equals the cell's measured relative
-density) maps to the infill percentage clip(100 * density_gain * rho, min_percent,
-max_percent), written as percentage / 100.
+Plus ``printmap.json`` (boxes, scales, settings, the angle branch and its seam, the 8-bit
+quantisation error of every field), ``print_consistency.json`` (the round trip of
+:mod:`metasheet.sheet.consistency`: what the slicer reads back at each element against the
+model) and ``printmap.png`` (mid-plane slices). The stage fails, writing nothing, when the
+round trip is above ``tolerance`` / ``angle_tolerance_deg``.
 """
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 from pydantic import Field
 
-from ...errors import ConfigError
+from ...errors import ConfigError, InfeasibleError
+from ...material import CONSTANT_NAMES
 from ...sheet import fibers as fb
 from ...sheet import icesl
-from ..artefacts import read_cell_density, read_orient
+from ...sheet.consistency import round_trip
+from ...sheet.geometry import tet_volumes
+from ..artefacts import read_orient
 from ..manifest import write_json_atomic
+from ..printsource import print_source
 from ..registry import Params, Stage, StageContext, register
 
-DEFAULT_SETTINGS = {
-    "num_shells_0": 0,
-    "print_perimeter_0": True,
-    "cover_thickness_mm_0": 0.0,
-    "extruder_temp_degree_c_0": 230.0,
-}
+DEFAULT_SETTINGS = {"extruder_temp_degree_c_0": 230.0}
 SHEETS = {"normal": False, "mirrored": True}  # output folder -> whether the sheet is the mirrored one
-FILES = {"density": "density.txt", "theta": "theta.txt", "phi": "phi.txt", "iso": "iso.txt"}
 
 
 class PrintmapParams(Params):
-    infill: Literal["phasor", "polyfoam"] = Field("phasor", description="IceSL infill type")
+    infill: Literal["auto", "polyfoam", "phasor"] = Field(
+        "auto", description="IceSL infill family; auto = the cell stage's family (phasor: no modelled cell)")
     layer_thickness: float = Field(0.3, ge=0.05, le=1.0, description="z_layer_height_mm [mm]")
     settings: dict[str, float | int | bool | str] = Field(
         default_factory=lambda: dict(DEFAULT_SETTINGS),
-        description="further IceSL settings, name -> value (set before the fields)",
+        description="further IceSL settings, name -> value (not the foam's modelled settings)",
     )
-    density_gain: float = Field(1.0, gt=0, le=10, description="infill % = 100 * gain * rho [-]")
-    min_percent: float = Field(0.0, ge=0, le=100, description="lowest infill percentage [%]")
-    max_percent: float = Field(100.0, ge=0, le=100, description="highest infill percentage [%]")
+    solid_shells: int = Field(10, ge=1, le=100, description="shells of the solid parts (brush 1)")
+    tolerance: float = Field(0.02, gt=0, le=1, description="round trip: largest relative difference of a constant [-]")
+    angle_tolerance_deg: float = Field(2.0, gt=0, le=90, description="round trip: largest axis angle difference [deg]")
 
 
-def _write_stl(path, vertices: np.ndarray, faces: np.ndarray, name: str) -> None:
+def _stl_bytes(vertices: np.ndarray, faces: np.ndarray, name: str) -> bytes:
     """Binary STL with a fixed header (same mesh -> same bytes)."""
     tri = vertices[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -58,77 +66,179 @@ def _write_stl(path, vertices: np.ndarray, faces: np.ndarray, name: str) -> None
     rec = np.zeros(len(faces), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
     rec["n"], rec["v"] = n, tri
     header = f"metasheet {name} [mm]".encode()[:80].ljust(80, b" ")
-    with open(path, "wb") as fh:
-        fh.write(header)
-        fh.write(np.uint32(len(faces)).tobytes())
-        fh.write(rec.tobytes())
+    return header + np.uint32(len(faces)).tobytes() + rec.tobytes()
+
+
+def _write_atomic(path: Path, data: bytes | str) -> None:
+    """Write to a temporary name, then rename it into place."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    if isinstance(data, str):
+        tmp.write_text(data)
+    else:
+        tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def _check_settings(p: PrintmapParams, modelled: set[str]) -> dict:
+    settings = {"z_layer_height_mm": p.layer_thickness, **p.settings}
+    clash = sorted(k for k in settings if k in modelled)
+    if clash:
+        raise ConfigError(f"printmap.settings: {clash}: set by the print model (the foam brush and its "
+                          "modelled settings); remove them")
+    return settings
+
+
+def _field_settings(source, consts: dict, foam: np.ndarray, centroids: np.ndarray, label: str) -> dict:
+    """The source's field settings per element; foam elements must lie in its valid range
+    (an error naming the worst one), solid ones are clipped into it (they print solid)."""
+    s = source.settings_for(consts)
+    out = {}
+    for name in source.field_names:
+        v = np.asarray(s[name], dtype=float)
+        lo, hi = source.valid_range.get(name, (0.0, icesl.FIELD_SCALE[name]))
+        hi = min(hi, icesl.FIELD_SCALE[name])
+        excess = np.where(foam, np.maximum(lo - v, v - hi), -np.inf)
+        if np.any(excess > 1e-9 * max(abs(hi), 1.0)):
+            e = int(np.argmax(excess))
+            raise InfeasibleError(
+                f"printmap: {label} sheet element {e} (centroid [{', '.join(f'{x:.2f}' for x in centroids[e])}] mm): "
+                f"its constants need {name} = {v[e]:.4g} {icesl.FIELD_UNITS[name]}, outside the print model's "
+                f"range [{lo:.4g}, {hi:.4g}] ({source.describe().get('model', 'model')} model); "
+                "the design leaves what the modelled cell can print")
+        out[name] = np.clip(v, lo, hi)
+    return out
 
 
 def run(ctx: StageContext) -> dict:
     p: PrintmapParams = ctx.params
-    if p.min_percent > p.max_percent:
-        raise ConfigError(f"min_percent: {p.min_percent!r}: allowed range is [0, max_percent = {p.max_percent:g}]")
+    source = print_source(ctx, p.infill)
     orient = read_orient(ctx.inputs["orient"])
-    info, fs = orient.info, orient.fiber_settings
-    alpha_design = float(info["material"]["alpha_percent"])
-    rho_cell = read_cell_density(ctx.inputs["cell"]) if "cell" in ctx.inputs else None
-    scale = 1.0 if rho_cell is None else rho_cell / float(info["relative_density"])
-    settings = {"z_layer_height_mm": p.layer_thickness, **p.settings}
-    names = list(icesl.SETTINGS[p.infill])
-    files = {k: ("angle.txt" if (k == "theta" and p.infill == "polyfoam") else FILES[k]) for k in names}
-    summary, slices = {"infill": p.infill, "sheets": {}}, []
+    orient.sheets(need_constants=True)  # both sheets carry the five constants, else a clear error
+    sp = orient.sheet_params
+    fs = orient.fiber_settings
+    fields = (*source.field_names, icesl.ANGLE)
+    foam_values = {**icesl.FOAM_BRUSH, **source.fixed}
+    modelled = {f"infill_type_{icesl.FOAM}"} | {f"{k}_{icesl.FOAM}" for k in (*foam_values, *fields)}
+    solid_values = {"infill_percentage": 100.0, "num_shells": p.solid_shells, "print_perimeter": True}
+    modelled |= {f"{k}_{icesl.SOLID}" for k in solid_values}
+    settings = _check_settings(p, modelled)
+    files = {k: f"{k}.txt" for k in fields}
+    solid_v, solid_f = icesl.solid_parts_mesh(sp)
+    solid_stl = _stl_bytes(solid_v, solid_f, "solid parts (centre ring, arm-end tabs)")
+
+    # everything is computed and checked first: a failing round trip writes nothing
+    staged, summary, quant, consistency, slices = {}, {}, {}, {}, []
+    failures = []
     for step, (label, mirrored) in enumerate(SHEETS.items()):
         ctx.progress(f"sampling {label} sheet", step, len(SHEETS) + 1)
         sheet = orient.mirrored if mirrored else orient.normal
-        mesh, tets = sheet.mesh, sheet.mesh.tets
-        rho = np.asarray(sheet.cell_data["density"], dtype=float) * scale
-        alpha = np.asarray(sheet.cell_data["alpha"], dtype=float)
-        iso = np.ones_like(alpha) if alpha_design <= 0 else np.clip(1.0 - alpha / alpha_design, 0.0, 1.0)
+        mesh = sheet.mesh
+        centroids = mesh.centroids()
+        consts = {k: np.asarray(sheet.cell_data[k], dtype=float) for k in CONSTANT_NAMES}
+        solid_el = icesl.solid_mask(centroids, sp)
+        element = _field_settings(source, consts, ~solid_el, centroids, label)
         pf = icesl.print_fields(
-            mesh.points, tets,
+            mesh.points, mesh.tets, element_settings=element, params=sp,
             fiber_fn=lambda q, m=mirrored: fb.spiral_fibers(q, mirrored=m, **fs),
-            density=rho, iso=iso, gain=p.density_gain,
-            min_percent=p.min_percent, max_percent=p.max_percent,
         )
-        out = ctx.path(label)
-        out.mkdir(parents=True, exist_ok=True)
-        verts, faces = icesl.surface(mesh.points, tets)
-        _write_stl(out / "sheet.stl", verts, faces, f"{label} tripod sheet")
-        for k in names:
-            (out / files[k]).write_text(icesl.field_text(pf.fields[k]))
-        (out / "print.lua").write_text(icesl.lua_script(
-            stl="sheet.stl", infill=p.infill, files=files, box=pf.box, settings=settings,
-            title=f"metasheet print map, {label} tripod sheet ({p.infill})",
-        ))
-        summary["sheets"][label] = {
+        texts = {k: icesl.field_text(pf.textures[k]) for k in fields}
+        held = {k: icesl.quantise(icesl.parse_field_text(texts[k], pf.box.n)) for k in fields}
+        quant[label] = {
+            k: {"max_abs_error": float(np.max(np.abs(held[k] - pf.textures[k]))) * icesl.FIELD_SCALE[k],
+                "units": icesl.FIELD_UNITS[k], "step": icesl.FIELD_SCALE[k] / icesl.LEVELS}
+            for k in fields
+        }
+        rep = round_trip(
+            box=pf.box, textures=held, constants_at=source.constants_at, centroids=centroids,
+            constants=consts, fibers=sheet.fibers, printed_solid=solid_el,
+            volumes=tet_volumes(mesh.points, mesh.tets),
+            tolerance=p.tolerance, angle_tolerance_deg=p.angle_tolerance_deg,
+        )
+        consistency[label] = rep
+        if not rep.ok:
+            failures.append(rep.message(f"{label} sheet "))
+        verts, faces = icesl.surface(mesh.points, mesh.tets)
+        staged[label] = {
+            "sheet.stl": _stl_bytes(verts, faces, f"{label} tripod sheet"),
+            "solid.stl": solid_stl,
+            **{files[k]: texts[k] for k in fields},
+            "print.lua": icesl.lua_script(
+                sheet_stl="sheet.stl", solid_stl="solid.stl", infill_type=source.infill_type,
+                foam=foam_values, fields=files, solid=solid_values, box=pf.box, settings=settings,
+                title=f"metasheet print map, {label} tripod sheet ({source.family})",
+            ),
+        }
+        angle_deg = pf.values(icesl.ANGLE)
+        summary[label] = {
             "box_lo_mm": pf.box.lo.tolist(), "box_hi_mm": pf.box.hi.tolist(),
-            "percent_range": list(pf.percent_range), "inside_fraction": float((pf.cell >= 0).mean()),
-            "n_triangles": int(len(faces)),
+            "inside_fraction": float(pf.inside.mean()), "foam_fraction": float(pf.foam.mean()),
+            "n_triangles": int(len(faces)), "elements_solid": int(solid_el.sum()),
+            "field_range": {k: [float(pf.values(k)[pf.foam].min()), float(pf.values(k)[pf.foam].max())]
+                            for k in source.field_names},
+            "angle_branch": pf.branch.to_dict(),
+            "angle_seam": icesl.seam_report(angle_deg, pf.foam, pf.box),
         }
         mid = pf.box.n // 2
         ax = pf.box.axes()
         extent = (ax[0][0], ax[0][-1], ax[1][0], ax[1][-1])
-        slices.append((label, {k: pf.fields[k][:, :, mid] for k in names}, pf.cell[:, :, mid] >= 0, extent))
+        shown = {k: pf.values(k)[:, :, mid] for k in source.field_names}
+        shown["axis angle"] = np.mod(angle_deg[:, :, mid], 180.0)
+        slices.append((label, shown, pf.inside[:, :, mid], pf.solid[:, :, mid] & pf.inside[:, :, mid], extent))
+    if failures:
+        raise InfeasibleError("printmap: the print does not match the model (round trip of the quantised "
+                              "fields through the print source): " + "; ".join(failures))
+
+    ctx.progress("writing", len(SHEETS), len(SHEETS) + 1)
+    for label, out_files in staged.items():
+        out = ctx.path(label)
+        out.mkdir(parents=True, exist_ok=True)
+        for name, data in out_files.items():
+            _write_atomic(out / name, data)
+    write_json_atomic(ctx.path("print_consistency.json"), {
+        "method": "fields sampled at each element centroid by trilinear interpolation of the quantised "
+                  "(8-bit) textures, mapped through the print source's constants_at, compared with orient's "
+                  "per-element constants and fibre; elements printed solid are skipped",
+        **{label: rep.to_dict() for label, rep in consistency.items()},
+        "ok": all(r.ok for r in consistency.values()),
+    })
     info_out = {
-        **summary,
+        "infill": source.family, "infill_type": source.infill_type, "source": source.describe(),
         "grid": [icesl.N] * 3,
-        "settings": {icesl.SETTINGS[p.infill][k]: files[k] for k in names},
+        "brushes": {
+            str(icesl.FOAM): {"role": "foam: difference(sheet.stl, solid.stl)",
+                              "settings": {f"{k}_{icesl.FOAM}": v for k, v in
+                                           {"infill_type": source.infill_type, **foam_values}.items()},
+                              "fields": {f"{k}_{icesl.FOAM}": files[k] for k in fields}},
+            str(icesl.SOLID): {"role": "solid parts: intersection(sheet.stl, solid.stl)",
+                               "regions": {"centre_ring_radius_mm": sp.centre_radius,
+                                           "tip_box_mm": list(sp.tip_box), "reach_mm": sp.reach},
+                               "settings": {f"{k}_{icesl.SOLID}": v for k, v in solid_values.items()}},
+        },
         "scales": {
-            "density": "infill percentage / 100; percentage = clip(100 * gain * rho, min, max)",
-            "theta": "atan2(l_y, l_x) / 360 deg", "phi": "asin(l_z) mod 360 deg / 360 deg",
-            "iso": "1 - alpha / alpha_design (1 = isotropic)",
+            "infill_percentage": "percent / 100", "kgon_x_shrink": "ratio",
+            "infill_angle": "angle of the soft axis l in the print plane / 360 deg, written on the branch "
+                            "'angle_branch' (offset + mod(theta + flip - offset, period)); only the angle "
+                            "modulo 180 deg matters",
             "outside": "nearest inside texel",
         },
-        "density_gain": p.density_gain, "density_scale_from_cell": scale, "cell_relative_density": rho_cell,
+        "quantisation": {"rule": "tex3d_r8f holds round(255 v) / 255; error = |held - intended| over all "
+                                 "texels, in IceSL units", **quant},
+        "sheets": summary,
         "print_settings": settings,
+        "consistency": {label: {"ok": r.ok, "elements_compared": r.compared, "elements_at_seam": r.seam}
+                        for label, r in consistency.items()},
     }
     write_json_atomic(ctx.path("printmap.json"), info_out)
     ctx.progress("picture", len(SHEETS), len(SHEETS) + 1)
     from ...viz.sheet import printmap_picture
 
-    ctx.path("printmap.png").write_bytes(printmap_picture(slices))
-    return {"infill": p.infill, "density_scale_from_cell": scale,
-            **{f"{k}_percent_range": v["percent_range"] for k, v in summary["sheets"].items()}}
+    _write_atomic(ctx.path("printmap.png"), printmap_picture(slices))
+    return {
+        "infill": source.family,
+        **{f"{k}_{name}_range": v["field_range"][name] for k, v in summary.items() for name in source.field_names},
+        **{f"{k}_max_rel_difference": max(c.max for c in r.constants.values()) for k, r in consistency.items()},
+        **{f"{k}_max_axis_difference_deg": r.angle.max for k, r in consistency.items()},
+    }
 
 
 register(
@@ -137,9 +247,11 @@ register(
         params=PrintmapParams,
         run=run,
         requires=("orient",),
-        optional=("cell",),
-        outputs=("normal/print.lua", "normal/sheet.stl", "mirrored/print.lua", "mirrored/sheet.stl",
-                 "printmap.json", "printmap.png"),
-        doc="IceSL print maps (STL, 64^3 fields, Lua script) for both sheets -> normal/, mirrored/",
+        optional=("cell", "homogenize", "chart"),
+        outputs=("normal/print.lua", "normal/sheet.stl", "normal/solid.stl", "mirrored/print.lua",
+                 "mirrored/sheet.stl", "mirrored/solid.stl", "printmap.json", "print_consistency.json",
+                 "printmap.png"),
+        doc="IceSL print maps (foam + solid brushes, 64^3 fields, Lua script) for both sheets, checked "
+            "against the model -> normal/, mirrored/",
     )
 )
