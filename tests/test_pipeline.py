@@ -169,3 +169,28 @@ def test_quick_pipeline_material_stage(tmp_path):
 
     assert np.allclose(np.array(data["stiffness"]) @ np.array(data["compliance"]), np.eye(6), atol=1e-9)
     assert (tmp_path / "quick/material/manifest.json").is_file()
+
+
+def test_quick_pipeline_prints_what_it_models(tmp_path):
+    """Issue 13 round trip on the quick pipeline: the printed Polyfoam map read back through the
+    model gives the robot's constants and axes within the tolerance, with every setting bound."""
+    root = Path(__file__).resolve().parents[1]
+    pl = load_pipeline(root / "pipelines" / "quick.toml")
+    run_pipeline(pl, out_root=tmp_path, only="printmap")
+    out = tmp_path / "quick/printmap"
+    rt = json.loads((out / "print_consistency.json").read_text())
+    assert rt["ok"]
+    for sheet in ("normal", "mirrored"):
+        r = rt[sheet]
+        assert r["elements_compared"] > 500
+        for k, d in r["constants_relative_difference"].items():
+            assert d["max"] <= r["tolerance"], (sheet, k)
+        assert r["axis_angle_difference_deg"]["max"] <= r["angle_tolerance_deg"]
+        lua = (out / sheet / "print.lua").read_text()
+        for bound in ("'infill_type_0', 'Polyfoam'", "'print_perimeter_0', false", "'num_shells_0', 0",
+                      "'kgon_x_shrink_0', 0.5", "'infill_percentage_0', read_field", "'infill_angle_0', read_field"):
+            assert bound in lua, (sheet, bound)
+    # the homogenised cell is the material: the robot's constants are the cell's
+    mat = json.loads((tmp_path / "quick/material/material.json").read_text())
+    cons = json.loads((tmp_path / "quick/homogenize/constants.json").read_text())
+    assert mat["constants"]["E_l"] == pytest.approx(cons["E_l"], rel=1e-12)

@@ -36,6 +36,8 @@ class ChartParams(Params):
     voxel_mm: float | None = Field(None, gt=0, le=2, description="voxel edge of each cell [mm] (polyfoam; "
                                    "default: the design's)")
     seeds: int = Field(1, ge=1, le=20, description="foam realisations per point (seeds base, base + 1, ...)")
+    seed_count: int | None = Field(None, ge=1, le=4096, description="seed points per cell (default: the "
+                                   "design's); fewer make cheaper, noisier cells")
 
     @model_validator(mode="after")
     def _ranges(self):
@@ -82,6 +84,8 @@ def run(ctx: StageContext) -> dict:
         raise ConfigError(f"chart.design: {p.design!r}: kind {family!r}: the chart needs one of "
                           f"{', '.join(FAMILY_AXES)}")
     first, second = sweep_values(p, family)
+    if p.seed_count is not None:
+        design["seeds"] = {**design.get("seeds", {}), "count": p.seed_count}
     base_seed = int(design.get("seeds", {}).get("seed", 0))
     items = chart_points(design, first, second, [base_seed + k for k in range(p.seeds)],
                          resolution=p.resolution if family == "foam" else None,
@@ -92,8 +96,9 @@ def run(ctx: StageContext) -> dict:
     ctx.path("chart.csv").write_text(to_csv(rows))
     from ...viz.homogenize import chart_picture
 
-    grid = f"{p.resolution}^3 voxels" if family == "foam" else f"voxel {p.voxel_mm or 'of the design'} mm"
-    title = f"design chart of {design.get('name', path.stem)} ({grid}, {p.seeds} seed(s) per point)"
+    grid = f"{p.resolution}^3 voxels" if family == "foam" else f"voxel {p.voxel_mm or design.get('voxel_mm')} mm"
+    title = (f"design chart of {design.get('name', path.stem)} ({grid}, {design.get('seeds', {}).get('count')} "
+             f"cells, {p.seeds} realisation(s) per point)")
     ctx.path("chart.png").write_bytes(chart_picture(rows, title))
     return {"points": len(rows), "E_t_range_MPa": [min(r["E_t"] for r in rows), max(r["E_t"] for r in rows)],
             "alpha_range_percent": [min(r["alpha"] for r in rows), max(r["alpha"] for r in rows)]}
