@@ -70,7 +70,7 @@ def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[st
         lines += [f"**kgon_x_shrink {s:g}** against the authors' {kind} foam:", "",
                   "| infill [%] | rho | E_t / E_s | authors | E_l / E_s | authors | nu_t | authors | nu_tl | authors "
                   "| mu_l / G_s | authors |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-        rho, e_t = [], []
+        rho, e_t, e_l = [], [], []
         for p, rs in sorted(by_p.items()):
             m = {k: float(np.mean([float(r[k]) for r in rs])) for k in ("relative_density", *CONSTANT_NAMES)}
             a = authors_constants(m["relative_density"], kind) if _in_table(m["relative_density"], kind) else None
@@ -82,16 +82,19 @@ def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[st
                          f"{cell(m['nu_tl'], a and a['nu_tl'])} | {cell(m['mu_l'], a and a['mu_l'], G_S)} |")
             rho.append(m["relative_density"])
             e_t.append(m["E_t"])
+            e_l.append(m["E_l"])
         lines.append("")
         if len(rho) >= 2:
-            n, c = np.polyfit(np.log(rho), np.log(np.array(e_t) / E_S), 1)
             t = authors_table(kind)
-            e_ref = 0.5 * (t["E_y"] + t["E_z"]) if kind == "transverse" else (t["E_x"] + t["E_y"] + t["E_z"]) / 3
-            n_ref, c_ref = np.polyfit(np.log(t["density"]), np.log(e_ref), 1)
-            lines += [f"Fitted E_t / E_s = {np.exp(c):.3g} rho^{n:.2f} (authors: {np.exp(c_ref):.3g} rho^{n_ref:.2f}).",
-                      ""]
-            diffs.append(f"Density sweep, shrink {s:g} vs the authors' {kind} foam: E_t / E_s = {np.exp(c):.3g} "
-                         f"rho^{n:.2f} against {np.exp(c_ref):.3g} rho^{n_ref:.2f}.")
+            ref = {"E_t": 0.5 * (t["E_y"] + t["E_z"]) if kind == "transverse" else (t["E_x"] + t["E_y"] + t["E_z"]) / 3,
+                   "E_l": t["E_x"] if kind == "transverse" else (t["E_x"] + t["E_y"] + t["E_z"]) / 3}
+            laws = []
+            for name, ours in (("E_t", e_t), ("E_l", e_l)):
+                n, c = np.polyfit(np.log(rho), np.log(np.array(ours) / E_S), 1)
+                n_ref, c_ref = np.polyfit(np.log(t["density"]), np.log(ref[name]), 1)
+                laws.append(f"{name} / E_s = {np.exp(c):.3g} rho^{n:.2f} (authors: {np.exp(c_ref):.3g} rho^{n_ref:.2f})")
+            lines += ["Fitted power laws: " + "; ".join(laws) + ".", ""]
+            diffs.append(f"Density sweep, shrink {s:g} vs the authors' {kind} foam: " + "; ".join(laws) + ".")
     return lines, diffs
 
 
