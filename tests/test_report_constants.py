@@ -50,3 +50,14 @@ def test_section_compares_three_sources_and_fits_the_same_law():
         assert f"{name} / E_s = {law} (authors: {law})" in text, name
     assert any("2.00 x the published" in d for d in diffs)
     assert f"E_t / E_s = {2 * 1.39 / E_S:.4f}" in text
+
+
+def test_scale_separation_is_measured_against_the_sheet():
+    cell = {"mean_void_chord_mm": [2.5, 12.6, 23.4], "size_mm": [7.8, 38.9, 80.6], "seed_count": 8}
+    lines, diffs = constants_section({"relative_density": 0.15, **PAPER_FOAM.to_dict()}, None, None, None, None,
+                                     cell=cell, thickness=5.0)
+    assert "0.21 cell(s) through the thickness" in "\n".join(lines)
+    assert any("Scale separation fails" in d for d in diffs)
+    _, fine = constants_section({"relative_density": 0.15, **PAPER_FOAM.to_dict()}, None, None, None, None,
+                                cell={**cell, "mean_void_chord_mm": [0.5, 0.5, 0.5]}, thickness=5.0)
+    assert not any("Scale separation" in d for d in fine)

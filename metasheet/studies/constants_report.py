@@ -123,9 +123,33 @@ def robot_rows(robot: Mapping | None, anisotropy: Mapping | None) -> list[str]:
     return [*lines, ""] if lines else []
 
 
+def scale_rows(cell: Mapping | None, thickness: float | None) -> tuple[list[str], list[str]]:
+    """The cell's size against the sheet's thickness: does the sheet hold many cells?
+
+    Homogenised constants describe a foam with many cells across every dimension of the
+    part; the mean void chord along z (the build axis, the sheet's thickness) measures how
+    many the printed sheet really holds.
+    """
+    if not cell or not thickness or "mean_void_chord_mm" not in cell:
+        return [], []
+    ch = [float(v) for v in cell["mean_void_chord_mm"]]
+    cells_through = float(thickness) / ch[2] if ch[2] > 0 else float("inf")
+    lines = [f"Cell scale: mean void chords along x, y, z = {ch[0]:.3g}, {ch[1]:.3g}, {ch[2]:.3g} mm "
+             f"(periodic box {', '.join(f'{v:.3g}' for v in cell.get('size_mm', []))} mm, "
+             f"{cell.get('seed_count', '?')} cells) against the sheet thickness {float(thickness):g} mm along z: "
+             f"{cells_through:.2g} cell(s) through the thickness.", ""]
+    diffs = []
+    if cells_through < 3:
+        diffs.append(f"Scale separation fails: the cell's mean void chord along the build axis is {ch[2]:.3g} mm "
+                     f"for a {float(thickness):g} mm sheet ({cells_through:.2g} cells through it); the homogenised "
+                     "constants are those of an unbounded foam, not of this sheet.")
+    return lines, diffs
+
+
 def constants_section(homogenize: Mapping | None, chart_rows: list[Mapping] | None, material: Mapping | None,
                       robot: Mapping | None, anisotropy: Mapping | None,
-                      shrink: float | None = None) -> tuple[list[str], list[str]]:
+                      shrink: float | None = None, *, cell: Mapping | None = None,
+                      thickness: float | None = None) -> tuple[list[str], list[str]]:
     """The whole section: (Markdown lines, differences found)."""
     if not homogenize:
         return [], []
@@ -135,6 +159,7 @@ def constants_section(homogenize: Mapping | None, chart_rows: list[Mapping] | No
         lines += [f"The robot runs on the **{src}** constants" + (
             " (the printed cell's homogenised constants)." if src == "homogenize" else " (the published set)."), ""]
     cl, diffs = cell_rows(homogenize)
+    kl, kd = scale_rows(cell, thickness)
     sl, sd = sweep_rows(chart_rows or [], shrink)
-    lines += cl + sl + robot_rows(robot, anisotropy)
-    return lines, diffs + sd
+    lines += cl + kl + sl + robot_rows(robot, anisotropy)
+    return lines, diffs + kd + sd

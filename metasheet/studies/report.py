@@ -46,7 +46,8 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         keys = (*CONSTANT_NAMES, "alpha_percent", "source")
         lines += ["## Constants (paper Section II, FACTS)", "", _table([(k, m[k]) for k in keys if k in m]), ""]
     section, found = constants_section(s.get("homogenize"), s.get("chart", {}).get("rows"), s.get("material"),
-                                       s.get("robot"), s.get("anisotropy"), s.get("chart", {}).get("shrink"))
+                                       s.get("robot"), s.get("anisotropy"), s.get("chart", {}).get("shrink"),
+                                       cell=s.get("cell"), thickness=summaries.get("sheet_thickness_mm"))
     lines += section
     diffs += found
     if "robot" in s:

@@ -7,6 +7,7 @@ ran, copies their pictures next to ``report.md`` so the page is self-contained.
 
 from __future__ import annotations
 
+import json
 import shutil
 
 from pydantic import Field
@@ -36,6 +37,13 @@ def run(ctx: StageContext) -> dict:
         from ...homogenize.chart import rows_of
 
         summaries["chart"] = {"rows": rows_of(read_chart(ctx.inputs["chart"])), "shrink": _cell_shrink(ctx)}
+    if "cell" in ctx.inputs:
+        info = json.loads((ctx.inputs["cell"] / "cell.json").read_text())
+        summaries["cell"] = {k: info[k] for k in ("name", "kind", "size_mm", "mean_void_chord_mm", "seed_count")
+                             if k in info}
+    if "orient" in ctx.inputs:
+        geometry = json.loads((ctx.inputs["orient"] / "sheet.json").read_text()).get("geometry", {})
+        summaries["sheet_thickness_mm"] = geometry.get("thickness")
     if "material" in ctx.inputs:
         m = read_material(ctx.inputs["material"])
         summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source}
@@ -48,8 +56,6 @@ def _cell_shrink(ctx: StageContext) -> float | None:
     """The printed cell's ``kgon_x_shrink`` (Polyfoam cells), else None."""
     if "cell" not in ctx.inputs:
         return None
-    import json
-
     design = json.loads((ctx.inputs["cell"] / "cell.json").read_text()).get("design", {})
     shrink = design.get("kgon_x_shrink")
     return None if shrink is None else float(shrink)
@@ -57,6 +63,6 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 
 register(Stage(
     name="report", params=ReportParams, run=run,
-    optional=("cell", "homogenize", "chart", "material", "robot", "workspace", "ranges", "anisotropy", "maze"),
+    optional=("cell", "homogenize", "chart", "material", "orient", "robot", "workspace", "ranges", "anisotropy", "maze"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))
