@@ -16,7 +16,7 @@ from metasheet.material import CONSTANT_NAMES
 from metasheet.pipeline.artefacts import read_orient
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import orient, printmap
-from metasheet.sheet import icesl
+from metasheet.sheet import angles, icesl
 from metasheet.sheet.consistency import round_trip
 from metasheet.sheet.fibers import fiber_angles, spiral_fibers
 
@@ -86,7 +86,7 @@ def test_quantisation_error_reported_matches_a_direct_computation(run):
         _, box, tex = _held(pm, label)
         q = info["quantisation"][label]
         # intended values: the cell's percentage everywhere; the fibre's axis on the reported branch
-        br = icesl.AngleBranch(**{k.replace("_deg", ""): v for k, v in info["sheets"][label]["angle_branch"].items()})
+        br = angles.AngleBranch(**{k.replace("_deg", ""): v for k, v in info["sheets"][label]["angle_branch"].items()})
         theta, _ = fiber_angles(spiral_fibers(box.centers().reshape(-1, 3), mirrored=mirrored, **fs))
         intended = {"infill_percentage": np.full((64,) * 3, P_CELL),
                     "infill_angle": br.write(np.degrees(theta)).reshape((64,) * 3)}

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from metasheet.errors import ConfigError
-from metasheet.sheet import icesl
+from metasheet.sheet import angles, icesl
 from metasheet.sheet.fibers import fiber_angles, spiral_fibers
 from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
 
@@ -76,7 +76,7 @@ def test_axis_angle_has_one_seam_in_the_hub_neck_between_two_arms(maps, which):
         seam.append(mid)
     seam = np.concatenate(seam)
     assert len(seam) > 0
-    rep = icesl.seam_report(w, foam, pf.box)
+    rep = angles.seam_report(w, foam, pf.box)
     assert rep["foam_texel_pairs"] == len(seam)
     assert pf.branch.period == 360.0  # one seam beats the two of the period-180 branch here
     t = np.mod(np.degrees(np.arctan2(seam[:, 1], seam[:, 0])), 360.0)
@@ -92,18 +92,18 @@ def test_axis_angle_has_one_seam_in_the_hub_neck_between_two_arms(maps, which):
 
 def test_branches_write_the_axis():
     theta = np.linspace(-720.0, 720.0, 1001)
-    for br in icesl.branch_candidates(step=15.0):
+    for br in angles.branch_candidates(step=15.0):
         w = br.write(theta)
         assert np.all((w >= br.offset) & (w < br.offset + br.period))
         assert _axis_diff(w, theta).max() < 1e-9
     with pytest.raises(ConfigError, match="offset"):
-        icesl.AngleBranch(180.0, 200.0)
+        angles.AngleBranch(180.0, 200.0)
     # a radial axis field (turns 360 deg per loop) wins with one seam; a uniform one has none
     g = np.stack(np.meshgrid(*[np.arange(16) - 7.5] * 2, indexing="ij"), -1)
     t = np.degrees(np.arctan2(g[..., 1], g[..., 0]))[..., None] * np.ones(4)
-    br, n = icesl.choose_branch(t, np.ones(t.shape, bool))
+    br, n = angles.choose_branch(t, np.ones(t.shape, bool))
     assert br.period == 360.0 and n == 8 * 4  # one ray of 8 texel pairs per layer
-    br, n = icesl.choose_branch(np.full((8, 8, 4), 170.0), np.ones((8, 8, 4), bool))
+    br, n = angles.choose_branch(np.full((8, 8, 4), 170.0), np.ones((8, 8, 4), bool))
     assert n == 0
 
 

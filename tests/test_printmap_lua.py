@@ -23,7 +23,7 @@ from metasheet.errors import ConfigError
 from metasheet.pipeline import printsource
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import orient, printmap
-from metasheet.sheet import icesl
+from metasheet.sheet import icesl, icesl_lua
 
 LUA54 = shutil.which("lua5.4")
 
@@ -251,7 +251,7 @@ def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, ru
         (tmp_path / fname).write_text(icesl.field_text(v))
         sums[fname] = v.sum()
     box = icesl.GridBox(np.array([-1.0, -2.0, -3.0]), np.array([1.0, 2.0, 3.0]))
-    (tmp_path / "print.lua").write_text(icesl.lua_script(
+    (tmp_path / "print.lua").write_text(icesl_lua.lua_script(
         sheet_stl="sheet.stl", solid_stl="solid.stl", infill_type="Polyfoam",
         foam={**icesl.FOAM_BRUSH, "kgon_min_angle": 60.0}, fields=files,
         solid={"num_shells": 10}, box=box, settings={"z_layer_height_mm": 0.3}))
@@ -266,7 +266,7 @@ def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, ru
     assert "SET kgon_min_angle_0 60.0" in res.stdout.splitlines()
     assert "kgon_norm_alpha" not in res.stdout
     with pytest.raises(ConfigError, match="both a value and a field"):
-        icesl.lua_script(sheet_stl="s", solid_stl="t", infill_type="Polyfoam", foam={"kgon_x_shrink": 0.2},
+        icesl_lua.lua_script(sheet_stl="s", solid_stl="t", infill_type="Polyfoam", foam={"kgon_x_shrink": 0.2},
                          fields={"kgon_x_shrink": "s.txt"}, solid={}, box=box, settings={})
 
 
@@ -275,7 +275,7 @@ def test_lua_script_fails_loudly_on_a_short_field(tmp_path, run_lua):
     files = {"infill_percentage": "density.txt", "infill_angle": "angle.txt"}
     (tmp_path / "density.txt").write_text(icesl.field_text(np.zeros((64, 64, 64))))
     (tmp_path / "angle.txt").write_text("0.5 0.5\n")
-    (tmp_path / "print.lua").write_text(icesl.lua_script(
+    (tmp_path / "print.lua").write_text(icesl_lua.lua_script(
         sheet_stl="s.stl", solid_stl="t.stl", infill_type="Polyfoam", foam={}, fields=files, solid={},
         box=box, settings={}))
     (tmp_path / "standin.lua").write_text(STANDIN)

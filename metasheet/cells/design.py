@@ -7,13 +7,16 @@ told apart by ``kind``:
   wall thickness is solved for a relative density (:mod:`metasheet.cells.thickness`);
 - ``polyfoam``: IceSL's Polyfoam as modelled here: Voronoi walls one bead thick under the
   k-gon gauge (:mod:`metasheet.cells.kgon`), the cell size solved for the infill density
-  (:mod:`metasheet.cells.polyfoam`) on a non-cubic grid of edge ``voxel_mm``; the
-  longitudinal (soft) axis is x;
+  on a non-cubic grid of edge ``voxel_mm``; the longitudinal (soft) axis is x. Its model
+  (:class:`~metasheet.cells.polyfoam.PolyfoamDesign`) and builder live in
+  :mod:`metasheet.cells.polyfoam`;
 - ``laminate``: layers of isotropic materials stacked along ``axis`` (exact Backus
   averages downstream);
 - ``solid``: the bulk base material.
 
-Units: lengths in mm, moduli in MPa, angles in degrees. ``axis`` is the longitudinal
+The shared sub-tables (``[material]``, ``[seeds]``, ``[metric]``) are in
+:mod:`metasheet.cells.specs`. :class:`CellResult` is the built cell, ``phases`` (nx, ny, nz)
+uint8. Units: lengths in mm, moduli in MPa, angles in degrees. ``axis`` is the longitudinal
 axis ``l`` numbered 1, 2, 3 (x, y, z) as in the paper; code works with 0-based indices.
 Reading the file is the stage's job (no file I/O here).
 """
@@ -25,74 +28,20 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import Field, ValidationError
 
 from ..errors import ConfigError, InfeasibleError
 from ..material import Isotropic
 from .connectivity import ConnectivityReport, check_percolation, keep_largest
 from .foam import Foam, foam_field, voxel_centres
-from .kgon import KgonMetric
 from .measure import mean_chord_lengths
-from .metrics import PolyhedralMetric, StretchedMetric
-from .polyfoam import PolyfoamField, PolyfoamSolution, solve_polyfoam
+from .polyfoam import PolyfoamDesign, PolyfoamField, PolyfoamSolution, build_polyfoam
 from .seeds import make_seeds
 from .skeleton import SkeletonIndex
+from .specs import MaterialSpec, PolyhedralSpec, SeedSpec, StretchedSpec, _Model
 from .thickness import ThicknessSolution, solve_thickness
 
 Length = Annotated[float, Field(gt=0)]
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class MaterialSpec(_Model):
-    """An isotropic base material. ``E`` [MPa] > 0, ``nu`` [-] in (-1, 0.5)."""
-
-    name: str = "TPU NinjaFlex"
-    E: float = Field(12.0, gt=0)
-    nu: float = Field(0.3, gt=-1.0, lt=0.5)
-
-    def material(self) -> Isotropic:
-        return Isotropic(self.E, self.nu)
-
-
-class SeedSpec(_Model):
-    """Seed points: ``sampler`` uniform | jittered | poisson, ``count`` N, RNG ``seed``,
-    ``jitter`` [-] (jittered grid), ``min_distance`` [mm in the metric's scaled space]
-    (Poisson disk; default fills a quarter of the box with disks)."""
-
-    sampler: Literal["uniform", "jittered", "poisson"] = "poisson"
-    count: int = Field(64, ge=1, le=4096)
-    seed: int = Field(0, ge=0)
-    jitter: float = Field(0.5, ge=0.0, le=1.0)
-    min_distance: float | None = Field(None, gt=0)
-
-
-class StretchedSpec(_Model):
-    """:class:`~metasheet.cells.metrics.StretchedMetric`: ``stretch`` s >= 1 [-] and ``mode``
-    axial (cells elongated along the axis) | transverse (elongated across it)."""
-
-    kind: Literal["stretched"] = "stretched"
-    stretch: float = Field(1.0, ge=1.0, le=1000.0)
-    mode: Literal["axial", "transverse"] = "axial"
-
-    def build(self, axis: int) -> StretchedMetric:
-        return StretchedMetric(self.stretch, axis, self.mode)
-
-
-class PolyhedralSpec(_Model):
-    """:class:`~metasheet.cells.metrics.PolyhedralMetric`: ``k`` [-], ``height`` [-],
-    ``x_shrink`` [-], ``angle`` [deg]."""
-
-    kind: Literal["polyhedral"]
-    k: int = Field(6, ge=3, le=64)
-    height: float = Field(1.0, gt=0.0, le=1000.0)
-    x_shrink: float = Field(1.0, gt=0.0, le=1.0)
-    angle: float = Field(0.0, ge=-360.0, le=360.0)
-
-    def build(self, axis: int) -> PolyhedralMetric:
-        return PolyhedralMetric(self.k, self.height, self.x_shrink, self.angle, axis)
 
 
 class _CellBase(_Model):
@@ -136,67 +85,6 @@ class SolidDesign(_CellBase):
 
     kind: Literal["solid"]
     material: MaterialSpec = MaterialSpec()
-
-
-class PolyfoamDesign(_Model):
-    """IceSL's Polyfoam (as modelled here); see ``cells/paper_polyfoam.toml`` for every field.
-
-    IceSL's names: ``infill_percentage`` [%] (the solid volume fraction x 100 under
-    ``density_model = "volume_fraction"``), ``kgon_x_shrink`` [-], ``kgon_min_angle`` [deg],
-    ``kgon_norm_alpha`` [-] (only 0.5, IceSL's default: its effect is unpublished),
-    ``infill_angle`` [deg] (recorded; applied by the sheet's orientation field),
-    ``kgon_sides`` (k, an assumption), ``bead_width`` [mm] (the wall thickness),
-    ``layer_height`` [mm] (recorded; modelled only with ``layer_model = "staircase"``).
-    ``wall_measure`` ("normal" | "horizontal") says how the bead width is measured;
-    ``seed_space`` where the seeds are spread evenly: "gauge" (the gauge's scaled space
-    ``(1/s, 1, beta)``, as for foams: cells ``1/beta`` tall) or "print" (``(1/s, 1, 1)``:
-    spacing along z as along y, only the shrink applied). The box
-    follows from the seeds and the density; the grid from ``voxel_mm`` (default
-    ``bead_width / 2``). ``axis`` is 1 (x).
-    """
-
-    kind: Literal["polyfoam"] = "polyfoam"
-    name: str
-    description: str = ""
-    axis: Literal[1] = 1
-    density_model: Literal["volume_fraction"] = "volume_fraction"
-    infill_percentage: float = Field(20.0, ge=1.0, le=90.0)
-    kgon_x_shrink: float = Field(1.0, gt=0.0, le=1.0)
-    kgon_min_angle: float = Field(45.0, ge=10.0, le=80.0)
-    kgon_norm_alpha: float = 0.5
-    infill_angle: float = Field(0.0, ge=-360.0, le=360.0)
-    kgon_sides: int = Field(6, ge=3, le=64)
-    bead_width: float = Field(0.4, gt=0.0, le=5.0)
-    layer_height: float = Field(0.3, gt=0.0, le=5.0)
-    wall_measure: Literal["normal", "horizontal"] = "normal"
-    layer_model: Literal["none", "staircase"] = "none"
-    seed_space: Literal["gauge", "print"] = "gauge"
-    voxel_mm: float | None = Field(None, gt=0.0, le=5.0)
-    max_voxels: int = Field(4_000_000, ge=1000, le=100_000_000)
-    tolerance: float = Field(0.005, gt=0.0, lt=1.0)
-    max_island_fraction: float = Field(0.01, ge=0.0, le=1.0)
-    seeds: SeedSpec = SeedSpec(count=16)
-    material: MaterialSpec = MaterialSpec()
-
-    @field_validator("kgon_norm_alpha")
-    @classmethod
-    def _alpha(cls, v: float) -> float:
-        if v != 0.5:
-            raise ValueError("only 0.5 (IceSL's default) is modelled: what kgon_norm_alpha does is unpublished")
-        return v
-
-    @property
-    def voxel_edge(self) -> float:
-        """The wanted voxel edge [mm]: ``voxel_mm``, default ``bead_width / 2``."""
-        return self.bead_width / 2.0 if self.voxel_mm is None else float(self.voxel_mm)
-
-    @property
-    def fraction(self) -> float:
-        """The target solid volume fraction [-] (``infill_percentage / 100``)."""
-        return self.infill_percentage / 100.0
-
-    def metric(self) -> KgonMetric:
-        return KgonMetric(self.kgon_sides, self.kgon_x_shrink, self.kgon_min_angle)
 
 
 CellDesign = FoamDesign | LaminateDesign | SolidDesign | PolyfoamDesign
@@ -425,7 +313,7 @@ def design_cell(design: CellDesign, resolution: int | None = None) -> CellResult
     if isinstance(design, PolyfoamDesign):
         if resolution is not None:
             raise ConfigError(f"resolution: {resolution!r}: a polyfoam's grid follows voxel_mm; set that instead")
-        return _design_polyfoam(design)
+        return CellResult(**build_polyfoam(design))
     n = design.resolution if resolution is None else int(resolution)
     if not 4 <= n <= 512:
         raise ConfigError(f"resolution: {resolution!r}: expected an integer in [4, 512]")
@@ -479,54 +367,6 @@ def _design_foam(design: FoamDesign, n: int, size: np.ndarray, axis: int) -> Cel
         design=design, phases=phases, size=size, axis=axis,
         materials={1: design.material.material()}, relative_density=rho, foam=foam, solution=sol,
         connectivity=report, removed_voxels=removed, chords=mean_chord_lengths(phases == 0, size),
-    )
-
-
-def _design_polyfoam(design: PolyfoamDesign) -> CellResult:
-    metric = design.metric()
-    t = float(design.bead_width)
-    if design.voxel_edge > t:
-        raise ConfigError(
-            f"voxel_mm: {design.voxel_edge:g}: must not exceed bead_width {t:g} mm (walls at least one voxel thick)"
-        )
-    sd = design.seeds
-    scale = metric.scale if design.seed_space == "gauge" else np.array([1.0 / design.kgon_x_shrink, 1.0, 1.0])
-    unit_size = float(sd.count) ** (1.0 / 3.0) / scale  # a cube in the seeds' scaled space
-    seeds = make_seeds(sd.sampler, sd.count, unit_size, sd.seed, scale=scale, jitter=sd.jitter,
-                       min_distance=sd.min_distance)
-    sol, phases = solve_polyfoam(seeds, unit_size, metric, fraction=design.fraction, wall_thickness=t,
-                                 voxel_mm=design.voxel_edge, max_voxels=design.max_voxels,
-                                 wall_measure=design.wall_measure,
-                                 layer_height=design.layer_height if design.layer_model == "staircase" else None)
-    size = sol.size
-    foam = Foam(seeds * sol.cell_scale, size, metric, "closed", t, 0)
-    where = (f"design {design.name!r} (polyfoam, kgon_x_shrink {design.kgon_x_shrink:g}, grid "
-             f"{'x'.join(map(str, sol.shape))})")
-    report = check_percolation(phases)
-    removed = 0
-    if report.components > 1:
-        if 1.0 - report.largest_fraction > design.max_island_fraction:
-            raise InfeasibleError(
-                f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())} "
-                f"(more than max_island_fraction = {design.max_island_fraction:g}); lower voxel_mm"
-            )
-        phases, removed = keep_largest(phases)
-        report = check_percolation(phases)
-    if not report.ok:
-        raise InfeasibleError(
-            f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())}; "
-            "lower voxel_mm or use more seeds"
-        )
-    rho = float(np.count_nonzero(phases)) / phases.size
-    if abs(rho - design.fraction) > design.tolerance:
-        raise InfeasibleError(
-            f"infill_percentage: {design.infill_percentage:g}: {where}: reached a solid fraction {rho:.4f}, "
-            f"outside tolerance {design.tolerance:g} after dropping {removed} island voxels; lower voxel_mm"
-        )
-    return CellResult(
-        design=design, phases=phases, size=size, axis=0, materials={1: design.material.material()},
-        relative_density=rho, foam=foam, solution=None, connectivity=report, removed_voxels=removed,
-        chords=mean_chord_lengths(phases == 0, size), polyfoam=sol,
     )
 
 

@@ -1,4 +1,7 @@
-"""The density solve of a Polyfoam cell: one-bead walls, the cell size L set by the density.
+"""The Polyfoam cell: its design (:class:`PolyfoamDesign`), density solve and level set.
+
+One-bead walls, the cell size L set by the density; :func:`build_polyfoam` builds the cell
+of a design (:func:`metasheet.cells.design.design_cell` dispatches to it).
 
 IceSL prints Polyfoam's Voronoi *walls* one bead thick (inferred, see ICESL.md); the infill
 density then sets the cell size, not the wall thickness. The model here (the named
@@ -38,13 +41,19 @@ Two candidate physical differences, each a named option (default: off):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import Field, field_validator
 
 from ..errors import ConfigError, InfeasibleError, check_range
-from .foam import voxel_centres
+from .connectivity import check_percolation, keep_largest
+from .foam import Foam, voxel_centres
 from .kgon import KgonMetric
+from .measure import mean_chord_lengths
+from .seeds import make_seeds
 from .skeleton import SkeletonIndex
+from .specs import MaterialSpec, SeedSpec, _Model
 
 MAX_ITERATIONS = 4
 
@@ -234,3 +243,125 @@ class PolyfoamField:
         pts = snap_to_layers(np.asarray(points, dtype=float), float(self.foam.size[2]), self.solution.layers)
         d = self.index.distances(pts, cap=self.cap)
         return measured_wall(d, self.solution.wall_measure) - self.offset
+
+
+# ---------------------------------------------------------------------- the design
+
+class PolyfoamDesign(_Model):
+    """IceSL's Polyfoam (as modelled here); see ``cells/paper_polyfoam.toml`` for every field.
+
+    IceSL's names: ``infill_percentage`` [%] (the solid volume fraction x 100 under
+    ``density_model = "volume_fraction"``), ``kgon_x_shrink`` [-], ``kgon_min_angle`` [deg],
+    ``kgon_norm_alpha`` [-] (only 0.5, IceSL's default: its effect is unpublished),
+    ``infill_angle`` [deg] (recorded; applied by the sheet's orientation field),
+    ``kgon_sides`` (k, an assumption), ``bead_width`` [mm] (the wall thickness),
+    ``layer_height`` [mm] (recorded; modelled only with ``layer_model = "staircase"``).
+    ``wall_measure`` ("normal" | "horizontal") says how the bead width is measured;
+    ``seed_space`` where the seeds are spread evenly: "gauge" (the gauge's scaled space
+    ``(1/s, 1, beta)``, as for foams: cells ``1/beta`` tall) or "print" (``(1/s, 1, 1)``:
+    spacing along z as along y, only the shrink applied). The box
+    follows from the seeds and the density; the grid from ``voxel_mm`` (default
+    ``bead_width / 2``). ``axis`` is 1 (x).
+    """
+
+    kind: Literal["polyfoam"] = "polyfoam"
+    name: str
+    description: str = ""
+    axis: Literal[1] = 1
+    density_model: Literal["volume_fraction"] = "volume_fraction"
+    infill_percentage: float = Field(20.0, ge=1.0, le=90.0)
+    kgon_x_shrink: float = Field(1.0, gt=0.0, le=1.0)
+    kgon_min_angle: float = Field(45.0, ge=10.0, le=80.0)
+    kgon_norm_alpha: float = 0.5
+    infill_angle: float = Field(0.0, ge=-360.0, le=360.0)
+    kgon_sides: int = Field(6, ge=3, le=64)
+    bead_width: float = Field(0.4, gt=0.0, le=5.0)
+    layer_height: float = Field(0.3, gt=0.0, le=5.0)
+    wall_measure: Literal["normal", "horizontal"] = "normal"
+    layer_model: Literal["none", "staircase"] = "none"
+    seed_space: Literal["gauge", "print"] = "gauge"
+    voxel_mm: float | None = Field(None, gt=0.0, le=5.0)
+    max_voxels: int = Field(4_000_000, ge=1000, le=100_000_000)
+    tolerance: float = Field(0.005, gt=0.0, lt=1.0)
+    max_island_fraction: float = Field(0.01, ge=0.0, le=1.0)
+    seeds: SeedSpec = SeedSpec(count=16)
+    material: MaterialSpec = MaterialSpec()
+
+    @field_validator("kgon_norm_alpha")
+    @classmethod
+    def _alpha(cls, v: float) -> float:
+        if v != 0.5:
+            raise ValueError("only 0.5 (IceSL's default) is modelled: what kgon_norm_alpha does is unpublished")
+        return v
+
+    @property
+    def voxel_edge(self) -> float:
+        """The wanted voxel edge [mm]: ``voxel_mm``, default ``bead_width / 2``."""
+        return self.bead_width / 2.0 if self.voxel_mm is None else float(self.voxel_mm)
+
+    @property
+    def fraction(self) -> float:
+        """The target solid volume fraction [-] (``infill_percentage / 100``)."""
+        return self.infill_percentage / 100.0
+
+    def metric(self) -> KgonMetric:
+        return KgonMetric(self.kgon_sides, self.kgon_x_shrink, self.kgon_min_angle)
+
+
+def build_polyfoam(design: PolyfoamDesign) -> dict[str, Any]:
+    """Build the cell of ``design``: the fields of its :class:`~metasheet.cells.design.CellResult`.
+
+    The seeds are drawn at unit scale in the gauge's (``seed_space = "gauge"``) or the
+    print's scaled space, the scale solved by :func:`solve_polyfoam`; the grid is
+    (nx, ny, nz) of edge ~ ``voxel_edge`` [mm], the longitudinal axis x (0).
+
+    Raises
+    ------
+    ConfigError : ``voxel_mm`` exceeds ``bead_width``, or the grid exceeds ``max_voxels``.
+    InfeasibleError : the foam does not hold together or percolate, or misses the density.
+    """
+    metric = design.metric()
+    t = float(design.bead_width)
+    if design.voxel_edge > t:
+        raise ConfigError(
+            f"voxel_mm: {design.voxel_edge:g}: must not exceed bead_width {t:g} mm (walls at least one voxel thick)"
+        )
+    sd = design.seeds
+    scale = metric.scale if design.seed_space == "gauge" else np.array([1.0 / design.kgon_x_shrink, 1.0, 1.0])
+    unit_size = float(sd.count) ** (1.0 / 3.0) / scale  # a cube in the seeds' scaled space
+    seeds = make_seeds(sd.sampler, sd.count, unit_size, sd.seed, scale=scale, jitter=sd.jitter,
+                       min_distance=sd.min_distance)
+    sol, phases = solve_polyfoam(seeds, unit_size, metric, fraction=design.fraction, wall_thickness=t,
+                                 voxel_mm=design.voxel_edge, max_voxels=design.max_voxels,
+                                 wall_measure=design.wall_measure,
+                                 layer_height=design.layer_height if design.layer_model == "staircase" else None)
+    size = sol.size
+    foam = Foam(seeds * sol.cell_scale, size, metric, "closed", t, 0)
+    where = (f"design {design.name!r} (polyfoam, kgon_x_shrink {design.kgon_x_shrink:g}, grid "
+             f"{'x'.join(map(str, sol.shape))})")
+    report = check_percolation(phases)
+    removed = 0
+    if report.components > 1:
+        if 1.0 - report.largest_fraction > design.max_island_fraction:
+            raise InfeasibleError(
+                f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())} "
+                f"(more than max_island_fraction = {design.max_island_fraction:g}); lower voxel_mm"
+            )
+        phases, removed = keep_largest(phases)
+        report = check_percolation(phases)
+    if not report.ok:
+        raise InfeasibleError(
+            f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())}; "
+            "lower voxel_mm or use more seeds"
+        )
+    rho = float(np.count_nonzero(phases)) / phases.size
+    if abs(rho - design.fraction) > design.tolerance:
+        raise InfeasibleError(
+            f"infill_percentage: {design.infill_percentage:g}: {where}: reached a solid fraction {rho:.4f}, "
+            f"outside tolerance {design.tolerance:g} after dropping {removed} island voxels; lower voxel_mm"
+        )
+    return dict(
+        design=design, phases=phases, size=size, axis=0, materials={1: design.material.material()},
+        relative_density=rho, foam=foam, solution=None, connectivity=report, removed_voxels=removed,
+        chords=mean_chord_lengths(phases == 0, size), polyfoam=sol,
+    )

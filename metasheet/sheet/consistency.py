@@ -11,7 +11,7 @@ Relative differences: |printed - model| / |model| for the moduli; for the Poisso
 |printed - model| / max(|model|, :data:`NU_FLOOR`) so that a ratio near 0 does not blow up.
 
 Elements whose interpolation stencil straddles a seam of the angle field (8 texels spanning
-more than ``SEAM_JUMP`` deg, see :class:`~metasheet.sheet.icesl.AngleBranch`) get a wrong
+more than ``SEAM_JUMP`` deg, see :class:`~metasheet.sheet.angles.AngleBranch`) get a wrong
 axis there whatever the branch: they are counted and reported (``seam``), and their angle
 is not held to the tolerance; their constants are.
 """
@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..material import CONSTANT_NAMES
-from . import icesl
+from . import angles, icesl
 
 NU_FLOOR = 0.1
 
@@ -183,7 +183,7 @@ def round_trip(
     angle = icesl.FIELD_SCALE[icesl.ANGLE] * icesl.sample(ang_tex, box, p)
     fib = np.asarray(fibers, dtype=float)[ids]
     diff = axis_difference_deg(angle, fib)
-    seam = icesl.FIELD_SCALE[icesl.ANGLE] * icesl.stencil_span(ang_tex, box, p) > icesl.SEAM_JUMP
+    seam = icesl.FIELD_SCALE[icesl.ANGLE] * icesl.stencil_span(ang_tex, box, p) > angles.SEAM_JUMP
     fib_angle = np.mod(np.degrees(np.arctan2(fib[:, 1], fib[:, 0])), 180.0)
     ok = ~seam
     ang = _compare(diff[ok], fib_angle[ok], np.mod(angle[ok], 180.0), ids[ok], c)

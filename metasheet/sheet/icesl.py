@@ -1,4 +1,4 @@
-"""IceSL print map: the foam's setting fields on a 64^3 grid, the solid parts and the Lua script.
+"""IceSL print map: the foam's setting fields on a 64^3 grid, their files and the solid parts.
 
 IceSL (https://icesl.loria.fr) varies print settings in space through 3D textures made in
 its Lua modelling script: ``tex = tex3d_r8f(64, 64, 64)``, ``tex:set(i, j, k, v(x, 0, 0))``
@@ -10,7 +10,7 @@ Texture scales (:data:`FIELD_SCALE`; setting value = scale * texture value):
 - ``infill_percentage`` [%]: value / 100 (0 = 0 %, 1 = 100 %).
 - ``infill_angle`` [deg]: value / 360 (1 = 360 deg). The angle is that of the foam's soft
   axis l (the k-gon's shrunk local x) in the print plane; an axis, so only the angle
-  modulo 180 deg matters. How its branch is chosen: :class:`AngleBranch`.
+  modulo 180 deg matters. How its branch is chosen: :mod:`metasheet.sheet.angles`.
 - ``kgon_x_shrink`` [-]: the ratio itself. Assumption (ICESL.md: the ranges of the settings
   are not documented): IceSL maps a shrink texture linearly onto [0, 1].
 
@@ -29,10 +29,11 @@ so value number c (from 0) is texel (c mod 64, (c // 64) mod 64, c // 4096).
 Solid parts (:func:`solid_mask`, :func:`solid_parts_mesh`): the centre ring (r <= the sheet's
 ``centre_radius``, where the model ties the nodes to the effector) and the arm-end tabs (the
 ``tip_box`` of each arm, where the servo horn holds it) print solid, as brush 1; the rest
-of the sheet is the foam, brush 0. The script splits the sheet with IceSL's CSG
-(``difference`` / ``intersection`` of the sheet and ``solid.stl``), as IceSL's own
-two-brush "paint brushes" effect does (shapeforge/icesl-effects, paintbrush.lua), so the
-result does not depend on how IceSL resolves overlapping brushes.
+of the sheet is the foam, brush 0. The Lua script (:mod:`metasheet.sheet.icesl_lua`) splits
+the sheet with IceSL's CSG (``difference`` / ``intersection`` of the sheet and
+``solid.stl``), as IceSL's own two-brush "paint brushes" effect does
+(shapeforge/icesl-effects, paintbrush.lua), so the result does not depend on how IceSL
+resolves overlapping brushes.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import ConfigError
+from .angles import AngleBranch, choose_branch
 from .fibers import fiber_angles
 from .geometry import ARM_ANGLES, SheetParams
 
@@ -147,114 +149,6 @@ def stencil_span(texture: np.ndarray, box: GridBox, points: np.ndarray) -> np.nd
     vals = np.stack([texture[a[:, 0], b[:, 1], c[:, 2]]
                      for a in (i0, i1) for b in (i0, i1) for c in (i0, i1)], axis=1)
     return vals.max(axis=1) - vals.min(axis=1)
-
-
-# ------------------------------------------------------------------ the axis angle
-
-@dataclass(frozen=True)
-class AngleBranch:
-    """How an axis angle (period 180 deg) is written into a [0, 360) deg texture.
-
-    The written angle is ``offset + mod(theta + flip - offset, period)`` [deg] with theta the
-    fibre's vector angle: always congruent to the fibre's axis angle modulo 180 deg.
-
-    - ``period`` 180: values in [offset, offset + 180), offset in [0, 180]: the axis itself.
-    - ``period`` 360 (offset 0): the vector angle of the fibre, flipped by ``flip`` (0 or
-      180 deg): values in [0, 360).
-
-    A fibre field that turns once around the sheet centre (the spiral: its axis angle grows
-    by 360 deg per turn) cannot be written without a seam, where neighbouring texels differ
-    by one period and the interpolation between them gives a wrong axis: period 180 gives two
-    seams (opposite rays from the centre), period 360 one. :func:`choose_branch` picks the
-    branch whose seams touch the fewest foam texels.
-    """
-
-    period: float
-    offset: float = 0.0
-    flip: float = 0.0
-
-    def __post_init__(self):
-        if self.period not in (180.0, 360.0):
-            raise ConfigError(f"period: {self.period!r}: allowed values are 180, 360 [deg]")
-        if not 0.0 <= self.offset <= 360.0 - self.period:
-            raise ConfigError(f"offset: {self.offset!r}: allowed range is [0, {360.0 - self.period:g}] [deg]")
-
-    def write(self, theta_deg: np.ndarray) -> np.ndarray:
-        """Written angle [deg], in [offset, offset + period), of vector angles theta [deg]."""
-        t = np.asarray(theta_deg, dtype=float) + self.flip
-        return self.offset + np.mod(t - self.offset, self.period)
-
-    def to_dict(self) -> dict:
-        return {"period_deg": self.period, "offset_deg": self.offset, "flip_deg": self.flip}
-
-
-def branch_candidates(step: float = 1.0) -> list[AngleBranch]:
-    """The branches :func:`choose_branch` tries: the two vector lifts, then period 180 offsets."""
-    out = [AngleBranch(360.0, 0.0, 0.0), AngleBranch(360.0, 0.0, 180.0)]
-    out += [AngleBranch(180.0, float(c)) for c in np.arange(0.0, 180.0, step)]
-    return out
-
-
-SEAM_JUMP = 90.0  # [deg] neighbouring texels further apart than this straddle a seam
-
-
-def _neighbour_pairs(weight: np.ndarray):
-    """Pairs of face-neighbouring texels (flat indices a, b) with weight[a] | weight[b]."""
-    n = weight.shape
-    flat = np.arange(weight.size).reshape(n)
-    a_all, b_all = [], []
-    for ax in range(3):
-        lo = [slice(None)] * 3
-        hi = [slice(None)] * 3
-        lo[ax], hi[ax] = slice(0, -1), slice(1, None)
-        a, b = flat[tuple(lo)].ravel(), flat[tuple(hi)].ravel()
-        keep = weight.ravel()[a] | weight.ravel()[b]
-        a_all.append(a[keep])
-        b_all.append(b[keep])
-    return np.concatenate(a_all), np.concatenate(b_all)
-
-
-def seam_pairs(written_deg: np.ndarray, foam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Face-neighbour texel pairs (flat indices a, b) that straddle a seam and touch the foam."""
-    a, b = _neighbour_pairs(foam)
-    w = written_deg.ravel()
-    jump = np.abs(w[a] - w[b]) > SEAM_JUMP
-    return a[jump], b[jump]
-
-
-def choose_branch(theta_deg: np.ndarray, foam: np.ndarray, *, step: float = 1.0) -> tuple[AngleBranch, int]:
-    """The branch (:func:`branch_candidates`) whose seams touch the fewest foam texel pairs.
-
-    theta_deg : (n, n, n) the fibre's vector angle at every texel [deg] (continuous where
-        the fibre field is); foam : (n, n, n) bool, texels printed as foam. Returns the
-        branch and its count of seam pairs touching the foam; ties go to the earlier
-        candidate (a single seam first).
-    """
-    a, b = _neighbour_pairs(foam)
-    t = np.asarray(theta_deg, dtype=float).ravel()
-    ta, tb = t[a], t[b]
-    best, best_n = None, None
-    for br in branch_candidates(step):
-        k = int(np.count_nonzero(np.abs(br.write(ta) - br.write(tb)) > SEAM_JUMP))
-        if best_n is None or k < best_n:
-            best, best_n = br, k
-    return best, int(best_n)
-
-
-def seam_report(written_deg: np.ndarray, foam: np.ndarray, box: GridBox) -> dict:
-    """Where the seams of a written angle field cross the foam: pair count, polar angles and
-    radii [deg, mm] of their midpoints (sheet centre at the origin)."""
-    a, b = seam_pairs(written_deg, foam)
-    out = {"foam_texel_pairs": int(len(a)), "foam_texels": int(len(np.unique(np.concatenate([a, b]))))}
-    if len(a):
-        c = box.centers().reshape(-1, 3)
-        mid = 0.5 * (c[a] + c[b])
-        t = np.degrees(np.arctan2(mid[:, 1], mid[:, 0]))
-        r = np.hypot(mid[:, 0], mid[:, 1])
-        # seams run outwards from the centre: their polar angles, rounded to 5 deg
-        out["polar_angle_deg"] = sorted({float(x) for x in np.mod(5.0 * np.round(t / 5.0), 360.0)})
-        out["radius_mm"] = [float(r.min()), float(r.max())]
-    return out
 
 
 # ---------------------------------------------------------------------- solid parts
@@ -431,92 +325,3 @@ def surface(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarra
     bnd = faces[np.sort(first[count == 1])]
     used, inv = np.unique(bnd, return_inverse=True)
     return np.asarray(points, dtype=float)[used], inv.reshape(-1, 3)
-
-
-# ---------------------------------------------------------------------- the script
-
-def _lua_value(name: str, value) -> str:
-    if isinstance(value, (bool, np.bool_)):
-        return "true" if value else "false"
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        if not np.isfinite(value):
-            raise ConfigError(f"settings.{name}: {value!r}: must be finite")
-        return repr(int(value) if isinstance(value, (int, np.integer)) else float(value))
-    if isinstance(value, str):
-        return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
-    raise ConfigError(f"settings.{name}: {value!r}: expected a number, a boolean or a string")
-
-
-def _setting_name(name: str) -> str:
-    if not name or not name.replace("_", "").isalnum():
-        raise ConfigError(f"settings: {name!r}: a setting name has letters, digits and '_' only")
-    return name
-
-
-def lua_script(*, sheet_stl: str, solid_stl: str, infill_type: str, foam: Mapping[str, object],
-               fields: Mapping[str, str], solid: Mapping[str, object], box: GridBox,
-               settings: Mapping[str, object], title: str = "") -> str:
-    """IceSL modelling script printing ``sheet_stl`` as foam (brush 0) and solid parts (brush 1).
-
-    sheet_stl, solid_stl : file names next to the script: the sheet, and the solid regions
-        (the script emits ``difference(sheet, solid)`` as brush 0 and
-        ``intersection(sheet, solid)`` as brush 1).
-    infill_type : IceSL's infill of the foam brush ('Polyfoam').
-    foam : brush-0 settings without suffix (name -> number, bool or str), set as ``name_0``.
-    fields : brush-0 settings without suffix -> field file name, bound over ``box``.
-    solid : brush-1 settings without suffix, set as ``name_1``.
-    settings : global IceSL settings, written as given (e.g. ``z_layer_height_mm``).
-
-    Paths resolve against IceSL's ``Path`` (the script's folder) when defined, else the
-    working directory. Meshes are loaded with ``load`` (not ``load_centered``) so their
-    coordinates, and hence the texture box, are preserved.
-    """
-    clash = set(foam) & set(fields)
-    if clash:
-        raise ConfigError(f"foam settings {sorted(clash)} are both a value and a field")
-    lo = ", ".join(f"{x:.6f}" for x in box.lo)
-    hi = ", ".join(f"{x:.6f}" for x in box.hi)
-    out = [
-        f"-- {title or 'metasheet print map'}",
-        "-- generated by metasheet: brush 0 = foam (fields are 64^3 textures in [0, 1], scales in",
-        "-- metasheet.sheet.icesl), brush 1 = solid parts (centre ring, arm-end tabs)",
-        "local here = Path or ''",
-        f"local N = {box.n}",
-        "",
-        "-- read a field file (64 values per line, i fastest, then j, then k) into a texture",
-        "local function read_field(name)",
-        "  local f = assert(io.open(here .. name, 'r'), 'cannot open ' .. name)",
-        "  local tex = tex3d_r8f(N, N, N)",
-        "  local c = 0",
-        "  for line in f:lines() do",
-        "    for word in string.gmatch(line, '%S+') do",
-        "      local x = tonumber(word)",
-        "      assert(x and x >= 0 and x <= 1, name .. ': bad value ' .. word)",
-        "      assert(c < N * N * N, name .. ': too many values')",
-        "      local i, j, k = c % N, math.floor(c / N) % N, math.floor(c / (N * N))",
-        "      tex:set(i, j, k, v(x, 0, 0))",
-        "      c = c + 1",
-        "    end",
-        "  end",
-        "  f:close()",
-        "  assert(c == N * N * N, name .. ': expected ' .. (N * N * N) .. ' values, read ' .. c)",
-        "  return tex",
-        "end",
-        "",
-        f"local sheet = load(here .. {_lua_value('sheet_stl', sheet_stl)})",
-        f"local solid = load(here .. {_lua_value('solid_stl', solid_stl)})",
-        f"emit(difference(sheet, solid), {FOAM})    -- foam",
-        f"emit(intersection(sheet, solid), {SOLID})  -- solid parts",
-        "",
-    ]
-    for name, value in settings.items():
-        out.append(f"set_setting_value('{_setting_name(name)}', {_lua_value(name, value)})")
-    out.append(f"set_setting_value('infill_type_{FOAM}', {_lua_value('infill_type', infill_type)})")
-    for name, value in foam.items():
-        out.append(f"set_setting_value('{_setting_name(name)}_{FOAM}', {_lua_value(name, value)})")
-    for name, value in solid.items():
-        out.append(f"set_setting_value('{_setting_name(name)}_{SOLID}', {_lua_value(name, value)})")
-    out += ["", f"local lo, hi = v({lo}), v({hi})  -- texture box [mm]"]
-    for name, fname in fields.items():
-        out.append(f"set_setting_value('{_setting_name(name)}_{FOAM}', read_field({_lua_value(name, fname)}), lo, hi)")
-    return "\n".join(out) + "\n"

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
-from ...cells.design import CellResult, FoamDesign, LaminateDesign, PolyfoamDesign, design_cell, parse_design
+from ...cells.design import CellResult, FoamDesign, LaminateDesign, design_cell, parse_design
+from ...cells.polyfoam import PolyfoamDesign
 from ...errors import ConfigError, MeshError
 from ..manifest import sha256_file, write_json_atomic
 from ..registry import Params, Stage, StageContext, register

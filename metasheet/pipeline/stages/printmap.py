@@ -33,7 +33,7 @@ from pydantic import Field
 from ...errors import ConfigError, InfeasibleError
 from ...material import CONSTANT_NAMES
 from ...sheet import fibers as fb
-from ...sheet import icesl
+from ...sheet import angles, icesl, icesl_lua
 from ...sheet.consistency import round_trip
 from ...sheet.geometry import tet_volumes
 from ..artefacts import read_orient
@@ -162,7 +162,7 @@ def run(ctx: StageContext) -> dict:
             "sheet.stl": _stl_bytes(verts, faces, f"{label} tripod sheet"),
             "solid.stl": solid_stl,
             **{files[k]: texts[k] for k in fields},
-            "print.lua": icesl.lua_script(
+            "print.lua": icesl_lua.lua_script(
                 sheet_stl="sheet.stl", solid_stl="solid.stl", infill_type=source.infill_type,
                 foam=foam_values, fields=files, solid=solid_values, box=pf.box, settings=settings,
                 title=f"metasheet print map, {label} tripod sheet ({source.family})",
@@ -176,7 +176,7 @@ def run(ctx: StageContext) -> dict:
             "field_range": {k: [float(pf.values(k)[pf.foam].min()), float(pf.values(k)[pf.foam].max())]
                             for k in source.field_names},
             "angle_branch": pf.branch.to_dict(),
-            "angle_seam": icesl.seam_report(angle_deg, pf.foam, pf.box),
+            "angle_seam": angles.seam_report(angle_deg, pf.foam, pf.box),
         }
         mid = pf.box.n // 2
         ax = pf.box.axes()
