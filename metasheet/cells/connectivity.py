@@ -208,3 +208,41 @@ def keep_largest(phases: np.ndarray) -> tuple[np.ndarray, int]:
     drop = (labels != big) & (labels > 0)
     out[drop] = 0
     return out, int(drop.sum())
+
+
+def settle_phases(phases: np.ndarray, *, target: float, tolerance: float, max_island_fraction: float,
+                  setting: str, where: str, hints: tuple[str, str, str]) -> tuple[np.ndarray, ConnectivityReport, int, float]:
+    """Drop small islands, then require one percolating piece and the target solid fraction.
+
+    Parameters
+    ----------
+    phases : (nx, ny, nz) uint8, 0 void.
+    target, tolerance : the wanted solid fraction [-] and the allowed |achieved - target|.
+    max_island_fraction : share of the solid that may be dropped as islands [-].
+    setting : ``"name: value"`` of the design setting the errors name first.
+    where : what was built (design, grid), for the messages.
+    hints : what to change when (islands, no percolation, density out of tolerance).
+
+    Returns
+    -------
+    (phases, report, removed island voxels, achieved solid fraction).
+
+    Raises
+    ------
+    InfeasibleError : too many islands, no percolation along x, y and z, or the density missed.
+    """
+    report = check_percolation(phases)
+    removed = 0
+    if report.components > 1:
+        if 1.0 - report.largest_fraction > max_island_fraction:
+            raise InfeasibleError(f"{setting}: {where}: {'; '.join(report.problems())} (more than "
+                                  f"max_island_fraction = {max_island_fraction:g}); {hints[0]}")
+        phases, removed = keep_largest(phases)
+        report = check_percolation(phases)
+    if not report.ok:
+        raise InfeasibleError(f"{setting}: {where}: {'; '.join(report.problems())}; {hints[1]}")
+    rho = float(np.count_nonzero(phases)) / phases.size
+    if abs(rho - target) > tolerance:
+        raise InfeasibleError(f"{setting}: {where}: reached a solid fraction {rho:.4f}, outside tolerance "
+                              f"{tolerance:g} after dropping {removed} island voxels; {hints[2]}")
+    return phases, report, removed, rho

@@ -30,9 +30,9 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationError
 
-from ..errors import ConfigError, InfeasibleError
+from ..errors import ConfigError
 from ..material import Isotropic
-from .connectivity import ConnectivityReport, check_percolation, keep_largest
+from .connectivity import ConnectivityReport, check_percolation, settle_phases
 from .foam import Foam, foam_field, voxel_centres
 from .measure import mean_chord_lengths
 from .polyfoam import PolyfoamDesign, PolyfoamField, PolyfoamSolution, build_polyfoam
@@ -341,28 +341,12 @@ def _design_foam(design: FoamDesign, n: int, size: np.ndarray, axis: int) -> Cel
     offset = foam.thickness if foam.topology == "open" else 0.5 * foam.thickness
     phases = ((dist - offset) < 0.0).astype(np.uint8).reshape(n, n, n)  # == voxelize(foam, n)
     where = f"design {design.name!r} ({design.topology}-cell, resolution {n})"
-    report = check_percolation(phases)
-    removed = 0
-    if report.components > 1:
-        if 1.0 - report.largest_fraction > design.max_island_fraction:
-            raise InfeasibleError(
-                f"relative_density: {design.relative_density:g}: {where}: {'; '.join(report.problems())}"
-                f" (more than max_island_fraction = {design.max_island_fraction:g}); raise "
-                "relative_density or resolution"
-            )
-        phases, removed = keep_largest(phases)
-        report = check_percolation(phases)
-    if not report.ok:
-        raise InfeasibleError(
-            f"relative_density: {design.relative_density:g}: {where}: {'; '.join(report.problems())};"
-            " raise relative_density or resolution, or lower the stretch"
-        )
-    rho = float(np.count_nonzero(phases)) / phases.size
-    if abs(rho - design.relative_density) > design.tolerance:
-        raise InfeasibleError(
-            f"relative_density: {design.relative_density:g}: {where}: reached {rho:.4f}, outside "
-            f"tolerance {design.tolerance:g} after dropping {removed} island voxels"
-        )
+    phases, report, removed, rho = settle_phases(
+        phases, target=design.relative_density, tolerance=design.tolerance,
+        max_island_fraction=design.max_island_fraction, setting=f"relative_density: {design.relative_density:g}",
+        where=where, hints=("raise relative_density or resolution",
+                            "raise relative_density or resolution, or lower the stretch",
+                            "raise the resolution"))
     return CellResult(
         design=design, phases=phases, size=size, axis=axis,
         materials={1: design.material.material()}, relative_density=rho, foam=foam, solution=sol,

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, check_range
+from .metrics import FacetGauge
 
 
 def _in_plane(k: int, x_shrink: float, phase: float) -> np.ndarray:
@@ -41,7 +42,7 @@ def kgon_beta(k: int, x_shrink: float, min_angle: float) -> float:
 
 
 @dataclass(frozen=True)
-class KgonMetric:
+class KgonMetric(FacetGauge):
     """Gauge ``N(v) = max_i g_i . v`` of a k-gon trapezohedron (``2k`` facets), print frame.
 
     Facets (``r = cos(pi/k)`` the k-gon's inradius, ``s = x_shrink``):
@@ -134,15 +135,6 @@ class KgonMetric:
         i, j = np.triu_indices(len(g), 1)
         n = g[i] - g[j]
         return np.rad2deg(np.arctan2(np.hypot(n[:, 0], n[:, 1]), np.abs(n[:, 2])))
-
-    def distance(self, v: np.ndarray) -> np.ndarray:
-        """``(..., 3) [mm] -> (...)``: ``max_i g_i . v``."""
-        return np.max(np.asarray(v) @ self.facets.T, axis=-1)
-
-    def gradient(self, v: np.ndarray) -> np.ndarray:
-        """``(..., 3) -> (..., 3)``: the active facet vector ``g_i``."""
-        g = self.facets
-        return g[np.argmax(np.asarray(v) @ g.T, axis=-1)]
 
     def describe(self) -> dict:
         return {"kind": "kgon", "k": int(self.k), "x_shrink": float(self.x_shrink),

@@ -112,8 +112,22 @@ class StretchedMetric:
                 "axis": int(self.axis) + 1, "extent": self.extent.tolist()}
 
 
+class FacetGauge:
+    """A polyhedral gauge ``N(v) = max_i g_i . v`` over the ``facets`` (m, 3) of its unit ball
+    (a mixin: the subclass defines ``facets``)."""
+
+    def distance(self, v: np.ndarray) -> np.ndarray:
+        """``(..., 3) [mm] -> (...)``: ``max_i g_i . v``."""
+        return np.max(np.asarray(v) @ self.facets.T, axis=-1)
+
+    def gradient(self, v: np.ndarray) -> np.ndarray:
+        """``(..., 3) -> (..., 3)``: the active facet vector ``g_i``."""
+        g = self.facets
+        return g[np.argmax(np.asarray(v) @ g.T, axis=-1)]
+
+
 @dataclass(frozen=True)
-class PolyhedralMetric:
+class PolyhedralMetric(FacetGauge):
     """A polyhedral gauge in the spirit of IceSL's *Polyfoam* (Martinez et al., "Polyhedral
     Voronoi diagrams for additive manufacturing", ACM TOG 37(4), 2018).
 
@@ -187,15 +201,6 @@ class PolyhedralMetric:
     @property
     def upper(self) -> float:
         return 1.0 / np.cos(np.pi / int(self.k))
-
-    def distance(self, v: np.ndarray) -> np.ndarray:
-        """``(..., 3) [mm] -> (...)``: ``max_i g_i . v``."""
-        return np.max(np.asarray(v) @ self.facets.T, axis=-1)
-
-    def gradient(self, v: np.ndarray) -> np.ndarray:
-        """``(..., 3) -> (..., 3)``: the active facet vector ``g_i``."""
-        g = self.facets
-        return g[np.argmax(np.asarray(v) @ g.T, axis=-1)]
 
     def describe(self) -> dict:
         return {"kind": "polyhedral", "k": int(self.k), "height": float(self.height),

@@ -47,7 +47,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from ..errors import ConfigError, InfeasibleError, check_range
-from .connectivity import check_percolation, keep_largest
+from .connectivity import settle_phases
 from .foam import Foam, voxel_centres
 from .kgon import KgonMetric
 from .measure import mean_chord_lengths
@@ -339,27 +339,10 @@ def build_polyfoam(design: PolyfoamDesign) -> dict[str, Any]:
     foam = Foam(seeds * sol.cell_scale, size, metric, "closed", t, 0)
     where = (f"design {design.name!r} (polyfoam, kgon_x_shrink {design.kgon_x_shrink:g}, grid "
              f"{'x'.join(map(str, sol.shape))})")
-    report = check_percolation(phases)
-    removed = 0
-    if report.components > 1:
-        if 1.0 - report.largest_fraction > design.max_island_fraction:
-            raise InfeasibleError(
-                f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())} "
-                f"(more than max_island_fraction = {design.max_island_fraction:g}); lower voxel_mm"
-            )
-        phases, removed = keep_largest(phases)
-        report = check_percolation(phases)
-    if not report.ok:
-        raise InfeasibleError(
-            f"infill_percentage: {design.infill_percentage:g}: {where}: {'; '.join(report.problems())}; "
-            "lower voxel_mm or use more seeds"
-        )
-    rho = float(np.count_nonzero(phases)) / phases.size
-    if abs(rho - design.fraction) > design.tolerance:
-        raise InfeasibleError(
-            f"infill_percentage: {design.infill_percentage:g}: {where}: reached a solid fraction {rho:.4f}, "
-            f"outside tolerance {design.tolerance:g} after dropping {removed} island voxels; lower voxel_mm"
-        )
+    phases, report, removed, rho = settle_phases(
+        phases, target=design.fraction, tolerance=design.tolerance, max_island_fraction=design.max_island_fraction,
+        setting=f"infill_percentage: {design.infill_percentage:g}", where=where,
+        hints=("lower voxel_mm", "lower voxel_mm or use more seeds", "lower voxel_mm"))
     return dict(
         design=design, phases=phases, size=size, axis=0, materials={1: design.material.material()},
         relative_density=rho, foam=foam, solution=None, connectivity=report, removed_voxels=removed,

@@ -125,9 +125,14 @@ def read_chart(directory: Path) -> dict[str, np.ndarray]:
     return parse_csv(path.read_text())
 
 
+def read_cell_info(directory: Path) -> dict:
+    """``cell.json`` of a cell stage: the design, the achieved density, the geometry."""
+    return _json(Path(directory) / "cell.json")
+
+
 def read_cell_design(directory: Path) -> dict:
     """The validated design a cell stage built (``cell.json``'s ``design``), as a dict."""
-    return dict(_json(directory / "cell.json").get("design", {}))
+    return dict(read_cell_info(directory).get("design", {}))
 
 
 def read_print_model(chart_dir: Path, cell_dir: Path | None = None, homogenize_dir: Path | None = None):

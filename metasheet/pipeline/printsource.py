@@ -24,7 +24,6 @@ dominated walls, E ~ 0.98 rho^1.1 E_s; their fit runs 1.1-1.25).
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +34,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..material import CONSTANT_NAMES, TransverseIsotropic
 from ..sheet.icesl import POLYFOAM_DEFAULTS
-from .artefacts import read_constants
+from .artefacts import read_cell_info, read_constants
 
 #: modulus ~ (infill percentage)^n near the cell: the authors' IceSL foam table (E ~ rho^1.1)
 WALL_EXPONENT = 1.1
@@ -221,16 +220,6 @@ class ChartSource:
 
 # -------------------------------------------------------------------------- builder
 
-def _cell_info(directory: Path) -> dict:
-    path = Path(directory) / "cell.json"
-    if not path.is_file():
-        raise ConfigError(f"{path}: missing (did the cell stage run?)")
-    try:
-        return json.loads(path.read_text())
-    except ValueError as exc:
-        raise ConfigError(f"{path}: not valid JSON: {exc}") from exc
-
-
 def cell_settings(info: dict, where: str = "cell.json") -> dict:
     """The IceSL settings of a polyfoam cell design, from ``cell.json``.
 
@@ -270,7 +259,7 @@ def print_source(ctx, infill: str = "auto") -> PrintSource:
             f"{' and '.join(missing)} stage{'s' if len(missing) > 1 else ''}: add "
             f"{', '.join(repr(s) for s in missing)} to [pipeline] stages, with a polyfoam cell "
             "design ([cell] design = a cells/*.toml with kind = \"polyfoam\")")
-    info = _cell_info(ctx.inputs["cell"])
+    info = read_cell_info(ctx.inputs["cell"])
     design = info.get("design", {}) or {}
     kind = str(info.get("kind", design.get("kind", "foam")))
     name = str(info.get("name", design.get("name", "")))

@@ -13,7 +13,7 @@ import shutil
 from pydantic import Field
 
 from ...studies.report import build_report
-from ..artefacts import read_chart, read_constants, read_material, read_summary
+from ..artefacts import read_cell_design, read_cell_info, read_chart, read_constants, read_material, read_summary
 from ..registry import Params, Stage, StageContext, register
 
 STUDIES = ("workspace", "ranges", "anisotropy", "maze")
@@ -38,7 +38,7 @@ def run(ctx: StageContext) -> dict:
 
         summaries["chart"] = {"rows": rows_of(read_chart(ctx.inputs["chart"])), "shrink": _cell_shrink(ctx)}
     if "cell" in ctx.inputs:
-        info = json.loads((ctx.inputs["cell"] / "cell.json").read_text())
+        info = read_cell_info(ctx.inputs["cell"])
         summaries["cell"] = {k: info[k] for k in ("name", "kind", "size_mm", "mean_void_chord_mm", "seed_count")
                              if k in info}
     if "orient" in ctx.inputs:
@@ -56,7 +56,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
     """The printed cell's ``kgon_x_shrink`` (Polyfoam cells), else None."""
     if "cell" not in ctx.inputs:
         return None
-    design = json.loads((ctx.inputs["cell"] / "cell.json").read_text()).get("design", {})
+    design = read_cell_design(ctx.inputs["cell"])
     shrink = design.get("kgon_x_shrink")
     return None if shrink is None else float(shrink)
 
