@@ -41,7 +41,7 @@ def run(tmp_path_factory):
     pm.mkdir()
     orient.run(StageContext("orient", orient.OrientParams(mesh_size=8.0, constants=CELL), o, {}, root))
     inputs = {"orient": o, **_inputs(root)}
-    printmap.run(StageContext("printmap", printmap.PrintmapParams(), pm, inputs, root))
+    printmap.run(StageContext("printmap", printmap.PrintmapParams(uniform_as_value=False), pm, inputs, root))
     return root, o, pm, inputs
 
 

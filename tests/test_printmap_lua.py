@@ -164,7 +164,7 @@ def runs(tmp_path_factory):
     po = orient.OrientParams(mesh_size=8.0, pitch_deg=40.0, constants=CELL)
     so = orient.run(StageContext("orient", po, o, {}, root))
     inputs = {"orient": o, **polyfoam_inputs(root)}
-    sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(), pm, inputs, root))
+    sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(uniform_as_value=False), pm, inputs, root))
     return o, pm, so, sp
 
 

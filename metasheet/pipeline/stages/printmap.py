@@ -56,6 +56,8 @@ class PrintmapParams(Params):
     solid_shells: int = Field(10, ge=1, le=100, description="shells of the solid parts (brush 1)")
     tolerance: float = Field(0.02, gt=0, le=1, description="round trip: largest relative difference of a constant [-]")
     angle_tolerance_deg: float = Field(2.0, gt=0, le=90, description="round trip: largest axis angle difference [deg]")
+    uniform_as_value: bool = Field(True, description="write a setting equal over all the foam as an exact value "
+                                   "instead of an 8-bit field (15 % as a field prints 38/255 = 14.9 %)")
 
 
 def _stl_bytes(vertices: np.ndarray, faces: np.ndarray, name: str) -> bytes:
@@ -109,6 +111,21 @@ def _field_settings(source, consts: dict, foam: np.ndarray, centroids: np.ndarra
     return out
 
 
+def _uniform_settings(sheets: dict) -> dict[str, float]:
+    """Settings equal over every foam element of every sheet: {name: value}.
+
+    ``sheets``: label -> (settings {name: (m,)}, foam mask (m,)). A uniform setting is written
+    as a value, exactly, rather than as an 8-bit texture (15 % would print as 38/255 = 14.9 %).
+    """
+    out = {}
+    names = set.intersection(*(set(s) for s, _ in sheets.values()))
+    for name in sorted(names):
+        v = np.concatenate([np.asarray(s[name], float)[foam] for s, foam in sheets.values()])
+        if len(v) and np.ptp(v) <= 1e-9 * max(1.0, float(np.abs(v).max())):
+            out[name] = float(np.round(np.median(v), 6))
+    return out
+
+
 def run(ctx: StageContext) -> dict:
     p: PrintmapParams = ctx.params
     source = print_source(ctx, p.infill)
@@ -116,8 +133,18 @@ def run(ctx: StageContext) -> dict:
     orient.sheets(need_constants=True)  # both sheets carry the five constants, else a clear error
     sp = orient.sheet_params
     fs = orient.fiber_settings
-    fields = (*source.field_names, icesl.ANGLE)
-    foam_values = {**icesl.FOAM_BRUSH, **source.fixed}
+    per_sheet = {}
+    for label, mirrored in SHEETS.items():
+        sheet = orient.mirrored if mirrored else orient.normal
+        centroids = sheet.mesh.centroids()
+        consts = {k: np.asarray(sheet.cell_data[k], dtype=float) for k in CONSTANT_NAMES}
+        solid_el = icesl.solid_mask(centroids, sp)
+        per_sheet[label] = (sheet, centroids, consts, solid_el,
+                            _field_settings(source, consts, ~solid_el, centroids, label))
+    uniform = _uniform_settings({label: (v[4], ~v[3]) for label, v in per_sheet.items()}) if p.uniform_as_value \
+        else {}
+    fields = (*(k for k in source.field_names if k not in uniform), icesl.ANGLE)
+    foam_values = {**icesl.FOAM_BRUSH, **source.fixed, **uniform}
     modelled = {f"infill_type_{icesl.FOAM}"} | {f"{k}_{icesl.FOAM}" for k in (*foam_values, *fields)}
     solid_values = {"infill_percentage": 100.0, "num_shells": p.solid_shells, "print_perimeter": True}
     modelled |= {f"{k}_{icesl.SOLID}" for k in solid_values}
@@ -126,17 +153,17 @@ def run(ctx: StageContext) -> dict:
     solid_v, solid_f = icesl.solid_parts_mesh(sp)
     solid_stl = _stl_bytes(solid_v, solid_f, "solid parts (centre ring, arm-end tabs)")
 
+    def constants_at(sampled: dict) -> dict:  # the uniform settings are printed exactly, as values
+        n = np.shape(next(iter(sampled.values()))) if sampled else (1,)
+        return source.constants_at({**{k: np.full(n, v) for k, v in uniform.items()}, **sampled})
+
     # everything is computed and checked first: a failing round trip writes nothing
     staged, summary, quant, consistency, slices = {}, {}, {}, {}, []
     failures = []
-    for step, (label, mirrored) in enumerate(SHEETS.items()):
+    for step, (label, (sheet, centroids, consts, solid_el, element)) in enumerate(per_sheet.items()):
         ctx.progress(f"sampling {label} sheet", step, len(SHEETS) + 1)
-        sheet = orient.mirrored if mirrored else orient.normal
         mesh = sheet.mesh
-        centroids = mesh.centroids()
-        consts = {k: np.asarray(sheet.cell_data[k], dtype=float) for k in CONSTANT_NAMES}
-        solid_el = icesl.solid_mask(centroids, sp)
-        element = _field_settings(source, consts, ~solid_el, centroids, label)
+        mirrored = SHEETS[label]
         pf = icesl.print_fields(
             mesh.points, mesh.tets, element_settings=element, params=sp,
             fiber_fn=lambda q, m=mirrored: fb.spiral_fibers(q, mirrored=m, **fs),
@@ -149,7 +176,7 @@ def run(ctx: StageContext) -> dict:
             for k in fields
         }
         rep = round_trip(
-            box=pf.box, textures=held, constants_at=source.constants_at, centroids=centroids,
+            box=pf.box, textures=held, constants_at=constants_at, centroids=centroids,
             constants=consts, fibers=sheet.fibers, printed_solid=solid_el,
             volumes=tet_volumes(mesh.points, mesh.tets),
             tolerance=p.tolerance, angle_tolerance_deg=p.angle_tolerance_deg,
