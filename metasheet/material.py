@@ -353,9 +353,16 @@ def interpolate(material: TransverseIsotropic, alpha: float) -> TransverseIsotro
 
     ``alpha = 100 - 100 E_l / E_t``. At ``alpha = 0`` the result is isotropic with
     ``E = E_t`` and ``nu = nu_t``; at ``alpha = material.alpha`` it is ``material``.
-    In between, ``E_l`` follows the definition of alpha exactly and the other
-    constants (nu_tl, and the shear compliance 1 / mu_l) move linearly with
+    In between, ``E_l`` follows the definition of alpha exactly and the minor Poisson ratio
+    ``nu_lt = nu_tl E_l / E_t`` and the shear compliance ``1 / mu_l`` move linearly with
     ``s = alpha / material.alpha``.
+
+    Why nu_lt and not nu_tl: the path must stay positive definite. The binding condition is
+    ``1 - nu_t - 2 nu_lt^2 E_t / E_l > 0``; along the path ``nu_lt`` and ``E_l / E_t`` are
+    affine in ``s`` and ``x^2 / y`` is convex for ``y > 0``, so ``nu_lt^2 E_t / E_l`` is
+    convex in ``s`` and never exceeds its value at an end: both ends valid => the whole path
+    valid. Moving nu_tl linearly instead breaks for very soft foams (nu_tl ~ 4, E_l / E_t
+    ~ 0.004: the homogenised Polyfoam) half way along.
     """
     a_max = material.alpha
     if a_max <= 0:
@@ -367,6 +374,7 @@ def interpolate(material: TransverseIsotropic, alpha: float) -> TransverseIsotro
     s = float(alpha) / a_max
     iso = Isotropic(material.E_t, material.nu_t)
     E_l = material.E_t * (1.0 - float(alpha) / 100.0)
-    nu_tl = (1 - s) * iso.nu + s * material.nu_tl
+    nu_lt = (1 - s) * iso.nu + s * material.nu_lt
+    nu_tl = nu_lt * material.E_t / E_l
     inv_mu = (1 - s) / iso.mu + s / material.mu_l
     return TransverseIsotropic(material.E_t, E_l, material.nu_t, nu_tl, 1.0 / inv_mu)

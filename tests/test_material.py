@@ -139,3 +139,16 @@ def test_interpolate_endpoints_and_alpha():
         assert interpolate(PAPER, a).alpha == pytest.approx(a, abs=1e-9)
     with pytest.raises(ConfigError, match="alpha"):
         interpolate(PAPER, 99.0)
+
+
+def test_interpolation_path_stays_positive_definite_for_a_very_soft_foam():
+    """The homogenised Polyfoam (E_l / E_t ~ 0.004, nu_tl ~ 4.4): moving nu_tl linearly gave a
+    non-positive-definite material half way; the nu_lt path is valid at every alpha (its binding
+    condition is convex along the path), checked on the stiffness's eigenvalues."""
+    soft = TransverseIsotropic(1.097, 0.004728, 0.1365, 4.411, 0.0306)
+    for a in np.linspace(0, soft.alpha, 41):
+        m = interpolate(soft, a)  # construction validates; eigenvalues are an independent check
+        assert np.linalg.eigvalsh(m.stiffness()).min() > 0, a
+        assert 1 - m.nu_t - 2 * m.nu_tl * m.nu_lt > 0
+    end = interpolate(soft, soft.alpha)
+    assert np.allclose(end.stiffness(), soft.stiffness(), rtol=1e-10)
