@@ -195,3 +195,47 @@ def test_process_pool_equals_serial():
     b = explore_workspace(spec, grid, WorkspaceSettings(substeps=1), executor=Executor(workers=2))
     assert np.array_equal(a.cls, b.cls) and np.array_equal(a.component, b.component)
     assert np.array_equal(a.records.error_mm, b.records.error_mm, equal_nan=True)
+
+
+def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria():
+    """A robot whose solver fails on steps above 2 deg converges once the ramp is halved; one
+    whose equilibrium is lost beyond 20 deg reports NaN and the motor change it reached."""
+    from dataclasses import dataclass
+
+    from metasheet.errors import ConvergenceError
+    from metasheet.studies import anisotropy as an
+    from metasheet.studies.model import MODELS
+    from metasheet.studies.standin import StandInSpec
+
+    @dataclass(frozen=True)
+    class Picky(StandInSpec):
+        max_jump: float = 2.0
+        lost_beyond: float = 20.0
+
+        @property
+        def key(self) -> str:
+            return f"picky-{self.max_jump}-{self.lost_beyond}-{super().key}"
+
+        def build(self):
+            rob, spec = super().build(), self
+
+            class Wrapped:
+                def __getattr__(self, name):
+                    return getattr(rob, name)
+
+                def equilibrium(self, q, *, state=None):
+                    q0 = rob.rest_motors()
+                    prev = q0 if state is None else state[1]
+                    if np.abs(np.asarray(q) - prev).max() > spec.max_jump + 1e-9:
+                        raise ConvergenceError("step too large")
+                    if np.abs(np.asarray(q) - q0).max() > spec.lost_beyond + 1e-9:
+                        raise ConvergenceError("equilibrium lost")
+                    pose, _ = rob.equilibrium(q)
+                    return pose, (None, np.asarray(q, float))
+            return Wrapped()
+
+    out = an.sweep_point(an.SweepTask(Picky(), pull_deg=10.0, push_deg=30.0, ramp_deg=5.0))
+    assert np.all(np.isfinite(out[0])) and out[0, 6] == pytest.approx(-10.0)  # pull: 5 deg steps halved
+    assert np.all(np.isnan(out[1, :6])) and out[1, 6] == pytest.approx(20.0)  # push: lost beyond 20 deg
+    with pytest.raises(ConvergenceError):
+        an._reach(MODELS.get(Picky(max_jump=0.1)), np.full(6, 60.0), np.full(6, 65.0), None)

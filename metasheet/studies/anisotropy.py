@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, check_range
+from ..errors import ConfigError, ConvergenceError, check_range
 from ..executor import Executor
 from .model import MODELS, ModelSpec
 from .resume import UnitCache
@@ -29,10 +29,29 @@ class SweepTask:
     ramp_deg: float
 
 
+#: Halvings of a ramp step that fails to converge before the case is given up (reported).
+MAX_CUTS = 3
+
+
+def _reach(model, q_from, q_to, state, cuts: int = 0):
+    """Equilibrium at motors ``q_to`` [deg] from ``state`` (at ``q_from``); a step that does not
+    converge is halved, up to :data:`MAX_CUTS` times, before the error is passed on."""
+    try:
+        return model.equilibrium(q_to, state=state)
+    except ConvergenceError:
+        if cuts >= MAX_CUTS:
+            raise
+        mid = 0.5 * (np.asarray(q_from) + np.asarray(q_to))
+        _, state = _reach(model, q_from, mid, state, cuts + 1)
+        return _reach(model, mid, q_to, state, cuts + 1)
+
+
 def sweep_point(task: SweepTask) -> np.ndarray:
     """Work unit: (2, 7) for (pull, push) of all motors: the pose change from rest (6,)
     [mm, rad] and the mean motor change actually applied [deg] (targets are clipped to the
-    motor range)."""
+    motor range). A case whose equilibrium cannot be followed to its target (after
+    :data:`MAX_CUTS` halvings of a ramp step) has a NaN pose change and the motor change it
+    reached: reported as not converged, never as a result."""
     model = MODELS.get(task.spec)
     q0 = model.rest_motors()
     lo, hi = model.motor_range
@@ -42,11 +61,15 @@ def sweep_point(task: SweepTask) -> np.ndarray:
     for j, delta in enumerate((sign * task.pull_deg, -sign * task.push_deg)):
         target = np.clip(q0 + delta, lo, hi)
         n = max(1, int(np.ceil(np.abs(target - q0).max() / task.ramp_deg)))
-        state = None
-        for t in np.arange(1, n + 1) / n:
-            pose, state = model.equilibrium(q0 + t * (target - q0), state=state)
-        out[j, :6] = pose - rest
-        out[j, 6] = float(np.mean(target - q0))
+        state, q = None, q0
+        try:
+            for t in np.arange(1, n + 1) / n:
+                pose, state = _reach(model, q, q0 + t * (target - q0), state)
+                q = q0 + t * (target - q0)
+            out[j, :6] = pose - rest
+        except ConvergenceError:
+            out[j, :6] = np.nan
+        out[j, 6] = float(np.mean(q - q0))
     return out
 
 

@@ -118,8 +118,9 @@ def robot_rows(robot: Mapping | None, anisotropy: Mapping | None) -> list[str]:
             lines += ["| robot figure | this pipeline's foam | published constants |", "|---|---|---|"]
         lines.append(f"| Fig. 7 end point: alpha [%] | {anisotropy['alpha_percent'][-1]:.4g} | {e['alpha_percent']:.4g} |")
         for case in ("pull", "push"):
-            lines.append(f"| Fig. 7 end point: rod rotation, {case} [deg] | {rot[case][-1]:.4g} | "
-                         f"{e['rod_rotation_deg'][case]:.4g} |")
+            a, b = rot[case][-1], e["rod_rotation_deg"][case]
+            lines.append(f"| Fig. 7 end point: rod rotation, {case} [deg] | "
+                         f"{'not converged' if a is None else f'{a:.4g}'} | {'not converged' if b is None else f'{b:.4g}'} |")
     return [*lines, ""] if lines else []
 
 

@@ -99,16 +99,26 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                   f"![anisotropy]({pictures.get('anisotropy', 'anisotropy.png')})", "",
                   "| alpha [%] | rod rotation, pull [deg] | rod rotation, push [deg] | lateral, pull [mm] | "
                   "lateral, push [mm] |", "|---|---|---|---|---|"]
+        def val(v):
+            return "not converged" if v is None else f"{v:.3g}"
+
         for i, al in enumerate(a["alpha_percent"]):
-            lines.append(f"| {al:.3g} | {rot['pull'][i]:.3g} | {rot['push'][i]:.3g} | "
-                         f"{a['lateral_mm']['pull'][i]:.3g} | {a['lateral_mm']['push'][i]:.3g} |")
+            lines.append(f"| {al:.3g} | {val(rot['pull'][i])} | {val(rot['push'][i])} | "
+                         f"{val(a['lateral_mm']['pull'][i])} | {val(a['lateral_mm']['push'][i])} |")
         lines.append("")
-        r0 = max(abs(rot["pull"][0]), abs(rot["push"][0]))
-        r1 = max(abs(rot["pull"][-1]), abs(rot["push"][-1]))
+        for f in a.get("not_converged", []):
+            diffs.append(f"Fig. 7: at alpha {f['alpha_percent']:.3g} % the {f['case']} case did not converge "
+                         f"beyond a motor change of {f['reached_deg']:.3g} deg (equilibrium lost: a limit point "
+                         "of the sheets, or the solver); that point is left out, not guessed.")
+
+        def finite(v):
+            return [abs(x) for x in v if x is not None] or [0.0]
+        r0 = max(finite([rot["pull"][0], rot["push"][0]]))
+        r1 = max(finite([rot["pull"][-1], rot["push"][-1]]))
         if r0 > 0.05 * max(r1, 1e-12):
             diffs.append(f"Fig. 7: isotropic sheets still turn the rod by {r0:.3g} deg ({r1:.3g} deg at the design "
                          "alpha); the paper finds no rotation without anisotropy.")
-        lat0 = max(a["lateral_mm"]["pull"][0], a["lateral_mm"]["push"][0])
+        lat0 = max(finite([a["lateral_mm"]["pull"][0], a["lateral_mm"]["push"][0]]))
         if lat0 < 1.0:
             diffs.append(f"Fig. 7/8: with isotropic sheets the effector moves sideways by only {lat0:.3g} mm: the "
                          "static model shows no buckling-like lateral translation as the real silicone robot does.")

@@ -54,11 +54,13 @@ def run(ctx: StageContext) -> dict:
     ctx.path("anisotropy.png").write_bytes(anisotropy_picture(
         res.alpha, res.rod_rotation_deg, res.lateral_mm, pull_deg=abs(applied[0]), push_deg=abs(applied[1]),
         title=f"Anisotropy sweep, all motors together (paper Fig. 7) [{p.model}]"))
+    failed = np.isnan(res.rod_rotation_deg)
     summary = {
         "alpha_percent": res.alpha.round(4).tolist(),
-        "rod_rotation_deg": {"pull": res.rod_rotation_deg[:, 0].round(4).tolist(),
-                             "push": res.rod_rotation_deg[:, 1].round(4).tolist()},
-        "lateral_mm": {"pull": res.lateral_mm[:, 0].round(4).tolist(), "push": res.lateral_mm[:, 1].round(4).tolist()},
+        "rod_rotation_deg": {"pull": _listed(res.rod_rotation_deg[:, 0]), "push": _listed(res.rod_rotation_deg[:, 1])},
+        "lateral_mm": {"pull": _listed(res.lateral_mm[:, 0]), "push": _listed(res.lateral_mm[:, 1])},
+        "not_converged": [{"alpha_percent": round(float(res.alpha[i]), 4), "case": ("pull", "push")[j],
+                           "reached_deg": round(float(res.applied_deg[i, j]), 4)} for i, j in zip(*np.nonzero(failed))],
         "applied_deg": {"pull": float(applied[0]), "push": float(applied[1])},
         "requested_deg": {"pull": p.pull_deg, "push": p.push_deg}, "model": p.model,
     }
@@ -69,13 +71,18 @@ def run(ctx: StageContext) -> dict:
                                cache=unit_cache(ctx))
         summary["published_end_point"] = {
             "alpha_percent": round(float(end.alpha[0]), 4),
-            "rod_rotation_deg": {"pull": round(float(end.rod_rotation_deg[0, 0]), 4),
-                                 "push": round(float(end.rod_rotation_deg[0, 1]), 4)},
-            "lateral_mm": {"pull": round(float(end.lateral_mm[0, 0]), 4), "push": round(float(end.lateral_mm[0, 1]), 4)},
+            "rod_rotation_deg": {"pull": _listed(end.rod_rotation_deg[:, 0])[0],
+                                 "push": _listed(end.rod_rotation_deg[:, 1])[0]},
+            "lateral_mm": {"pull": _listed(end.lateral_mm[:, 0])[0], "push": _listed(end.lateral_mm[:, 1])[0]},
         }
     write_json_atomic(ctx.path("anisotropy.json"), summary)
     drop_cache(ctx)
     return summary
+
+
+def _listed(values) -> list:
+    """Values rounded to 4 decimals, None where the equilibrium did not converge (NaN)."""
+    return [None if not np.isfinite(v) else round(float(v), 4) for v in np.asarray(values, float)]
 
 
 def _published_spec(ctx: StageContext, spec):
