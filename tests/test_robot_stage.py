@@ -90,3 +90,26 @@ def test_published_case_added_when_the_material_is_not_the_papers(orient_dir, tm
     data = json.loads((work / "jacobian.json").read_text())["materials"]
     np.testing.assert_allclose(data["published"]["J_mm_per_rad_and_rad_per_rad"],
                                data["foam"]["J_mm_per_rad_and_rad_per_rad"], rtol=1e-7, atol=1e-9)
+
+
+def test_anisotropy_end_point_with_the_published_constants(orient_dir, tmp_path):
+    """A homogenised material: the Fig. 7 stage adds the end point of the published set, at the
+    published alpha (93.2 %), computed on the published robot (not the pipeline's)."""
+    from dataclasses import replace
+
+    from metasheet.executor import Executor
+    from metasheet.pipeline.stages import anisotropy
+
+    mat = tmp_path / "material"
+    mat.mkdir()
+    soft = replace(PAPER_FOAM, E_l=0.05)
+    write_material(mat / "material.json", soft, density=FOAM_DENSITY, source="homogenize")
+    work = tmp_path / "work"
+    work.mkdir()
+    p = anisotropy.AnisotropyParams(model="robot", n_alpha=2, pull_deg=5.0, push_deg=5.0, resume=False)
+    s = anisotropy.run(StageContext("anisotropy", p, work, {"orient": orient_dir, "material": mat}, tmp_path,
+                                    executor=Executor(workers=1)))
+    end = s["published_end_point"]
+    assert end["alpha_percent"] == pytest.approx(PAPER_FOAM.alpha, abs=1e-3)
+    assert s["alpha_percent"][-1] == pytest.approx(soft.alpha, abs=1e-3)
+    assert end["rod_rotation_deg"]["pull"] != pytest.approx(s["rod_rotation_deg"]["pull"][-1], rel=1e-3)

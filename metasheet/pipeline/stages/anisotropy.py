@@ -97,7 +97,10 @@ def _published_spec(ctx: StageContext, spec):
         return None
     if "orient" in ctx.inputs and read_orient(ctx.inputs["orient"]).graded:
         return None
-    return spec.with_material(paper.PAPER_FOAM, mat.density)
+    from dataclasses import replace
+
+    # the sweep interpolates from the spec's design material: the published set is both
+    return replace(spec.with_material(paper.PAPER_FOAM, mat.density), design=paper.PAPER_FOAM.as_tuple())
 
 
 register(Stage(
