@@ -53,7 +53,9 @@ def _render(meshes, size: np.ndarray, tiles: int, title: str, window: tuple[int,
     pl.camera.azimuth = 15.0
     pl.camera.elevation = 5.0
     pl.reset_camera()
-    pl.camera.zoom(1.0)
+    # a multi-line title needs head room, and a slender box (Polyfoam: ~1 x 5 x 10) would reach it
+    slender = float(np.max(size) / np.min(size)) > 3.0
+    pl.camera.zoom(0.8 if slender or title.count("\n") >= 2 else 1.0)
     image = pl.screenshot(return_img=True)
     pl.close()
     return _png(image)

@@ -83,6 +83,7 @@ def sheet_picture(
 
 def printmap_picture(
     slices: Sequence[tuple[str, dict[str, np.ndarray], np.ndarray, np.ndarray, tuple]],
+    values: dict[str, float] | None = None,
 ) -> bytes:
     """Mid-plane slices of the print-map fields, one row per sheet.
 
@@ -93,7 +94,10 @@ def printmap_picture(
         ``kgon_x_shrink`` [-], ``axis angle`` [deg] in [0, 180) (the soft axis, a cyclic
         colour map); ``inside`` (n, n) bool part mask; ``solid`` (n, n) bool, the solid parts
         (brush 1, hatched); ``extent`` (xmin, xmax, ymin, ymax) [mm].
+    values : settings written as one exact value rather than a field (name -> value): their
+        panel says so, and a constant panel gets a colour range of +-5 % around its value.
     """
+    values = values or {}
     names = list(slices[0][1])
     fig, axes = _figure(len(names), len(slices), size=4.2)
     styles = {  # name -> (label, colour map, range or None for the data's)
@@ -107,7 +111,10 @@ def printmap_picture(
             val = np.where(inside, fields[name], np.nan)
             if rng is None:
                 lo, hi = np.nanmin(val), np.nanmax(val)
-                rng = (lo - 0.5, hi + 0.5) if hi - lo < 1e-9 else (lo, hi)
+                pad = 0.05 * max(abs(hi), 1e-12)
+                rng = (lo - pad, hi + pad) if hi - lo < 1e-9 else (lo, hi)
+            if name in values:
+                label = f"{label} = {values[name]:g} (a value)"
             im = ax.imshow(val.T, origin="lower", extent=extent, vmin=rng[0], vmax=rng[1],
                            cmap=cmap, interpolation="nearest")
             ax.contour(inside.T.astype(float), levels=[0.5], colors="k", linewidths=1.2,

@@ -259,7 +259,7 @@ def run(ctx: StageContext) -> dict:
     ctx.progress("picture", len(SHEETS), len(SHEETS) + 1)
     from ...viz.sheet import printmap_picture
 
-    _write_atomic(ctx.path("printmap.png"), printmap_picture(slices))
+    _write_atomic(ctx.path("printmap.png"), printmap_picture(slices, values=uniform))
     return {
         "infill": source.family,
         **{f"{k}_{name}_range": v["field_range"][name] for k, v in summary.items() for name in source.field_names},
