@@ -82,7 +82,9 @@ def test_same_params_same_mesh(sheet):
 
 def test_mesh_size_controls_the_count():
     coarse = tripod_sheet(SheetParams(mesh_size=8.0))
-    assert len(coarse.tets) < 1500 and coarse.quality.min_volume > 0
+    fine = tripod_sheet(SheetParams(mesh_size=5.0))
+    assert len(coarse.tets) < 2500 and coarse.quality.min_volume > 0
+    assert len(fine.tets) > 1.5 * len(coarse.tets)
 
 
 @pytest.mark.parametrize(

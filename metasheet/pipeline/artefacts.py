@@ -258,7 +258,12 @@ class OrientFile:
                     raise ConfigError(f"{self.directory / name}: no per-element constants "
                                       f"({', '.join(CONSTANT_NAMES)}): rerun the orient stage")
         return SheetPair(self.normal.mesh, self.mirrored.mesh, self.normal.fibers, self.mirrored.fibers,
-                         self.normal.constants, self.mirrored.constants)
+                         self.normal.constants, self.mirrored.constants, self.element)
+
+    @property
+    def element(self) -> str:
+        """The robot's element on these sheets ("p1" for outputs written before it was recorded)."""
+        return str(self.info.get("element", "p1"))
 
     @property
     def graded(self) -> bool:
@@ -319,10 +324,13 @@ def read_robot_scene(directory: Path) -> RobotScene:
 
 
 def write_rest_vtu(path: Path, robot, state) -> None:
-    """``rest.vtu``: both sheets at ``state`` (world frame); cell data ``sheet`` (0 = A,
+    """``rest.vtu``: both sheets at ``state`` (world frame, quadratic cells for a p2 robot);
+    cell data ``sheet`` (0 = A,
     1 = B), point data ``attach`` (0 free, k + 1 horn of motor k, 99 effector) and
     ``displacement`` from the unloaded rest [mm]."""
     import meshio
+
+    from ..sheet.elements import meshio_cells
 
     c = robot.coupling
     tags = np.zeros(len(c.rest), dtype=np.int32)
@@ -332,7 +340,7 @@ def write_rest_vtu(path: Path, robot, state) -> None:
     n_a = robot.info.get("n_tets_per_sheet", [len(robot.body.tets)])[0]
     sheet = (np.arange(len(robot.body.tets)) >= n_a).astype(np.int32)
     meshio.write(path, meshio.Mesh(
-        state.x, [("tetra", np.asarray(robot.body.tets))],
+        state.x, [meshio_cells(robot.body.tets)],
         point_data={"attach": tags, "displacement": state.x - c.rest},
         cell_data={"sheet": [sheet]}), binary=True)
 

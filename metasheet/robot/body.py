@@ -1,7 +1,9 @@
-"""An elastic body meshed with linear tetrahedra: corotational anisotropic FEM (issue 6, eq. 1).
+"""An elastic body meshed with tetrahedra: corotational anisotropic FEM (issue 6, eq. 1).
 
-Physics in :mod:`metasheet.robot.kernels`; the cached CSR scatter in :mod:`metasheet.fem.assembly`;
-the static solve with fixed nodes in :mod:`.dirichlet`.
+Linear tetrahedra (4 nodes, one rotation per element: :mod:`metasheet.robot.kernels`) or
+quadratic ones (10 nodes, one rotation per quadrature point: :mod:`metasheet.robot.quadrature`),
+told apart by the connectivity's width. The cached CSR scatter is in
+:mod:`metasheet.fem.assembly`; the static solve with fixed nodes in :mod:`.dirichlet`.
 Sign convention: :meth:`ElasticBody.forces` returns the *internal* (restoring) force
 ``f(x)``, zero at rest, so equilibrium under external nodal loads ``l`` reads ``f(x) = l``
 and ``K = df/dx`` is positive definite at rest (once rigid motions are fixed).
@@ -15,8 +17,9 @@ from ..conventions import GRAVITY, TPU_DENSITY
 from ..errors import ConfigError, MeshError, check_range
 from ..material import Isotropic, TransverseIsotropic
 from ..voigt import stiffness_along
+from ..fem import tet10
 from ..fem.assembly import SparsityPattern
-from . import kernels
+from . import kernels, quadrature
 
 
 def _as_points(points) -> np.ndarray:
@@ -30,8 +33,8 @@ def _as_points(points) -> np.ndarray:
 
 def _as_tets(tets, n: int) -> np.ndarray:
     t = np.asarray(tets)
-    if t.ndim != 2 or t.shape[1] != 4 or len(t) == 0:
-        raise ConfigError(f"tets: shape is {t.shape} and should be (m, 4) with m >= 1")
+    if t.ndim != 2 or t.shape[1] not in (4, 10) or len(t) == 0:
+        raise ConfigError(f"tets: shape is {t.shape} and should be (m, 4) or (m, 10) with m >= 1")
     if not np.issubdtype(t.dtype, np.integer):
         raise ConfigError(f"tets: dtype is {t.dtype} and should be an integer type")
     if t.min() < 0 or t.max() >= n:
@@ -60,12 +63,14 @@ def _as_stiffness(stiffness, m: int) -> np.ndarray:
 
 
 class ElasticBody:
-    """Corotational linear-tetrahedron FEM body with per-element anisotropic stiffness.
+    """Corotational tetrahedral FEM body with per-element anisotropic stiffness.
 
     Parameters
     ----------
     points : (n, 3) float [mm] rest positions.
-    tets : (m, 4) int node indices (either orientation).
+    tets : (m, 4) int node indices (linear, either orientation), or (m, 10) quadratic
+        (straight-edged: the 4 vertices, then the midpoints of edges 01, 02, 03, 12, 13, 23,
+        :mod:`metasheet.fem.tet10`).
     stiffness : (m, 6, 6) or (6, 6) float [MPa], Voigt stiffness in GLOBAL axes (11, 22, 33,
         23, 13, 12, engineering shear); see :func:`metasheet.voigt.stiffness_along`.
     density : float [t/mm^3] for the lumped mass (TPU: 1.19e-9).
@@ -74,7 +79,15 @@ class ElasticBody:
     Attributes
     ----------
     n_nodes, n_elements : int
-    rest : (n, 3) [mm]; volumes : (m,) [mm^3]; mass : (n,) lumped nodal mass [t]
+    element : "p1" or "p2".
+    rest : (n, 3) [mm]; volumes : (m,) [mm^3]
+    mass : (n,) nodal masses [t] for body loads: the work-equivalent integral of each shape
+        function times the density (P1: a quarter of each element's mass per node; P2: -1/20
+        at the vertices and 1/5 at the midside nodes, so vertex entries can be negative). Sums
+        to the body's mass; gravity is ``mass * g`` and exact for a uniform field.
+    quad_grads : (m, nq, nen, 3) [1/mm] shape-function gradients at the quadrature points;
+        quad_weights : (m, nq) [mm^3] (P1: one point, the element volume).
+    stiffness_scale : [N/mm] size of an element stiffness entry (round-off floors).
     pattern : :class:`~metasheet.fem.assembly.SparsityPattern` shared by every tangent.
     used : (n,) bool, nodes some element uses (the others have no stiffness).
     """
@@ -90,7 +103,9 @@ class ElasticBody:
             raise ConfigError(f"backend: {backend!r}: allowed 'numba' or 'numpy'")
         self.backend = backend if kernels.HAVE_NUMBA else "numpy"
         self.stiffness = _as_stiffness(stiffness, self.n_elements)
-        X = self.rest[self.tets]
+        nen = self.tets.shape[1]
+        self.element = "p1" if nen == 4 else "p2"
+        X = self.rest[self.tets[:, :4]]
         vol = np.abs(np.linalg.det(X[:, 1:] - X[:, :1])) / 6.0
         size = np.ptp(self.rest, axis=0).max()
         flat = np.flatnonzero(vol <= 1e-12 * size**3)
@@ -98,16 +113,29 @@ class ElasticBody:
             raise MeshError(
                 f"tets[{flat[0]}]: degenerate element (volume {vol[flat[0]]:.3g} mm^3); {len(flat)} such elements"
             )
-        self.grads, self.volumes, _ = kernels.shape_gradients(self.rest, self.tets)
-        self.Ke = kernels.element_stiffness(self.grads, self.volumes, self.stiffness)
-        self.X_e = np.ascontiguousarray(self.rest[self.tets])
+        if self.element == "p1":
+            self.grads, self.volumes, _ = kernels.shape_gradients(self.rest, self.tets)
+            self.Ke = kernels.element_stiffness(self.grads, self.volumes, self.stiffness)
+            self.X_e = np.ascontiguousarray(self.rest[self.tets])
+            self.quad_grads, self.quad_weights = self.grads[:, None], self.volumes[:, None]
+            self.stiffness_scale = float(np.abs(self.Ke).max())
+        else:
+            self.quad_grads, self.quad_weights = tet10.tet10_quadrature(self.rest, self.tets)
+            self.volumes = self.quad_weights.sum(axis=1)
+            # largest |K_ab,ij| bound: sum_q w |C| |g_a| |g_b| (the P1 scale is the exact max)
+            g2 = np.einsum("mqai,mqai->mqa", self.quad_grads, self.quad_grads).max(axis=2)
+            self.stiffness_scale = float((np.abs(self.stiffness).max(axis=(1, 2))
+                                          * np.einsum("mq,mq->m", self.quad_weights, g2)).max())
         # round-off of f(x) near the rest shape [N]: no residual below it can be told from zero,
         # whichever BLAS or summation order computed it
-        self.force_floor = 10 * np.finfo(float).eps * float(np.abs(self.Ke).max()) \
+        self.force_floor = 10 * np.finfo(float).eps * self.stiffness_scale \
             * float(np.abs(self.rest).max()) * np.sqrt(3 * self.n_nodes)
         self.pattern = SparsityPattern.from_elements(self.tets, self.n_nodes)
-        m_e = density * self.volumes / 4.0  # lumped: a quarter of each element's mass per node
-        self.mass = np.bincount(self.tets.ravel(), weights=np.repeat(m_e, 4), minlength=self.n_nodes)
+        if self.element == "p1":  # a quarter of each element's mass per node
+            m_e = np.repeat(density * self.volumes / 4.0, 4)
+        else:
+            m_e = (density * tet10.nodal_volume_weights(self.volumes, nen)).ravel()
+        self.mass = np.bincount(self.tets.ravel(), weights=m_e, minlength=self.n_nodes)
         self.density = float(density)
         self.used = np.bincount(self.tets.ravel(), minlength=self.n_nodes) > 0
 
@@ -165,11 +193,19 @@ class ElasticBody:
         if self.backend == "numba":
             f = np.empty(3 * self.n_nodes)
             data = np.empty(self.pattern.nnz if tangent else 0)
-            kernels.corotational_numba(
-                x, self.tets, self.X_e, self.grads, self.Ke, self.pattern.block_map, f, data, tangent
-            )
+            if self.element == "p1":
+                kernels.corotational_numba(
+                    x, self.tets, self.X_e, self.grads, self.Ke, self.pattern.block_map, f, data, tangent)
+            else:
+                quadrature.corotational_quadrature_numba(
+                    x, self.tets, self.quad_grads, self.quad_weights, self.stiffness, self.pattern.block_map,
+                    f, data, tangent)
             return f, (data if tangent else None)
-        fe, Kt = kernels.corotational_numpy(x[self.tets], self.X_e, self.grads, self.Ke, tangent=tangent)
+        if self.element == "p1":
+            fe, Kt = kernels.corotational_numpy(x[self.tets], self.X_e, self.grads, self.Ke, tangent=tangent)
+        else:
+            fe, Kt = quadrature.corotational_quadrature_numpy(
+                x[self.tets], self.quad_grads, self.quad_weights, self.stiffness, tangent=tangent)
         f = self.pattern.assemble_vector(fe)
         return f, (self.pattern.assemble_data(Kt) if tangent else None)
 
@@ -202,21 +238,36 @@ class ElasticBody:
             raise ConfigError(f"g: {g!r}: should be a finite 3-vector [mm/s^2]")
         return self.mass[:, None] * g[None, :]
 
+    def deformation_gradients(self, x) -> np.ndarray:
+        """(m, nq, 3, 3) deformation gradients at the quadrature points for positions ``x`` (n, 3) [mm]."""
+        x = self.check_positions(x)
+        return np.einsum("mai,mqaj->mqij", x[self.tets], self.quad_grads)
+
+    def max_principal_strain(self, x) -> np.ndarray:
+        """(m,) largest principal Green-Lagrange strain [-] over each element's quadrature points."""
+        F = self.deformation_gradients(x)
+        E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
+        return np.linalg.eigvalsh(E)[..., -1].max(axis=1)
+
     def stresses(self, x) -> np.ndarray:
         """(m, 6) element stresses [MPa], Voigt in global axes: ``R C (S - I) R^T`` (corotated).
 
-        ``x`` (n, 3) [mm]. Constant per element (linear tetrahedra). Batched numpy (SVD), not
-        meant for the hot loop.
+        ``x`` (n, 3) [mm]. Linear tetrahedra: constant per element; quadratic: the
+        volume average over the element's quadrature points. Batched numpy (SVD), not meant
+        for the hot loop.
         """
-        x = self.check_positions(x)
-        F = np.einsum("mai,maj->mij", x[self.tets], self.grads)
-        R, S = kernels.polar_numpy(F)
+        Fq = self.deformation_gradients(x)
+        m, nq = Fq.shape[:2]
+        R, S = kernels.polar_numpy(Fq.reshape(-1, 3, 3))
         E = S - np.eye(3)
         eps = np.stack([E[:, 0, 0], E[:, 1, 1], E[:, 2, 2], 2 * E[:, 1, 2], 2 * E[:, 0, 2], 2 * E[:, 0, 1]], 1)
-        s = np.einsum("mij,mj->mi", self.stiffness, eps)
+        s = np.einsum("mij,mj->mi", np.repeat(self.stiffness, nq, axis=0), eps)
         sig = np.empty((len(s), 3, 3))
         for I, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))):
             sig[:, i, j] = sig[:, j, i] = s[:, I]
         g = R @ sig @ np.transpose(R, (0, 2, 1))
-        return np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 1, 2], g[:, 0, 2], g[:, 0, 1]], 1)
+        v = np.stack([g[:, 0, 0], g[:, 1, 1], g[:, 2, 2], g[:, 1, 2], g[:, 0, 2], g[:, 0, 1]], 1).reshape(m, nq, 6)
+        if nq == 1:
+            return v[:, 0]
+        return np.einsum("mqk,mq->mk", v, self.quad_weights) / self.volumes[:, None]
 

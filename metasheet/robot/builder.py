@@ -16,6 +16,7 @@ from .. import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError
 from ..material import Isotropic, TransverseIsotropic
+from ..sheet.elements import as_element, check_element
 from ..sheet.geometry import SheetMesh, SheetParams
 from ..voigt import stiffness_along
 from .robots import Robot, ServoGeometry, six_dof
@@ -32,6 +33,9 @@ class SheetPair:
     fibers, fibers_mirrored : (m, 3) float fibre direction (local axis 3) per element of each.
     constants, constants_mirrored : (m, 5) float per-element constants [MPa, -] in
         :data:`~metasheet.material.CONSTANT_NAMES` order, or None (a material is then given).
+    element : the robot's finite element, "p1" (the sheets' own linear tetrahedra) or "p2"
+        (the same tetrahedra made quadratic when the robot is built,
+        :func:`metasheet.sheet.elements.as_element`).
     """
 
     sheet: SheetMesh
@@ -40,8 +44,10 @@ class SheetPair:
     fibers_mirrored: np.ndarray
     constants: np.ndarray | None = None
     constants_mirrored: np.ndarray | None = None
+    element: str = "p1"
 
     def __post_init__(self):
+        check_element(self.element)
         for label, mesh, fib, con in (("fibers", self.sheet, self.fibers, self.constants),
                                       ("fibers_mirrored", self.mirrored, self.fibers_mirrored,
                                        self.constants_mirrored)):
@@ -53,7 +59,7 @@ class SheetPair:
                                   f"and should be ({m}, 5)")
 
     @classmethod
-    def spiral(cls, params: SheetParams | None = None, **fiber_settings) -> "SheetPair":
+    def spiral(cls, params: SheetParams | None = None, element: str = "p1", **fiber_settings) -> "SheetPair":
         """A freshly meshed sheet, its mirror and the spiral fibre field
         (``fiber_settings``: keywords of :func:`metasheet.sheet.fibers.spiral_fibers`)."""
         from ..sheet.fibers import spiral_fibers
@@ -62,7 +68,7 @@ class SheetPair:
         s = tripod_sheet(params or SheetParams())
         m = mirror_sheet(s)
         return cls(s, m, spiral_fibers(s.centroids(), **fiber_settings),
-                   spiral_fibers(m.centroids(), mirrored=True, **fiber_settings))
+                   spiral_fibers(m.centroids(), mirrored=True, **fiber_settings), element=element)
 
     @property
     def has_constants(self) -> bool:
@@ -127,5 +133,5 @@ def six_dof_robot(sheets: SheetPair, material=None, *, density: float, rod_lengt
         material = _plain(material)
         Ca = material_stiffness(material, sheets.fibers)
         Cb = material_stiffness(material, sheets.fibers_mirrored)
-    return six_dof(sheets.sheet, Ca, sheets.mirrored, Cb, rod_length=rod_length, geometry=geometry,
-                   density=density, gravity=gravity)
+    return six_dof(as_element(sheets.sheet, sheets.element), Ca, as_element(sheets.mirrored, sheets.element), Cb,
+                   rod_length=rod_length, geometry=geometry, density=density, gravity=gravity)

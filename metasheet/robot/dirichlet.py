@@ -108,7 +108,7 @@ def solve_static(body, fixed, *, x_fixed=None, loads=None, tol: float = 1e-8, ma
     # Reference force: loads, first residual and reactions, so tol is scale-free.
     ref = max(np.linalg.norm(l[free]), np.linalg.norm(r), np.linalg.norm(f[cons] - l[cons]))
     # Round-off floor of f: below it no residual can be trusted, whatever tol asks.
-    floor = 10 * np.finfo(float).eps * np.abs(body.Ke).max() * np.abs(x).max() * np.sqrt(len(free))
+    floor = 10 * np.finfo(float).eps * body.stiffness_scale * np.abs(x).max() * np.sqrt(len(free))
     ref = max(ref, floor)
     hist = [np.linalg.norm(r) / ref]
     it = 0

@@ -323,10 +323,31 @@ class InverseController:
         except ConvergenceError:  # the loop's state drifted too far: restart from the start pose
             if start is None:
                 raise
-            eq = solve_equilibrium(rob, self.state.angles, state=start, **kw)
+            try:
+                eq = solve_equilibrium(rob, self.state.angles, state=start, **kw)
+            except ConvergenceError:  # no equilibrium path reaches these angles (a snap)
+                eq = self._farthest_equilibrium(start, self.state.angles, kw)
         self._produce(eq.state)
         self.certified["newton"] += 1
         return eq.state, float(eq.residuals[-1]), eq.reference, "newton"
+
+    def _farthest_equilibrium(self, start: RobotState, angles, kw: dict, bisections: int = 4):
+        """The equilibrium farthest along the straight motor path from ``start`` to ``angles``
+        [rad] that the line-searched Newton solve reaches (bisection on the path fraction):
+        past a snap of the sheets the loop's angles have no equilibrium connected to the start,
+        and the closest certified pose is the honest answer."""
+        rob = self.robot
+        good = solve_equilibrium(rob, start.angles, state=start, **kw)
+        lo, hi = 0.0, 1.0
+        for _ in range(bisections):
+            mid = 0.5 * (lo + hi)
+            try:
+                good = solve_equilibrium(rob, start.angles + mid * (np.asarray(angles) - start.angles),
+                                         state=good.state, **kw)
+                lo = mid
+            except ConvergenceError:
+                hi = mid
+        return good
 
     def goto(self, pose, state: RobotState | None = None, *,
              settings: InverseSettings | None = None) -> InverseResult:

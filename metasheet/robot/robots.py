@@ -11,7 +11,7 @@ Geometry decisions (FACTS.md; documented here because the sources do not pin the
   horn reaching inwards and 90 degrees a vertical one (the paper's convention).
 * The design parameter is the REST ANGLE ``theta_0`` (the motor angle at which the flat,
   unloaded sheet is the rest pose), not the servo position: the pivot is placed at
-  ``tip - horn_length * h(theta_0)`` from the arm's tip-box centre, so every mesh of the same
+  ``tip - horn_length * h(theta_0)`` from the centroid of the arm's grip (:func:`grip_centre`), so every mesh of the same
   sheet has the same rest angle (placing the pivot on a fixed servo circle instead made the
   rest angle depend on the mesh's tip-box centroid: ~75 deg on the 5 mm mesh, 84-88 deg on
   coarse ones, leaving almost no pull travel). The servo circle's radius
@@ -146,14 +146,28 @@ def _check_sheet(sheet, stiffness, label):
     return pts, tets, att, C
 
 
-def _servos(pts_world, att, arm_angles, Q, centre, geo: ServoGeometry, offset: int, label):
+def grip_centre(points, tets, attach, tag: int) -> np.ndarray:
+    """(3,) volume centroid [mm] of the elements whose vertices all carry ``tag``: the grip
+    region's centre. Unlike the mean of its nodes it does not move with how the mesh spreads
+    nodes inside the region (on a sheet meshed conforming to the grip, it is the region's
+    own centroid on every mesh); falls back to the node mean when no element is inside."""
+    v = np.asarray(tets)[:, :4]
+    inside = np.all(np.asarray(attach)[v] == tag, axis=1)
+    if not np.any(inside):
+        return np.asarray(points)[np.asarray(attach) == tag].mean(axis=0)
+    X = np.asarray(points)[v[inside]]
+    vol = np.abs(np.linalg.det(X[:, 1:] - X[:, :1]))
+    return (vol[:, None] * X.mean(axis=1)).sum(axis=0) / vol.sum()
+
+
+def _servos(pts_world, tets, att, arm_angles, Q, centre, geo: ServoGeometry, offset: int, label):
     """Servos of one sheet placed by Q (local -> world) at ``centre`` (3,) [mm]."""
     n = Q[:, 2]
     servos, info = [], []
     for k, phi in enumerate(arm_angles):
         nodes = np.flatnonzero(att == k + 1)
         u = Q @ np.array([np.cos(phi), np.sin(phi), 0.0])
-        tip = pts_world[nodes].mean(axis=0)
+        tip = grip_centre(pts_world, tets, att, k + 1)
         r_tip = float(np.dot(tip - centre, u))
         th0 = float(np.radians(geo.rest_angle))
         h0 = -np.cos(th0) * u + np.sin(th0) * n
@@ -205,7 +219,7 @@ def tripod(sheet, stiffness, *, geometry: ServoGeometry = ServoGeometry(), densi
     """
     pts, tets, att, C = _check_sheet(sheet, stiffness, "sheet")
     Q = np.eye(3)
-    servos, info = _servos(pts, att, sheet.arm_angles, Q, np.zeros(3), geometry, 0, "sheet")
+    servos, info = _servos(pts, tets, att, sheet.arm_angles, Q, np.zeros(3), geometry, 0, "sheet")
     return _make_robot("tripod", pts, tets, C, np.flatnonzero(att == 4), np.zeros(3), servos, info,
                        geometry, gravity, (0.0, 0.0, 1.0), density)
 
@@ -234,8 +248,8 @@ def six_dof(sheet_a, stiffness_a, sheet_b, stiffness_b, *, rod_length: float = p
     if np.max(np.abs(pa[:, 2])) >= half:
         raise ConfigError(f"rod_length: {rod_length!r}: the sheets would overlap; allowed > "
                           f"{2 * np.max(np.abs(pa[:, 2])):.1f} mm")
-    sa, ia = _servos(wa, aa, sheet_a.arm_angles, Q_A, ca, geometry, 0, "A")
-    sb, ib = _servos(wb, ab, sheet_b.arm_angles, Q_B, cb, geometry, len(pa), "B")
+    sa, ia = _servos(wa, ta, aa, sheet_a.arm_angles, Q_A, ca, geometry, 0, "A")
+    sb, ib = _servos(wb, tb, ab, sheet_b.arm_angles, Q_B, cb, geometry, len(pa), "B")
     pts = np.vstack([wa, wb])
     tets = np.vstack([ta, np.asarray(tb) + len(pa)])
     C = np.concatenate([_rotate_local(Ca, Q_A), _rotate_local(Cb, Q_B)])

@@ -36,6 +36,14 @@ class SheetParams:
     hole_radius : radius of the central through hole [mm] (0 for no hole).
     fillet_radius : radius of the fillets in the three concave corners between arms [mm].
     mesh_size : target tetrahedron edge length h [mm]; the default 5 mm gives ~2,900 tets.
+    layers : elements through the thickness: 0 leaves it to gmsh's free 3D mesh (about one
+        element through 5 mm at h = 5 mm); k > 0 extrudes the in-plane triangle mesh in k
+        structured layers (each prism split into three tets), the explicit control the
+        bending of a thin sheet needs.
+    grip_size : element size at the borders of the rigid sets (the centre disk's circle and
+        each grip's cut across its arm) [mm], growing by half the distance away from them up
+        to ``mesh_size``; 0 for a uniform mesh. The sheet is clamped along these lines, where
+        the strains are singular: a uniform mesh converges slowly there, whatever its order.
     tip_box : (along the arm, across the arm, along z) size of the box centred on each
         arm's end whose nodes the servo horn holds [mm].
     centre_radius : nodes within this distance of the centre are tied to the effector [mm].
@@ -47,6 +55,8 @@ class SheetParams:
     hole_radius: float = 5.0
     fillet_radius: float = 5.0
     mesh_size: float = 5.0
+    layers: int = 0
+    grip_size: float = 0.0
     tip_box: tuple[float, float, float] = (15.0, 45.0, 30.0)
     centre_radius: float = 7.5
 
@@ -60,6 +70,12 @@ class SheetParams:
         fmax = np.sqrt(3.0) * (float(self.reach) - corner) * 0.5
         check_range("fillet_radius", self.fillet_radius, 0.0, min(fmax, 3.0 * w))
         check_range("mesh_size", self.mesh_size, 0.3, 50.0)
+        if isinstance(self.layers, bool) or not isinstance(self.layers, (int, np.integer)):
+            raise ConfigError(f"layers: {self.layers!r}: expected an integer in [0, 16]")
+        check_range("layers", self.layers, 0, 16)
+        if self.grip_size:
+            check_range("grip_size", self.grip_size, 0.2, self.mesh_size)
+        object.__setattr__(self, "layers", int(self.layers))
         if len(self.tip_box) != 3:
             raise ConfigError(f"tip_box: {self.tip_box!r}: expected 3 sizes [mm]")
         for i, s in enumerate(self.tip_box):
@@ -71,7 +87,8 @@ class SheetParams:
         return {
             "arm_width": self.arm_width, "reach": self.reach, "thickness": self.thickness,
             "hole_radius": self.hole_radius, "fillet_radius": self.fillet_radius,
-            "mesh_size": self.mesh_size, "tip_box": list(self.tip_box),
+            "mesh_size": self.mesh_size, "layers": self.layers, "grip_size": self.grip_size,
+            "tip_box": list(self.tip_box),
             "centre_radius": self.centre_radius,
         }
 
@@ -235,8 +252,14 @@ def tripod_sheet(params: SheetParams | None = None) -> SheetMesh:
             circle = occ.addCircle(0.0, 0.0, z0, float(params.hole_radius))
             loops.append(occ.addCurveLoop([circle]))
         surf = occ.addPlaneSurface(loops)
-        occ.extrude([(2, surf)], 0.0, 0.0, t)
+        pieces = _conforming_pieces(occ, surf, params)
+        if params.layers:  # structured layers: gmsh meshes the surface, then stacks prisms split in tets
+            occ.extrude(pieces, 0.0, 0.0, t, numElements=[params.layers])
+        else:
+            occ.extrude(pieces, 0.0, 0.0, t)
         occ.synchronize()
+        if params.grip_size:
+            _grip_size_field(gmsh, params)
         gmsh.model.mesh.generate(3)
         tags, coords, _ = gmsh.model.mesh.getNodes()
         etags, enodes = gmsh.model.mesh.getElementsByType(4)
@@ -247,6 +270,53 @@ def tripod_sheet(params: SheetParams | None = None) -> SheetMesh:
         if not was_init:
             gmsh.finalize()
     return _assemble(params, tags, coords, enodes)
+
+
+#: growth of the element size away from the grip borders [mm per mm]
+GRIP_GROWTH = 0.5
+
+
+def _grip_size_field(gmsh, params: SheetParams) -> None:
+    """Element size ``grip_size + GRIP_GROWTH * d`` (capped at ``mesh_size``), d the distance to
+    the nearest grip border: |r - centre_radius| or, per arm, |s - (reach - tip_box[0] / 2)|
+    along the arm (the grip's cut; no other arm reaches that s)."""
+    def num(v) -> str:  # parenthesised: gmsh's expression parser takes no "*-"
+        return f"({float(v):.17g})"
+
+    cut = params.reach - 0.5 * params.tip_box[0]
+    dists = [f"Fabs(Sqrt(x*x+y*y)-{num(params.centre_radius)})"]
+    dists += [f"Fabs(x*{num(np.cos(a))}+y*{num(np.sin(a))}-{num(cut)})" for a in ARM_ANGLES]
+    d = dists[0]
+    for e in dists[1:]:
+        d = f"Min({d},{e})"
+    f = gmsh.model.mesh.field.add("MathEval")
+    gmsh.model.mesh.field.setString(f, "F", f"Min({num(params.mesh_size)},{num(params.grip_size)}+{num(GRIP_GROWTH)}*{d})")
+    gmsh.model.mesh.field.setAsBackgroundMesh(f)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", min(params.grip_size, 0.4 * params.mesh_size))
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+
+
+def _conforming_pieces(occ, surf: int, params: SheetParams) -> list[tuple[int, int]]:
+    """The sheet's face split along the borders of its rigid sets (the centre disk and each
+    arm's tip box), as (2, tag) pieces of one conforming face.
+
+    Without the split, which nodes fall in a rigid set depends on where the mesh puts them:
+    the rigid hub and grips grow and shrink from mesh to mesh (by up to an element), a
+    first-order error that hid the elements' own convergence. With it every mesh has
+    element faces on the sets' borders, so the coupled region is the same on every mesh.
+    """
+    half = 0.5 * np.asarray(params.tip_box)
+    tools = []
+    if params.centre_radius > params.hole_radius:
+        tools.append((2, occ.addDisk(0.0, 0.0, -0.5 * params.thickness, params.centre_radius, params.centre_radius)))
+    for a in ARM_ANGLES:
+        r = occ.addRectangle(params.reach - half[0], -half[1], -0.5 * params.thickness, 2 * half[0], 2 * half[1])
+        occ.rotate([(2, r)], 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, float(a))
+        tools.append((2, r))
+    _, children = occ.fragment([(2, surf)], tools)
+    pieces = children[0]  # what became of the sheet's own face; the tools' outside parts go
+    occ.remove([d for d in occ.getEntities(2) if d not in pieces], recursive=True)
+    return pieces
 
 
 def _assemble(params, tags, coords, enodes) -> SheetMesh:

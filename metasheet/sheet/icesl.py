@@ -158,8 +158,9 @@ def solid_mask(points: np.ndarray, params: SheetParams) -> np.ndarray:
     or an arm-end tab (the tip box of an arm, as ``geometry.attach_tags``). Symmetric under
     y -> -y, so it serves the mirrored sheet too."""
     p = np.asarray(points, dtype=float)
-    out = np.hypot(p[:, 0], p[:, 1]) <= params.centre_radius
-    half = 0.5 * np.asarray(params.tip_box)
+    tol = 1e-9  # as attach_tags: the sheet is meshed conforming to these borders, nodes sit on them
+    out = np.hypot(p[:, 0], p[:, 1]) <= params.centre_radius + tol
+    half = 0.5 * np.asarray(params.tip_box) + tol
     for a in ARM_ANGLES:
         s = p[:, 0] * np.cos(a) + p[:, 1] * np.sin(a)
         q = -p[:, 0] * np.sin(a) + p[:, 1] * np.cos(a)

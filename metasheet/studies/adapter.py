@@ -27,6 +27,7 @@ class RobotSpec:
     Attributes
     ----------
     points, tets, attach : the sheet mesh ((n, 3) [mm], (m, 4), (n,) tags 0-4); arm_angles (3,) [rad].
+    element : "p1" or "p2", the robot's element on that mesh (:class:`~metasheet.robot.builder.SheetPair`).
     points_m, tets_m, attach_m : the mirrored sheet.
     fibers, fibers_m : (m, 3) unit fibre directions of each sheet (local axis 3).
     material : (E_t, E_l, nu_t, nu_tl, mu_l) [MPa, -] of the sheets (transverse isotropic).
@@ -73,6 +74,7 @@ class RobotSpec:
     chord_tol: float = 0.3
     consts: np.ndarray | None = None
     consts_m: np.ndarray | None = None
+    element: str = "p1"
 
     def __post_init__(self):
         check_motor_range("motor_range", *self.motor_range)
@@ -91,7 +93,7 @@ class RobotSpec:
             h.update(b"-" if a is None else np.ascontiguousarray(a).tobytes())
         h.update(repr((self.material, self.design, self.rod_length, self.rest_angle, self.horn_length,
                        self.motor_range, self.density, self.rot_weight, self.max_step_deg,
-                       self.stall_steps, self.refresh_angle_deg, self.chord_tol)).encode())
+                       self.stall_steps, self.refresh_angle_deg, self.chord_tol, self.element)).encode())
         return "fem-" + h.hexdigest()[:24]
 
     @property
@@ -126,7 +128,8 @@ class RobotSpec:
         return cls(np.asarray(a.points, float), np.asarray(a.tets), np.asarray(a.attach),
                    np.asarray(a.arm_angles, float), np.asarray(b.points, float), np.asarray(b.tets),
                    np.asarray(b.attach), np.asarray(sheets.fibers, float), np.asarray(sheets.fibers_mirrored, float),
-                   c, kw.pop("design", c), consts=sheets.constants, consts_m=sheets.constants_mirrored, **kw)
+                   c, kw.pop("design", c), consts=sheets.constants, consts_m=sheets.constants_mirrored,
+                   element=sheets.element, **kw)
 
     def sheets(self) -> SheetPair:
         """The sheet pair again (per-element constants only when they drive the robot)."""
@@ -134,7 +137,7 @@ class RobotSpec:
         return SheetPair(SheetMesh(self.points, self.tets, self.attach, self.arm_angles),
                          SheetMesh(self.points_m, self.tets_m, self.attach_m, self.arm_angles),
                          self.fibers, self.fibers_m, self.consts if graded else None,
-                         self.consts_m if graded else None)
+                         self.consts_m if graded else None, self.element)
 
 
 class FemRobot:
@@ -167,11 +170,6 @@ class FemRobot:
         self.motor_range = tuple(spec.motor_range)
         ax = np.abs(self.robot.axis)
         self.rod_axis = int(np.argmax(ax))
-        self._rest_x = self.robot.rest_state().x
-        tets = self.robot.body.tets
-        X = self._rest_x[tets]
-        self._tets = tets
-        self._dm_inv = np.linalg.inv(np.transpose(X[:, 1:] - X[:, :1], (0, 2, 1)))
 
     def rest_pose(self) -> np.ndarray:
         return self.rest.pose.copy()
@@ -209,12 +207,8 @@ class FemRobot:
         return eq.state.pose, eq.state
 
     def max_principal_strain(self, state) -> float:
-        """Largest principal Green-Lagrange strain over the sheets' elements [-]."""
-        x = state.x[self._tets]
-        Ds = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
-        F = Ds @ self._dm_inv
-        E = 0.5 * (np.transpose(F, (0, 2, 1)) @ F - np.eye(3))
-        return float(np.linalg.eigvalsh(E)[:, -1].max())
+        """Largest principal Green-Lagrange strain over the sheets' quadrature points [-]."""
+        return float(self.robot.body.max_principal_strain(state.x).max())
 
     def min_singular_value(self, state) -> float:
         """Smallest singular value of the Jacobian scaled by diag(1, 1, 1, 50 mm) [mm/rad].
@@ -231,12 +225,12 @@ class FemRobot:
 
 
 def paper_robot_spec(*, mesh_size: float = 5.0, rest_angle: float = paper.REST_ANGLE, material=None,
-                     pitch_deg: float = 45.0, **kw) -> RobotSpec:
+                     pitch_deg: float = 45.0, layers: int = 0, element: str = "p1", **kw) -> RobotSpec:
     """The paper's robot built in memory (no pipeline): default sheet, spiral fibres, the
     paper's foam (or ``material``), motors at rest at ``rest_angle`` [deg] on every mesh.
     For tests and benchmarks; the stages build their spec from the orient stage's sheets.
     """
     from ..sheet.geometry import SheetParams
 
-    sheets = SheetPair.spiral(SheetParams(mesh_size=mesh_size), pitch_deg=pitch_deg)
+    sheets = SheetPair.spiral(SheetParams(mesh_size=mesh_size, layers=layers), element, pitch_deg=pitch_deg)
     return RobotSpec.from_sheets(sheets, material or paper.PAPER_FOAM, rest_angle=float(rest_angle), **kw)

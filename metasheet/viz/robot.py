@@ -18,6 +18,7 @@ from ..rotations import rotation_vector
 def _grid(points, tets, disp=None):
     import pyvista as pv
 
+    tets = np.asarray(tets)[:, :4]  # the vertices: a quadratic mesh drawn by its straight edges
     cells = np.hstack([np.full((len(tets), 1), 4), tets]).ravel()
     g = pv.UnstructuredGrid(cells, np.full(len(tets), 10, dtype=np.uint8), np.asarray(points, float))
     if disp is not None:

@@ -47,6 +47,8 @@ class StudyRobotParams(Params):
         None, ge=0.3, le=50, description="re-mesh the orient sheet at this tet size for this study only "
         "(same geometry and fibre law; per-element constants carried over from the nearest orient "
         "element); None: orient's mesh [mm]")
+    layers: int | None = Field(None, ge=0, le=16, description="elements through the thickness of the "
+                               "re-meshed sheet; None: orient's")
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
@@ -79,22 +81,27 @@ def build_spec(ctx: StageContext):
     scene = {k: v for k, v in asdict(up).items() if k in ("rod_length", "rest_angle", "horn_length")}
     scene.update({k: float(getattr(p, k)) for k in scene if getattr(p, k) is not None})
     sheets = orient.sheets(need_constants=orient.graded)
-    if p.mesh_size is not None:
-        sheets = remesh(orient, p.mesh_size)
+    if p.mesh_size is not None or p.layers is not None:
+        sheets = remesh(orient, orient.sheet_params.mesh_size if p.mesh_size is None else p.mesh_size,
+                        p.layers)
     if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
         sheets = replace(sheets, constants=None, constants_mirrored=None)
     return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=mat.density,
                                  rot_weight=p.rot_weight, max_step_deg=p.max_step_deg, **scene)
 
 
-def remesh(orient: OrientFile, mesh_size: float):
-    """The orient sheet pair re-meshed at ``mesh_size`` [mm] with the same geometry and fibre
-    law; per-element constants (when the sheets carry them) carried over by nearest centroid."""
+def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, element: str | None = None):
+    """The orient sheet pair re-meshed at ``mesh_size`` [mm] (``layers`` through the thickness
+    and ``element``, None: orient's) with the same geometry and fibre law; per-element
+    constants (when the sheets carry them) carried over by nearest centroid."""
     from scipy.spatial import cKDTree
 
     from ...robot.builder import SheetPair
 
-    fresh = SheetPair.spiral(replace(orient.sheet_params, mesh_size=float(mesh_size)), **orient.fiber_settings)
+    sp = replace(orient.sheet_params, mesh_size=float(mesh_size),
+                 **({} if layers is None else {"layers": int(layers)}))
+    element = orient.element if element is None else element
+    fresh = SheetPair.spiral(sp, element, **orient.fiber_settings)
     meshes, consts = [], []
     for new, old in ((fresh.sheet, orient.normal), (fresh.mirrored, orient.mirrored)):
         c = old.constants
@@ -103,7 +110,7 @@ def remesh(orient: OrientFile, mesh_size: float):
         consts.append(c)
         # the arm directions as the orient stage recorded them (degrees in sheet.json)
         meshes.append(replace(new, arm_angles=old.mesh.arm_angles))
-    return SheetPair(*meshes, fresh.fibers, fresh.fibers_mirrored, *consts)
+    return SheetPair(*meshes, fresh.fibers, fresh.fibers_mirrored, *consts, element)
 
 
 def unit_cache(ctx: StageContext) -> UnitCache:

@@ -55,6 +55,9 @@ class OrientParams(Params):
     hole_radius: float = Field(5.0, ge=0, le=90, description="central hole radius [mm]")
     fillet_radius: float = Field(5.0, ge=0, le=600, description="fillet radius between arms [mm]")
     mesh_size: float = Field(5.0, ge=0.3, le=50, description="target tet edge [mm]; 5 gives ~2,900 tets")
+    layers: int = Field(0, ge=0, le=16, description="elements through the thickness; 0: gmsh's free mesh")
+    element: Literal["p1", "p2"] = Field("p1", description="the robot's element on the sheets: linear "
+                                         "or quadratic tetrahedra (sheet.vtu stays linear)")
     tip_box: tuple[float, float, float] = Field(
         (15.0, 45.0, 30.0), description="arm-tip box (along arm, across, z) [mm]"
     )
@@ -74,7 +77,7 @@ class OrientParams(Params):
 def sheet_params(p: OrientParams) -> geo.SheetParams:
     return geo.SheetParams(
         arm_width=p.arm_width, reach=p.reach, thickness=p.thickness, hole_radius=p.hole_radius,
-        fillet_radius=p.fillet_radius, mesh_size=p.mesh_size, tip_box=p.tip_box,
+        fillet_radius=p.fillet_radius, mesh_size=p.mesh_size, layers=p.layers, tip_box=p.tip_box,
         centre_radius=p.centre_radius,
     )
 
@@ -155,6 +158,7 @@ def run(ctx: StageContext) -> dict:
     counts = {str(k): int(np.sum(normal.attach == k)) for k in range(5)}
     info = {
         "geometry": sp.to_dict(),
+        "element": p.element,
         "units": {"lengths": "mm", "angles": "deg", "moduli": "MPa"},
         "frame": "centre at origin, mid-plane z = 0, arm k along 120 deg * k from +x",
         "arm_angles_deg": np.degrees(normal.arm_angles).tolist(),

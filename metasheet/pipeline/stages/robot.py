@@ -22,6 +22,8 @@ the robot's figures for both side by side.
 from __future__ import annotations
 
 import numpy as np
+from typing import Literal
+
 from pydantic import Field
 
 from ... import paper
@@ -31,6 +33,7 @@ from ...robot.builder import six_dof_robot
 from ...robot.compare import evaluate
 from ...robot.robots import ServoGeometry
 from ..artefacts import read_material, read_orient, write_jacobian, write_rest_vtu
+from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
 
@@ -51,6 +54,9 @@ class RobotParams(Params):
     compare_published: bool = Field(True, description="also evaluate the robot with the paper's published "
                                     "constants when the material differs from them")
     picture: bool = Field(True, description="write robot.png")
+    convergence: list[tuple[Literal["p1", "p2"], float, int]] = Field(
+        default_factory=list, description="mesh levels [element, mesh_size [mm], layers] of the convergence "
+        "study (convergence.json); the orient mesh is added; empty: no study")
 
 
 def run(ctx: StageContext) -> dict:
@@ -87,6 +93,9 @@ def run(ctx: StageContext) -> dict:
         "materials": {name: c.to_dict() for name, c in cases.items()},
     }
     write_jacobian(ctx.path("jacobian.json"), out)
+    if p.convergence:
+        ctx.progress("convergence study", len(robots), len(robots) + 2)
+        _convergence(ctx, orient, density, scene)
     write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
     if p.picture:
         ctx.progress("picture", len(robots) + 1, len(robots) + 2)
@@ -103,6 +112,27 @@ def run(ctx: StageContext) -> dict:
         for name, c in cases.items()
     } | {"n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
        "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"]}
+
+
+def _convergence(ctx: StageContext, orient, density: float, scene: dict) -> None:
+    """``convergence.json``: the foam robot over the mesh levels of ``convergence`` (and the
+    orient mesh, checked against the tolerances); each level's seconds go to the manifest."""
+    from ...robot.convergence import Level, convergence_summary, run_levels
+    from ._studies import remesh
+
+    sp = orient.sheet_params
+    own = Level(orient.element, float(sp.mesh_size), int(sp.layers))
+    levels = list(dict.fromkeys([Level(e, float(h), int(n)) for e, h, n in ctx.params.convergence] + [own]))
+
+    def build(lev: Level):
+        if lev == own:
+            return six_dof_robot(orient.sheets(), density=density, **scene)
+        return six_dof_robot(remesh(orient, lev.mesh_size, lev.layers, lev.element), density=density, **scene)
+
+    results = run_levels(build, levels, progress=ctx.progress)
+    for r in results:
+        ctx.timings[f"convergence {r.level.label}"] = round(r.seconds, 3)
+    write_json_atomic(ctx.path("convergence.json"), convergence_summary(results, {"robot": own}))
 
 
 register(Stage(

@@ -1,0 +1,77 @@
+"""Mesh convergence of the 6-DOF robot, P1 vs P2 sheets (issue 14).
+
+Run: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_convergence.py [--material published]
+         [--p1 10 7 5 3.5 2.5 1.8] [--p2 14 10 7 5 3.5 2.5] [--layers 0] [--json out.json]
+
+Builds the paper's robot (spiral 45 deg, the published foam or another material) on each
+mesh, measures singular values, rod rotation per degree, rod compliance and gravity sag at
+the rest equilibrium (:mod:`metasheet.robot.convergence`), fits ``q = q_inf + c h^p`` per
+element, and prints one table: each mesh's figures, its seconds (build + solve) and its
+errors against the P2 limit. ``--json`` keeps the raw results (with wall times: a benchmark
+file, not a pipeline artefact).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+
+import numpy as np
+
+from metasheet import paper
+from metasheet.material import Isotropic
+from metasheet.robot.builder import SheetPair, six_dof_robot
+from metasheet.robot.convergence import Level, convergence_summary, run_levels
+from metasheet.sheet.geometry import SheetParams
+
+MATERIALS = {"published": paper.PAPER_FOAM, "silicone": paper.SILICONE,
+             "isotropic-foam": Isotropic(paper.PAPER_FOAM.E_t, paper.PAPER_FOAM.nu_t)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--material", choices=sorted(MATERIALS), default="published")
+    ap.add_argument("--p1", type=float, nargs="*", default=[10.0, 7.0, 5.0, 3.5, 2.5])
+    ap.add_argument("--p2", type=float, nargs="*", default=[14.0, 10.0, 7.0, 5.0, 3.5, 2.5])
+    ap.add_argument("--layers", type=int, default=0, help="elements through the thickness (0: free mesh)")
+    ap.add_argument("--pitch", type=float, default=45.0)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    mat = MATERIALS[a.material]
+
+    def build(lev: Level):
+        sheets = SheetPair.spiral(SheetParams(mesh_size=lev.mesh_size, layers=lev.layers), lev.element,
+                                  pitch_deg=a.pitch)
+        return six_dof_robot(sheets, mat, density=paper.FOAM_DENSITY)
+
+    levels = [Level("p1", h, a.layers) for h in a.p1] + [Level("p2", h, a.layers) for h in a.p2]
+    results = run_levels(build, levels, progress=lambda d, i, n: print(f"[{i + 1}/{n}] {d}", flush=True))
+    summary = convergence_summary(results)
+    print(f"\nmaterial {a.material}, load {os.getloadavg()[0]:.1f}, OPENBLAS_NUM_THREADS="
+          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; errors against the "
+          f"{summary['reference']} limit\n")
+    head = ("mesh", "tets", "dofs", "s", "sv max", "sv min", "rod deg/deg", "rod mm/N", "sag mm",
+            "err J", "err W_rod")
+    print(" | ".join(f"{h:>12}" for h in head))
+    for r, row in zip(results, summary["levels"]):
+        e = row["errors"]
+        cells = (r.level.label, r.tets, r.dofs, f"{r.seconds:.1f}", f"{r.singular_values[0]:.3f}",
+                 f"{r.singular_values[-1]:.3f}", f"{r.rod_rotation_deg_per_deg:.4f}",
+                 f"{r.rod_compliance_mm_per_N:.3f}", f"{r.gravity_sag_mm:.4f}",
+                 f"{100 * e['jacobian']:.2f} %", f"{100 * e['rod_compliance']:.2f} %")
+        print(" | ".join(f"{c:>12}" for c in cells))
+    for el, lim in summary["limits"].items():
+        v = lim["limits"]
+        print(f"\n{el} limit: sv {np.round(v['singular_values'], 3).tolist()}, rod {v['rod_rotation_deg_per_deg']:.4f} "
+              f"deg/deg, W_rod {v['rod_compliance_mm_per_N']:.3f} mm/N, sag {v['gravity_sag_mm']:.4f} mm; "
+              f"orders {({k: round(o, 2) for k, o in lim['fitted_orders'].items()})}")
+    if a.json:
+        for row, r in zip(summary["levels"], results):
+            row["seconds"] = r.seconds
+        with open(a.json, "w") as fh:
+            json.dump(summary, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()
