@@ -1,7 +1,8 @@
 """Mesh convergence of the 6-DOF robot, P1 vs P2 sheets (issue 14).
 
 Run: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_convergence.py [--material published]
-         [--p1 10 7 5 3.5 2.5 1.8] [--p2 14 10 7 5 3.5 2.5] [--layers 0] [--json out.json]
+         [--p1 10 7 5 3.5 2.5] [--p2 14 10 7 5 3.5 2.5] [--graded 3 2 1.4 1 0.7]
+         [--graded-h 10] [--layers 0] [--json out.json]
 
 Builds the paper's robot (spiral 45 deg, the published foam or another material) on each
 mesh, measures singular values, rod rotation per degree, rod compliance and gravity sag at
@@ -34,6 +35,9 @@ def main() -> None:
     ap.add_argument("--material", choices=sorted(MATERIALS), default="published")
     ap.add_argument("--p1", type=float, nargs="*", default=[10.0, 7.0, 5.0, 3.5, 2.5])
     ap.add_argument("--p2", type=float, nargs="*", default=[14.0, 10.0, 7.0, 5.0, 3.5, 2.5])
+    ap.add_argument("--graded", type=float, nargs="*", default=[3.0, 2.0, 1.4, 1.0, 0.7],
+                    help="grip sizes [mm] of the P2 sequence graded towards the grips")
+    ap.add_argument("--graded-h", type=float, default=10.0, help="mesh size away from the grips [mm]")
     ap.add_argument("--layers", type=int, default=0, help="elements through the thickness (0: free mesh)")
     ap.add_argument("--pitch", type=float, default=45.0)
     ap.add_argument("--json", default=None)
@@ -41,11 +45,13 @@ def main() -> None:
     mat = MATERIALS[a.material]
 
     def build(lev: Level):
-        sheets = SheetPair.spiral(SheetParams(mesh_size=lev.mesh_size, layers=lev.layers), lev.element,
+        sheets = SheetPair.spiral(SheetParams(mesh_size=lev.mesh_size, layers=lev.layers,
+                                              grip_size=lev.grip_size), lev.element,
                                   pitch_deg=a.pitch)
         return six_dof_robot(sheets, mat, density=paper.FOAM_DENSITY)
 
-    levels = [Level("p1", h, a.layers) for h in a.p1] + [Level("p2", h, a.layers) for h in a.p2]
+    levels = ([Level("p1", h, a.layers) for h in a.p1] + [Level("p2", h, a.layers) for h in a.p2]
+              + [Level("p2", a.graded_h, a.layers, g) for g in a.graded])
     results = run_levels(build, levels, progress=lambda d, i, n: print(f"[{i + 1}/{n}] {d}", flush=True))
     summary = convergence_summary(results)
     print(f"\nmaterial {a.material}, load {os.getloadavg()[0]:.1f}, OPENBLAS_NUM_THREADS="
@@ -61,9 +67,9 @@ def main() -> None:
                  f"{r.rod_compliance_mm_per_N:.3f}", f"{r.gravity_sag_mm:.4f}",
                  f"{100 * e['jacobian']:.2f} %", f"{100 * e['rod_compliance']:.2f} %")
         print(" | ".join(f"{c:>12}" for c in cells))
-    for el, lim in summary["limits"].items():
+    for fam, lim in summary["limits"].items():
         v = lim["limits"]
-        print(f"\n{el} limit: sv {np.round(v['singular_values'], 3).tolist()}, rod {v['rod_rotation_deg_per_deg']:.4f} "
+        print(f"\n{fam} limit: sv {np.round(v['singular_values'], 3).tolist()}, rod {v['rod_rotation_deg_per_deg']:.4f} "
               f"deg/deg, W_rod {v['rod_compliance_mm_per_N']:.3f} mm/N, sag {v['gravity_sag_mm']:.4f} mm; "
               f"orders {({k: round(o, 2) for k, o in lim['fitted_orders'].items()})}")
     if a.json:

@@ -18,7 +18,9 @@ Sources:
   :mod:`metasheet.robot.robots` for how the servos are placed from the rest angle). The
   motor stroke 0-90 deg is the paper's (Section IV-A: 0 = horizontal horn, 90 = vertical);
   rod length, rest angle and horn length are our reading of FACTS.md, not the authors'
-  6-DOF scene (which puts the sheet centres ~120 mm apart and rests near 44-48 deg).
+  6-DOF scene (which puts the sheet centres 120 mm apart and the servos on a 66 mm circle):
+  these are the ``metasheet`` scene preset; the ``authors`` preset is theirs
+  (:mod:`metasheet.robot.scenes`, selected with ``[orient] scene``).
 """
 
 from __future__ import annotations

@@ -27,9 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..conventions import GRAVITY
 from ..errors import ConfigError
 from ..material import CONSTANT_NAMES, TransverseIsotropic
 from ..robot.builder import SheetPair
+from ..robot.scenes import RobotScene  # noqa: F401  (the robot stage's scene; read_robot_scene returns it)
 from ..sheet.geometry import SheetMesh, SheetParams
 from .manifest import read_manifest, write_json_atomic
 
@@ -276,6 +278,20 @@ class OrientFile:
         return {k: fib[k] for k in ("law", "pitch_deg", "tilt_deg", "r_ref") if k in fib}
 
     @property
+    def scene(self) -> "RobotScene":
+        """The robot scene the orient stage chose (``sheet.json``'s ``scene``: a preset of
+        :mod:`metasheet.robot.scenes`); sheet.json without one (older runs): ``metasheet``."""
+        from ..robot.scenes import get_preset
+
+        rec = self.info.get("scene") or {"name": "metasheet"}
+        preset = get_preset(rec.get("name", "metasheet"), key=f"{self.directory / 'sheet.json'}: scene.name")
+        mass = rec.get("sheet_mass_g", preset.sheet_mass_g)
+        return RobotScene(preset.rod_length, preset.rest_angle, preset.horn_length, preset.angle_min,
+                          preset.angle_max, servo_radius=preset.servo_radius, servo_depth=preset.servo_depth,
+                          sheet_mass_g=None if mass is None else float(mass), gravity=tuple(preset.gravity),
+                          scene=preset.name)
+
+    @property
     def sheet_params(self) -> SheetParams:
         """The sheet geometry the orient stage meshed."""
         g = dict(_field(self.info, "geometry", self.directory / "sheet.json"))
@@ -299,16 +315,8 @@ def write_jacobian(path: Path, data: dict) -> None:
     path.write_text(json.dumps(data, indent=1, sort_keys=True))
 
 
-@dataclass(frozen=True)
-class RobotScene:
-    """The robot stage's scene as the studies need it: rod [mm], rest angle, horn [mm] and
-    motor stroke [deg]."""
-
-    rod_length: float
-    rest_angle: float
-    horn_length: float
-    angle_min: float
-    angle_max: float
+def _opt(v):
+    return None if v is None else float(v)
 
 
 def read_robot_scene(directory: Path) -> RobotScene:
@@ -317,8 +325,12 @@ def read_robot_scene(directory: Path) -> RobotScene:
     geo = _field(_json(path), "geometry", path)
     sg = _field(geo, "servo_geometry", path)
     try:
-        return RobotScene(float(geo["rod_length_mm"]), float(sg["rest_angle_deg"]), float(sg["horn_length_mm"]),
-                          float(sg["angle_min_deg"]), float(sg["angle_max_deg"]))
+        return RobotScene(float(geo["rod_length_mm"]), _opt(sg["rest_angle_deg"]), float(sg["horn_length_mm"]),
+                          float(sg["angle_min_deg"]), float(sg["angle_max_deg"]),
+                          servo_radius=_opt(sg.get("servo_radius_mm")), servo_depth=_opt(sg.get("servo_depth_mm")),
+                          sheet_mass_g=_opt(geo.get("sheet_mass_g")),
+                          gravity=tuple(float(g) for g in geo.get("gravity_mm_s2", (0.0, 0.0, -GRAVITY))),
+                          scene=str(geo.get("scene", "metasheet")))
     except KeyError as exc:
         raise ConfigError(f"{path}: geometry lacks {exc.args[0]!r}: rerun the robot stage") from exc
 

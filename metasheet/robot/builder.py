@@ -108,7 +108,8 @@ def _plain(material):
     return material
 
 
-def six_dof_robot(sheets: SheetPair, material=None, *, density: float, rod_length: float = paper.ROD_LENGTH,
+def six_dof_robot(sheets: SheetPair, material=None, *, density: float | None = None,
+                  sheet_mass_g: float | None = None, rod_length: float = paper.ROD_LENGTH,
                   geometry: ServoGeometry = ServoGeometry(), gravity=(0.0, 0.0, -GRAVITY)) -> Robot:
     """The paper's 6-DOF robot (two tripods face to face, rod along x) from ``sheets``.
 
@@ -119,9 +120,12 @@ def six_dof_robot(sheets: SheetPair, material=None, *, density: float, rod_lengt
         :class:`~metasheet.material.Isotropic` or
         :class:`~metasheet.material.TransverseIsotropic`: that material everywhere, along
         the fibres.
-    density : sheet mass density [t/mm^3] (e.g. :data:`metasheet.paper.FOAM_DENSITY`).
+    density : sheet mass density [t/mm^3] (e.g. :data:`metasheet.paper.FOAM_DENSITY`), or
+    sheet_mass_g : the mass of each sheet [g] (the authors' scene: 32 g); the density is then
+        mass / volume of ``sheets.sheet`` (the mirrored sheet has the same volume). Give one.
     rod_length : [mm]; geometry : servo placement and stroke; gravity : (3,) [mm/s^2].
     """
+    density = resolve_density(sheets.sheet, density, sheet_mass_g)
     if material is None:
         if not sheets.has_constants:
             raise ConfigError("material: None: the sheets carry no per-element constants; give a material")
@@ -135,3 +139,15 @@ def six_dof_robot(sheets: SheetPair, material=None, *, density: float, rod_lengt
         Cb = material_stiffness(material, sheets.fibers_mirrored)
     return six_dof(as_element(sheets.sheet, sheets.element), Ca, as_element(sheets.mirrored, sheets.element), Cb,
                    rod_length=rod_length, geometry=geometry, density=density, gravity=gravity)
+
+
+def resolve_density(sheet: SheetMesh, density: float | None, sheet_mass_g: float | None) -> float:
+    """The sheet's mass density [t/mm^3]: ``density``, or ``sheet_mass_g`` [g] over the volume
+    of ``sheet`` [mm^3]. Exactly one of them must be given."""
+    if (density is None) == (sheet_mass_g is None):
+        raise ConfigError(f"density/sheet_mass_g: ({density!r}, {sheet_mass_g!r}): give exactly one")
+    if density is not None:
+        return float(density)
+    from .scenes import sheet_density
+
+    return sheet_density(sheet_mass_g, float(np.sum(np.abs(sheet.volumes()))))

@@ -106,7 +106,7 @@ def run_levels(build: Callable[[Level], object], levels, progress=None) -> list[
     return out
 
 
-def fit_power_law(h, q, orders=np.linspace(0.5, 4.0, 71)):
+def fit_power_law(h, q, orders=np.linspace(0.3, 4.0, 75)):
     """Least-squares fit ``q_k = q_inf + c h_k^p`` over the levels (h (L,), q (L, ...)).
 
     For each trial order p the fit is linear in (q_inf, c) entry by entry; the order with the
@@ -132,10 +132,10 @@ def fit_power_law(h, q, orders=np.linspace(0.5, 4.0, 71)):
 
 @dataclass(frozen=True)
 class Limit:
-    """Extrapolated limits of one element's sequence: per figure the limit, the fitted order
+    """Extrapolated limits of one family's sequence (:func:`family`): per figure the limit, the fitted order
     and the fit's rms residual (relative), and the Jacobian's limit (one order for all entries)."""
 
-    element: str
+    family: str
     levels: tuple[str, ...]
     values: dict = field(default_factory=dict)
     orders: dict = field(default_factory=dict)
@@ -144,28 +144,39 @@ class Limit:
 
     def to_dict(self) -> dict:
         v = {k: (np.asarray(x).tolist() if np.ndim(x) else float(x)) for k, x in self.values.items()}
-        return {"element": self.element, "from_levels": list(self.levels), "limits": v,
+        return {"family": self.family, "from_levels": list(self.levels), "limits": v,
                 "fitted_orders": dict(self.orders), "fit_rms_relative": dict(self.scatter),
                 "J": None if self.J is None else self.J.tolist()}
 
 
-#: levels of one element the extrapolation fits (the finest): coarser ones are not yet in the
+#: levels of one family the extrapolation fits (its finest): coarser ones are not yet in the
 #: asymptotic range (a 14 mm P2 sheet has one element across an arm's grip)
 FIT_LEVELS = 4
 
 
-def extrapolate(results: list[LevelResult], element: str) -> Limit:
-    """:class:`Limit` of the :data:`FIT_LEVELS` finest levels of ``element`` in ``results``
+def family(level: Level) -> str:
+    """The sequence a level belongs to: its element, uniform or graded towards the grips."""
+    return level.element + ("-graded" if level.grip_size else "")
+
+
+def refinement(r: LevelResult) -> float:
+    """A level's mesh parameter [mm]: the grip size for graded meshes (where the error lives),
+    the effective size for uniform ones."""
+    return r.level.grip_size if r.level.grip_size else r.h
+
+
+def extrapolate(results: list[LevelResult], fam: str) -> Limit:
+    """:class:`Limit` of the :data:`FIT_LEVELS` finest levels of family ``fam`` in ``results``
     (at least 3), by :func:`fit_power_law` per figure and for the Jacobian."""
-    seq = sorted((r for r in results if r.level.element == element), key=lambda r: -r.h)[-FIT_LEVELS:]
+    seq = sorted((r for r in results if family(r.level) == fam), key=lambda r: -refinement(r))[-FIT_LEVELS:]
     if len(seq) < 3:
-        raise ConfigError(f"convergence: {len(seq)} levels of {element!r}; at least 3 are needed to extrapolate")
-    h = [r.h for r in seq]
+        raise ConfigError(f"convergence: {len(seq)} levels of {fam!r}; at least 3 are needed to extrapolate")
+    h = [refinement(r) for r in seq]
     values, orders, scatter = {}, {}, {}
     for name in FIGURES:
         values[name], orders[name], scatter[name] = fit_power_law(h, [getattr(r, name) for r in seq])
     J, orders["J"], scatter["J"] = fit_power_law(h, [r.J for r in seq])
-    return Limit(element, tuple(r.level.label for r in seq), values, orders, scatter, J)
+    return Limit(fam, tuple(r.level.label for r in seq), values, orders, scatter, J)
 
 
 def errors_against(r: LevelResult, limit: Limit) -> dict:
@@ -191,18 +202,22 @@ def within_tolerance(errors: dict) -> bool:
     return all(errors[k] <= tol for k, tol in TOLERANCES.items())
 
 
+#: the most accurate family first: P2 graded towards the grips' clamped edges resolves the
+#: strain singularity there, which uniform meshes of either order converge to slowly
+REFERENCE_ORDER = ("p2-graded", "p2", "p1-graded", "p1")
+
+
 def convergence_summary(results: list[LevelResult], checks: dict[str, Level] | None = None) -> dict:
-    """JSON-able summary: every level's figures and errors against the reference limit (P2's
-    when it has 3 levels, else P1's), each element's limit, and ``checks``: named meshes
+    """JSON-able summary: every level's figures and errors against the reference limit (of the
+    first of :data:`REFERENCE_ORDER` with 3 levels), each family's limit, and ``checks``: named meshes
     (e.g. the robot stage's and each study's), each of which must be one of the levels,
     with their errors and whether they meet :data:`TOLERANCES`. No wall time (the levels'
     ``seconds`` go to the stage manifest): the same config gives the same bytes."""
-    elements = sorted({r.level.element for r in results})
-    limits = {el: extrapolate(results, el) for el in elements
-              if sum(r.level.element == el for r in results) >= 3}
+    fams = sorted({family(r.level) for r in results})
+    limits = {f: extrapolate(results, f) for f in fams if sum(family(r.level) == f for r in results) >= 3}
     if not limits:
-        raise ConfigError("convergence: no element has the 3 levels an extrapolation needs")
-    ref = limits["p2"] if "p2" in limits else limits[next(iter(limits))]
+        raise ConfigError("convergence: no mesh family has the 3 levels an extrapolation needs")
+    ref = limits[next(f for f in REFERENCE_ORDER + tuple(limits) if f in limits)]
     by_level = {r.level: r for r in results}
     rows = []
     for r in results:
@@ -216,10 +231,12 @@ def convergence_summary(results: list[LevelResult], checks: dict[str, Level] | N
         e = errors_against(by_level[lev], ref)
         out_checks[name] = {"mesh": lev.label, "errors": e, "tolerances": dict(TOLERANCES),
                             "within": within_tolerance(e)}
-    return {"reference": ref.element,
+    return {"reference": ref.family, "reference_levels": list(ref.levels),
             "figures": {"singular_values": "of diag(1,1,1,50 mm) J [mm/rad]",
                         "rod_rotation_deg_per_deg": "all six motors +1 deg, rotation about the rod (J)",
                         "rod_compliance_mm_per_N": "effector along the rod, motors held",
                         "gravity_sag_mm": "effector, unloaded rest -> gravity equilibrium",
-                        "h_effective_mm": "(mean tet volume)^(1/3)"},
+                        "h_effective_mm": "(mean tet volume)^(1/3)",
+                        "fit": "q = q_inf + c h^p over a family's finest levels; h = grip_size (graded) "
+                               "or h_effective (uniform)"},
             "levels": rows, "limits": {el: lim.to_dict() for el, lim in limits.items()}, "checks": out_checks}

@@ -27,6 +27,12 @@ Geometry decisions (FACTS.md; documented here because the sources do not pin the
   the lowest (most symmetric stroke: 60 down, 30 up) that gives the paper's "full 6-DOF
   control around the centre". With the paper's sheet (tip box at r ~ 59 mm) and a 25 mm horn
   the servo circle is then r ~ 71.5 mm.
+* The alternative placement is the authors' (``servo_radius`` and ``servo_depth``): each pivot
+  on the arm's radial line at ``servo_radius`` from the sheet centre, ``servo_depth`` behind
+  the sheet's mid-plane. The horn (pivot -> tip-box centre) and the rest angle are then
+  derived per servo and reported (``info``); they depend on the mesh's tip-box centroid.
+  With the authors' scene (66 mm circle, 30 mm behind the sheet, tip box over the last 18 mm
+  of the arm: :mod:`metasheet.robot.scenes`) the rest angle is ~75 deg and the horn ~31 mm.
 * 6-DOF robot: the rod runs along world x, gravity along -z. The sheets' mid-planes are at
   x = -L/2 and x = +L/2 (L = ``rod_length``, default 80 mm), normals pointing at each other,
   so the rod joins the two centres; the effector is the rod centre, the origin. Sheet A maps
@@ -54,28 +60,50 @@ from .rigid import RigidCoupling, Servo
 
 @dataclass(frozen=True)
 class ServoGeometry:
-    """Where the servos are.
+    """Where the servos are: from a rest angle and a horn, or on a given circle.
 
     Attributes
     ----------
     rest_angle : motor angle of the undeformed rest pose [deg] (0 = horizontal horn, 90 =
         vertical); the pivots are placed from it (see the module docstring). Must lie in
-        [angle_min, angle_max].
-    horn_length : pivot -> tip-box centre [mm].
+        [angle_min, angle_max]. None with ``servo_radius``.
+    horn_length : pivot -> tip-box centre [mm] (unused, and derived, on a given circle).
     angle_min, angle_max : motor stroke [deg], 0 = horizontal horn, 90 = vertical.
+    servo_radius, servo_depth : None, or the pivots' distance from the sheet centre in the
+        sheet plane [mm] and behind the sheet's mid-plane [mm] (the authors' placement);
+        give both, and ``rest_angle`` None: the rest angles and horns are then derived.
     """
 
-    rest_angle: float = paper.REST_ANGLE
+    rest_angle: float | None = paper.REST_ANGLE
     horn_length: float = paper.HORN_LENGTH
     angle_min: float = paper.ANGLE_MIN
     angle_max: float = paper.ANGLE_MAX
+    servo_radius: float | None = None
+    servo_depth: float | None = None
 
     def __post_init__(self):
-        check_range("rest_angle", self.rest_angle, -180.0, 180.0)
         check_range("horn_length", self.horn_length, 0.0, None, lo_open=True)
         check_range("angle_min", self.angle_min, -180.0, 180.0)
         check_range("angle_max", self.angle_max, self.angle_min, 180.0, lo_open=True)
+        if self.on_circle:
+            if self.rest_angle is not None:
+                raise ConfigError(f"rest_angle: {self.rest_angle!r}: must be None when servo_radius/servo_depth "
+                                  "place the servos (the rest angle is then derived)")
+            if self.servo_radius is None or self.servo_depth is None:
+                raise ConfigError(f"servo_radius/servo_depth: ({self.servo_radius!r}, {self.servo_depth!r}): "
+                                  "give both or neither")
+            check_range("servo_radius", self.servo_radius, 0.0, 1000.0, lo_open=True)
+            check_range("servo_depth", self.servo_depth, 0.0, 1000.0, lo_open=True)
+            return
+        if self.rest_angle is None:
+            raise ConfigError("rest_angle: None: give a rest angle [deg] or servo_radius and servo_depth [mm]")
+        check_range("rest_angle", self.rest_angle, -180.0, 180.0)
         check_range("rest_angle", self.rest_angle, self.angle_min, self.angle_max)
+
+    @property
+    def on_circle(self) -> bool:
+        """True when the pivots are given (servo_radius, servo_depth), not the rest angle."""
+        return self.servo_radius is not None or self.servo_depth is not None
 
 
 @dataclass(frozen=True)
@@ -169,14 +197,19 @@ def _servos(pts_world, tets, att, arm_angles, Q, centre, geo: ServoGeometry, off
         u = Q @ np.array([np.cos(phi), np.sin(phi), 0.0])
         tip = grip_centre(pts_world, tets, att, k + 1)
         r_tip = float(np.dot(tip - centre, u))
-        th0 = float(np.radians(geo.rest_angle))
-        h0 = -np.cos(th0) * u + np.sin(th0) * n
-        pivot = tip - geo.horn_length * h0
-        servos.append(Servo(np.cross(n, u), pivot, geo.horn_length, th0, nodes + offset))
-        in_plane = (pivot - centre) - np.dot(pivot - centre, n) * n  # the derived servo circle's radius
+        if geo.on_circle:  # the pivot is given: horn and rest angle follow from the tip box
+            pivot = centre + geo.servo_radius * u - geo.servo_depth * n
+            v = tip - pivot
+            th0, horn = float(np.arctan2(np.dot(v, n), -np.dot(v, u))), float(np.linalg.norm(v))
+        else:
+            th0, horn = float(np.radians(geo.rest_angle)), geo.horn_length
+            pivot = tip - horn * (-np.cos(th0) * u + np.sin(th0) * n)
+        servos.append(Servo(np.cross(n, u), pivot, horn, th0, nodes + offset))
+        in_plane = (pivot - centre) - np.dot(pivot - centre, n) * n  # the servo circle's radius
         info.append({"sheet": label, "arm": k, "pivot_mm": pivot.round(3).tolist(),
                      "axis": np.cross(n, u).round(6).tolist(), "rest_angle_deg": round(np.degrees(th0), 3),
-                     "servo_radius_mm": round(float(np.linalg.norm(in_plane)), 3),
+                     "horn_length_mm": round(horn, 3), "servo_radius_mm": round(float(np.linalg.norm(in_plane)), 3),
+                     "servo_depth_mm": round(float(-np.dot(pivot - centre, n)), 3),
                      "tip_radius_mm": round(r_tip, 3)})
     return servos, info
 
@@ -194,9 +227,15 @@ def _make_robot(name, pts, tets, C, eff_nodes, origin, servos, info, geo, gravit
             f"angle_min/angle_max: [{geo.angle_min}, {geo.angle_max}] deg: must contain the rest angles "
             f"{np.degrees(th0).round(2).tolist()} deg")
     radii = [sv["servo_radius_mm"] for sv in info]
-    info = {"servo_geometry": {"rest_angle_deg": geo.rest_angle, "horn_length_mm": geo.horn_length,
-                               "angle_min_deg": geo.angle_min, "angle_max_deg": geo.angle_max,
-                               "servo_radius_mm_derived": round(float(np.mean(radii)), 3)},
+    sg = {"rest_angle_deg": geo.rest_angle, "horn_length_mm": geo.horn_length,
+          "angle_min_deg": geo.angle_min, "angle_max_deg": geo.angle_max,
+          "servo_radius_mm_derived": round(float(np.mean(radii)), 3)}
+    if geo.on_circle:  # the given pivots; the mean derived rest angle and horn
+        sg.update({"servo_radius_mm": geo.servo_radius, "servo_depth_mm": geo.servo_depth,
+                   "rest_angle_deg": None,
+                   "rest_angle_deg_derived": round(float(np.degrees(np.mean(th0))), 3),
+                   "horn_length_mm_derived": round(float(np.mean([sv["horn_length_mm"] for sv in info])), 3)})
+    info = {"servo_geometry": sg,
             "servos": info, **info_extra(pts, tets, eff_nodes, density), **(extra or {})}
     return Robot(name, body, coupling, np.asarray(gravity, float), lo, hi, np.asarray(axis, float), info)
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import paper
+from ..conventions import GRAVITY
 from ..errors import ConfigError, ConvergenceError
 from ..material import Isotropic, TransverseIsotropic, interpolate
 from ..robot.builder import SheetPair
@@ -33,7 +34,8 @@ class RobotSpec:
     material : (E_t, E_l, nu_t, nu_tl, mu_l) [MPa, -] of the sheets (transverse isotropic).
     design : the design material's constants (the anisotropy sweep interpolates from it).
     rod_length [mm]; rest_angle [deg] (places the servos, see :mod:`metasheet.robot.robots`);
-    horn_length [mm]; motor_range (lo, hi) [deg]; density [t/mm^3].
+    horn_length [mm]; or servo_radius, servo_depth [mm] (pivots given, rest_angle None);
+    motor_range (lo, hi) [deg]; density [t/mm^3]; gravity (3,) [mm/s^2].
     consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
     stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
     rot_weight [mm/rad], max_step_deg [deg], stall_steps, refresh_angle_deg [deg]: inverse-loop
@@ -63,8 +65,11 @@ class RobotSpec:
     material: tuple
     design: tuple
     rod_length: float = paper.ROD_LENGTH
-    rest_angle: float = paper.REST_ANGLE
+    rest_angle: float | None = paper.REST_ANGLE
     horn_length: float = paper.HORN_LENGTH
+    servo_radius: float | None = None
+    servo_depth: float | None = None
+    gravity: tuple = (0.0, 0.0, -GRAVITY)
     motor_range: tuple = (paper.ANGLE_MIN, paper.ANGLE_MAX)
     density: float = paper.FOAM_DENSITY
     rot_weight: float = 50.0
@@ -92,8 +97,9 @@ class RobotSpec:
         for a in (self.consts, self.consts_m):
             h.update(b"-" if a is None else np.ascontiguousarray(a).tobytes())
         h.update(repr((self.material, self.design, self.rod_length, self.rest_angle, self.horn_length,
-                       self.motor_range, self.density, self.rot_weight, self.max_step_deg,
-                       self.stall_steps, self.refresh_angle_deg, self.chord_tol, self.element)).encode())
+                       self.servo_radius, self.servo_depth, tuple(self.gravity), self.motor_range, self.density,
+                       self.rot_weight, self.max_step_deg, self.stall_steps, self.refresh_angle_deg, self.chord_tol,
+                       self.element)).encode())
         return "fem-" + h.hexdigest()[:24]
 
     @property
@@ -154,9 +160,14 @@ class FemRobot:
         sheets = spec.sheets()
         # graded: the sheets' per-element constants; else the spec's material
         mat = None if sheets.has_constants else TransverseIsotropic(*spec.material)
-        geo = ServoGeometry(spec.rest_angle, spec.horn_length, min(paper.ANGLE_MIN, spec.rest_angle),
-                            max(paper.ANGLE_MAX, spec.rest_angle))
-        self.robot = six_dof_robot(sheets, mat, rod_length=spec.rod_length, geometry=geo, density=spec.density)
+        if spec.servo_radius is not None:  # pivots given: the rest angles follow (limits set below)
+            geo = ServoGeometry(None, spec.horn_length, -180.0, 180.0, servo_radius=spec.servo_radius,
+                                servo_depth=spec.servo_depth)
+        else:
+            geo = ServoGeometry(spec.rest_angle, spec.horn_length, min(paper.ANGLE_MIN, spec.rest_angle),
+                                max(paper.ANGLE_MAX, spec.rest_angle))
+        self.robot = six_dof_robot(sheets, mat, rod_length=spec.rod_length, geometry=geo, density=spec.density,
+                                   gravity=spec.gravity)
         # the limits may exclude the rest angles (the motor-range study): set them after the build
         na = len(self.robot.angle_min)
         self.robot = replace(self.robot, angle_min=np.full(na, np.radians(spec.motor_range[0])),

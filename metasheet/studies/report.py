@@ -45,6 +45,13 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         m = s["material"]
         keys = (*CONSTANT_NAMES, "alpha_percent", "source")
         lines += ["## Constants (paper Section II, FACTS)", "", _table([(k, m[k]) for k in keys if k in m]), ""]
+    if "scene" in s:
+        sc = s["scene"]
+        over = sc.get("overridden_by_orient") or []
+        rows = [(k, f"{_fmt(v)}{' (overridden by orient)' if k in over else ''}: {sc['sources'].get(k, '')}")
+                for k, v in sc["values"].items()]
+        lines += [f"## Scene: {sc['name']} (metasheet/robot/scenes.py; robot and study keys may override)", "",
+                  _table(rows), ""]
     section, found = constants_section(s.get("homogenize"), s.get("chart", {}).get("rows"), s.get("material"),
                                        s.get("robot"), s.get("anisotropy"), s.get("chart", {}).get("shrink"),
                                        cell=s.get("cell"), thickness=summaries.get("sheet_thickness_mm"))

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import csv
 import shutil
-from dataclasses import asdict, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Literal
 
@@ -57,12 +57,14 @@ class StudyRobotParams(Params):
 def build_spec(ctx: StageContext):
     """The stage's robot recipe (:class:`RobotSpec` or :class:`StandInSpec`).
 
-    The scene (rod, servos, stroke) is the robot stage's, read from its ``jacobian.json``,
-    when it is in the pipeline, else :data:`DEFAULT_SCENE`; this stage's own parameters
-    override it field by field.
+    The scene (rod, servos, stroke, sheet mass, gravity) is the robot stage's, read from its
+    ``jacobian.json``, when it is in the pipeline, else the one the orient stage named
+    (``sheet.json``), else :data:`DEFAULT_SCENE`; this stage's own parameters override it
+    field by field. A scene with a sheet mass sets the density to mass / volume of the
+    sheet the study meshes.
     """
     p = ctx.params
-    up = read_robot_scene(ctx.inputs["robot"]) if "robot" in ctx.inputs else DEFAULT_SCENE
+    up = scene_of(ctx)
     lo = up.angle_min if p.motor_min is None else p.motor_min
     hi = up.angle_max if p.motor_max is None else p.motor_max
     if lo >= hi:
@@ -76,18 +78,32 @@ def build_spec(ctx: StageContext):
     for need in ("orient", "material"):
         if need not in ctx.inputs:
             raise ConfigError(f"{ctx.name}.model: 'robot': the {need!r} stage must be in the pipeline")
+    from ...robot.builder import resolve_density
+
     orient = read_orient(ctx.inputs["orient"])
     mat = read_material(ctx.inputs["material"])
-    scene = {k: v for k, v in asdict(up).items() if k in ("rod_length", "rest_angle", "horn_length")}
-    scene.update({k: float(getattr(p, k)) for k in scene if getattr(p, k) is not None})
+    sc = up.with_overrides(rod_length=p.rod_length, rest_angle=p.rest_angle, horn_length=p.horn_length)
+    scene = {k: getattr(sc, k) for k in ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth")}
     sheets = orient.sheets(need_constants=orient.graded)
     if p.mesh_size is not None or p.layers is not None:
         sheets = remesh(orient, orient.sheet_params.mesh_size if p.mesh_size is None else p.mesh_size,
                         p.layers)
     if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
         sheets = replace(sheets, constants=None, constants_mirrored=None)
-    return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=mat.density,
-                                 rot_weight=p.rot_weight, max_step_deg=p.max_step_deg, **scene)
+    density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat.density, sc.sheet_mass_g)
+    return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=density,
+                                 gravity=tuple(sc.gravity), rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
+                                 **scene)
+
+
+def scene_of(ctx: StageContext) -> RobotScene:
+    """The robot scene of a study stage's pipeline: the robot stage's, else the orient
+    stage's, else :data:`DEFAULT_SCENE` (without this stage's overrides)."""
+    if "robot" in ctx.inputs:
+        return read_robot_scene(ctx.inputs["robot"])
+    if "orient" in ctx.inputs:
+        return read_orient(ctx.inputs["orient"]).scene
+    return DEFAULT_SCENE
 
 
 def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, element: str | None = None):

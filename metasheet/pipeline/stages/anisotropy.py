@@ -100,7 +100,8 @@ def _published_spec(ctx: StageContext, spec):
     from dataclasses import replace
 
     # the sweep interpolates from the spec's design material: the published set is both
-    return replace(spec.with_material(paper.PAPER_FOAM, mat.density), design=paper.PAPER_FOAM.as_tuple())
+    # same density as the spec's (the material's, or the scene's sheet mass over the sheet volume)
+    return replace(spec.with_material(paper.PAPER_FOAM), design=paper.PAPER_FOAM.as_tuple())
 
 
 register(Stage(

@@ -14,7 +14,7 @@ from ...material import Isotropic
 from ...studies.maze import MazeSettings, solve_maze
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import StudyRobotParams, build_spec, drop_cache, progress, unit_cache, write_csv
+from ._studies import StudyRobotParams, build_spec, drop_cache, progress, scene_of, unit_cache, write_csv
 
 #: a small maze walked once round and back to the start: along the rod, across it, diagonals
 DEFAULT_PATH = [(0.0, 0.0), (30.0, 0.0), (30.0, 25.0), (-20.0, 25.0), (-20.0, -20.0), (15.0, -20.0),
@@ -54,7 +54,9 @@ def run(ctx: StageContext) -> dict:
                      tol_deg=p.tol_deg, max_steps=p.max_steps)
     cache = unit_cache(ctx)
     foam = solve_maze(spec, p.path, s, executor=ctx.executor, progress=progress(ctx), cache=cache)
-    sil_spec = spec.with_material(Isotropic(p.silicone_E, p.silicone_nu), density=p.silicone_density)
+    # a scene with a sheet mass (the authors': 32 g) keeps it for the silicone sheets too
+    sil_density = None if getattr(scene_of(ctx), "sheet_mass_g", None) else p.silicone_density
+    sil_spec = spec.with_material(Isotropic(p.silicone_E, p.silicone_nu), density=sil_density)
     sil = solve_maze(sil_spec, p.path, s, executor=ctx.executor,
                      progress=lambda d, i, n: ctx.progress("maze (silicone)", i, n), cache=cache)
     write_csv(ctx.path("maze.csv"), list(HEADER), _rows(foam))

@@ -5,7 +5,9 @@ y -> -y, for the second tripod), each with cell data ``fiber`` (m, 3) (local axi
 the transverse-isotropic material, the foam's soft direction), ``material_id`` (m,),
 ``density`` (m,) [-], ``alpha`` (m,) [%] and the constants ``E_t, E_l, nu_t, nu_tl, mu_l``
 (m,) [MPa], and point data ``attach`` (n,) (0 free, k + 1 tip box of arm k, 4 centre);
-``sheet.json`` (geometry, arm angles, fibre law, counts, mesh quality, material) and
+``sheet.json`` (geometry, arm angles, fibre law, counts, mesh quality, material, and
+``scene``: the scene preset, :mod:`metasheet.robot.scenes`, whose numbers the robot and
+study stages take: rod, servos, sheet mass, gravity) and
 ``sheet.png`` (fibre streaks of both sheets side by side, like the paper's Fig. 3).
 """
 
@@ -18,6 +20,7 @@ from pydantic import Field
 
 from ... import paper
 from ...material import TransverseIsotropic, interpolate
+from ...robot.scenes import PRESETS, get_preset
 from ...sheet import fibers as fb
 from ...sheet import geometry as geo
 from ...sheet import grading as gr
@@ -48,22 +51,35 @@ class GradingParams(Params):
     alpha_expr: str | None = Field(None, description="anisotropy alpha [%] as an expression of x, y, z, r, t")
 
 
+_SCENE = " None: the scene's"
+
+
 class OrientParams(Params):
-    arm_width: float = Field(30.0, ge=2, le=200, description="arm width [mm]")
-    reach: float = Field(66.0, gt=0, le=1000, description="centre to arm end [mm]")
-    thickness: float = Field(5.0, ge=0.3, le=100, description="sheet thickness [mm]")
-    hole_radius: float = Field(5.0, ge=0, le=90, description="central hole radius [mm]")
-    fillet_radius: float = Field(5.0, ge=0, le=600, description="fillet radius between arms [mm]")
+    scene: Literal[tuple(PRESETS)] = Field(
+        "metasheet", description="named scene preset (metasheet/robot/scenes.py): the sheet geometry and fibre "
+        "law here, and the rod, servos, sheet mass and gravity of the robot and study stages, which read it "
+        "from sheet.json; every key given explicitly overrides its number")
+    arm_width: float | None = Field(None, ge=2, le=200, description="arm width [mm];" + _SCENE)
+    reach: float | None = Field(None, gt=0, le=1000, description="centre to arm end [mm];" + _SCENE)
+    thickness: float | None = Field(None, ge=0.3, le=100, description="sheet thickness [mm];" + _SCENE)
+    hole_radius: float | None = Field(None, ge=0, le=90, description="central hole radius [mm];" + _SCENE)
+    fillet_radius: float | None = Field(None, ge=0, le=600, description="fillet radius between arms [mm], 0 = "
+                                        "sharp;" + _SCENE)
     mesh_size: float = Field(5.0, ge=0.3, le=50, description="target tet edge [mm]; 5 gives ~2,900 tets")
     layers: int = Field(0, ge=0, le=16, description="elements through the thickness; 0: gmsh's free mesh")
+    grip_size: float = Field(0.0, ge=0, le=50, description="element size at the grip borders (centre circle, "
+                             "tip cuts), growing away from them [mm]; 0: uniform")
     element: Literal["p1", "p2"] = Field("p1", description="the robot's element on the sheets: linear "
                                          "or quadratic tetrahedra (sheet.vtu stays linear)")
-    tip_box: tuple[float, float, float] = Field(
-        (15.0, 45.0, 30.0), description="arm-tip box (along arm, across, z) [mm]"
+    tip_box: tuple[float, float, float] | None = Field(
+        None, description="arm-tip box (along arm, across, z), centred on the arm end [mm];" + _SCENE
     )
-    centre_radius: float = Field(7.5, gt=0, le=1000, description="effector node sphere radius [mm]")
-    law: Literal["log", "archimedean", "circular", "radial"] = Field("log", description="fibre law")
-    pitch_deg: float = Field(45.0, ge=-90, le=90, description="spiral pitch angle beta [deg]")
+    centre_radius: float | None = Field(None, gt=0, le=1000, description="effector node sphere radius [mm];" + _SCENE)
+    law: Literal["log", "archimedean", "circular", "radial"] | None = Field(None, description="fibre law;" + _SCENE)
+    pitch_deg: float | None = Field(None, ge=-90, le=90, description="spiral pitch angle beta (fibre to circle) "
+                                    "[deg];" + _SCENE)
+    sheet_mass_g: float | None = Field(None, gt=0, le=1e4, description="mass of each sheet [g]: the robot's "
+                                       "density is mass / sheet volume;" + _SCENE + " (none: the material's density)")
     r_ref: float = Field(33.0, gt=0, le=1000, description="radius where an r-dependent law has pitch_deg [mm]")
     tilt_deg: float = Field(0.0, ge=-90, le=90, description="out-of-plane fibre tilt [deg]")
     isotropic: bool = Field(False, description="isotropic sheet: alpha = 0 (E = E_t, nu = nu_t), iso = 1")
@@ -74,17 +90,34 @@ class OrientParams(Params):
     constants: ConstantsParams = Field(default_factory=ConstantsParams, description="fallback constants")
 
 
+_SHEET_KEYS = ("arm_width", "reach", "thickness", "hole_radius", "fillet_radius", "tip_box", "centre_radius")
+
+
+def _scene_value(p: OrientParams, key: str):
+    """``p.key`` when given, else the scene preset's number."""
+    v = getattr(p, key)
+    return getattr(get_preset(p.scene, key="orient.scene"), key) if v is None else v
+
+
 def sheet_params(p: OrientParams) -> geo.SheetParams:
-    return geo.SheetParams(
-        arm_width=p.arm_width, reach=p.reach, thickness=p.thickness, hole_radius=p.hole_radius,
-        fillet_radius=p.fillet_radius, mesh_size=p.mesh_size, layers=p.layers, tip_box=p.tip_box,
-        centre_radius=p.centre_radius,
-    )
+    """The sheet geometry: the scene's, each key given in ``p`` overriding it."""
+    return geo.SheetParams(mesh_size=p.mesh_size, layers=p.layers, grip_size=p.grip_size,
+                           **{k: _scene_value(p, k) for k in _SHEET_KEYS})
 
 
 def fiber_settings(p: OrientParams) -> dict:
     """Keyword arguments of ``spiral_fibers`` (also stored in sheet.json for printmap)."""
-    return {"law": p.law, "pitch_deg": p.pitch_deg, "tilt_deg": p.tilt_deg, "r_ref": p.r_ref}
+    return {"law": _scene_value(p, "law"), "pitch_deg": _scene_value(p, "pitch_deg"), "tilt_deg": p.tilt_deg,
+            "r_ref": p.r_ref}
+
+
+def scene_record(p: OrientParams, volume_mm3: float) -> dict:
+    """``sheet.json``'s ``scene``: the preset (numbers and sources), the keys this stage
+    overrode, and the sheet mass [g] (or None) with the sheet's volume [mm^3]."""
+    preset = get_preset(p.scene, key="orient.scene")
+    given = sorted(k for k in (*_SHEET_KEYS, "law", "pitch_deg", "sheet_mass_g") if getattr(p, k) is not None)
+    return {**preset.to_dict(), "overridden_by_orient": given, "sheet_mass_g": _scene_value(p, "sheet_mass_g"),
+            "sheet_volume_mm3": round(float(volume_mm3), 6)}
 
 
 def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
@@ -169,6 +202,7 @@ def run(ctx: StageContext) -> dict:
         "quality": normal.quality.to_dict(),
         "quality_mirrored": mirrored.quality.to_dict(),
         "fibers": {**fs, "mirror": "l_m(p) = M l(M p), M = diag(1, -1, 1)", "axis": "local 3 (soft l)"},
+        "scene": scene_record(p, float(np.sum(np.abs(normal.volumes())))),
         "isotropic": p.isotropic,
         "material": {**material.to_dict(), "alpha_percent": material.alpha, "source": source},
         "relative_density": p.relative_density,
@@ -183,7 +217,7 @@ def run(ctx: StageContext) -> dict:
 
     outline = geo.outline_polygon(sp)
     panels = [
-        (f"normal sheet (pitch {p.pitch_deg:g} deg)", lambda q: fb.spiral_fibers(q, **fs),
+        (f"normal sheet (pitch {fs['pitch_deg']:g} deg)", lambda q: fb.spiral_fibers(q, **fs),
          normal.points[normal.attach > 0]),
         ("mirrored sheet (reflection y -> -y)", lambda q: fb.spiral_fibers(q, mirrored=True, **fs),
          mirrored.points[mirrored.attach > 0]),
@@ -194,7 +228,7 @@ def run(ctx: StageContext) -> dict:
         "n_tets": int(len(normal.tets)), "n_points": int(len(normal.points)),
         "worst_aspect": round(normal.quality.worst_aspect, 3),
         "min_volume_mm3": round(normal.quality.min_volume, 4),
-        "attach_counts": counts, "constants_source": how, "material_source": source,
+        "attach_counts": counts, "constants_source": how, "material_source": source, "scene": p.scene,
     }
 
 

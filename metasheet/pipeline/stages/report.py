@@ -42,8 +42,9 @@ def run(ctx: StageContext) -> dict:
         summaries["cell"] = {k: info[k] for k in ("name", "kind", "size_mm", "mean_void_chord_mm", "seed_count")
                              if k in info}
     if "orient" in ctx.inputs:
-        geometry = json.loads((ctx.inputs["orient"] / "sheet.json").read_text()).get("geometry", {})
-        summaries["sheet_thickness_mm"] = geometry.get("thickness")
+        sheet_info = json.loads((ctx.inputs["orient"] / "sheet.json").read_text())
+        summaries["sheet_thickness_mm"] = sheet_info.get("geometry", {}).get("thickness")
+        summaries["scene"] = sheet_info.get("scene")
     if "material" in ctx.inputs:
         m = read_material(ctx.inputs["material"])
         summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source}

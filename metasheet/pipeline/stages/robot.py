@@ -1,7 +1,9 @@
 """Stage ``robot``: the paper's 6-DOF robot from the orient sheets, silicone vs foam.
 
-Reads ``orient/sheet.vtu`` and ``sheet_mirrored.vtu`` (fibres and per-element constants) and
-``material/material.json`` (density). Builds the robot twice, with the foam (the sheets'
+Reads ``orient/sheet.vtu`` and ``sheet_mirrored.vtu`` (fibres and per-element constants),
+the scene ``orient/sheet.json`` names (:mod:`metasheet.robot.scenes`: rod, servos, stroke,
+sheet mass, gravity; each overridable here) and ``material/material.json`` (density, unless
+the scene gives the sheet's mass). Builds the robot twice, with the foam (the sheets'
 constants along the spiral fibres) and with isotropic silicone, and writes
 
 * ``jacobian.json``: per material the Jacobian J (eq. 7) and compliance W at the rest
@@ -31,21 +33,28 @@ from ...errors import ConfigError
 from ...material import Isotropic
 from ...robot.builder import six_dof_robot
 from ...robot.compare import evaluate
-from ...robot.robots import ServoGeometry
 from ..artefacts import read_material, read_orient, write_jacobian, write_rest_vtu
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
 
+_SCENE = "; None: the orient stage's scene (sheet.json)"
+
+
 class RobotParams(Params):
-    rod_length: float = Field(paper.ROD_LENGTH, gt=10, le=1000, description="rod joining the sheet centres [mm]")
-    rest_angle: float = Field(paper.REST_ANGLE, ge=-180, le=180, description="motor angle of the undeformed rest "
-                              "pose; places the servo pivots (the servo radius is derived and reported) [deg]")
-    horn_length: float = Field(paper.HORN_LENGTH, gt=0, le=1000, description="servo horn length [mm]")
-    angle_min: float = Field(paper.ANGLE_MIN, ge=-180, le=180, description="motor stroke minimum [deg] "
-                             "(0 = horizontal horn)")
-    angle_max: float = Field(paper.ANGLE_MAX, ge=-180, le=180, description="motor stroke maximum [deg] "
-                             "(90 = vertical horn)")
+    rod_length: float | None = Field(None, gt=10, le=1000, description="rod joining the sheet centres [mm]" + _SCENE)
+    rest_angle: float | None = Field(None, ge=-180, le=180, description="motor angle of the undeformed rest "
+                                     "pose; places the servo pivots (the servo radius is derived and reported) "
+                                     "[deg]" + _SCENE)
+    horn_length: float | None = Field(None, gt=0, le=1000, description="servo horn length [mm]" + _SCENE)
+    servo_radius: float | None = Field(None, gt=0, le=1000, description="pivots on this circle [mm] (with "
+                                       "servo_depth; the rest angle is then derived)" + _SCENE)
+    servo_depth: float | None = Field(None, gt=0, le=1000, description="pivots this far behind the sheet's "
+                                      "mid-plane [mm] (with servo_radius)" + _SCENE)
+    angle_min: float | None = Field(None, ge=-180, le=180, description="motor stroke minimum [deg] "
+                                    "(0 = horizontal horn)" + _SCENE)
+    angle_max: float | None = Field(None, ge=-180, le=180, description="motor stroke maximum [deg] "
+                                    "(90 = vertical horn)" + _SCENE)
     delta_deg: float = Field(-15.0, ge=-90, le=90, description="all-motors move for the pictures and finite test [deg]")
     silicone_E: float = Field(paper.SILICONE.E, gt=0, le=1e4, description="silicone Young's modulus [MPa]")
     silicone_nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
@@ -61,24 +70,27 @@ class RobotParams(Params):
 
 def run(ctx: StageContext) -> dict:
     p: RobotParams = ctx.params
-    if p.angle_min >= p.angle_max:
-        raise ConfigError(f"robot.angle_min/angle_max: ({p.angle_min:g}, {p.angle_max:g}) deg: need min < max")
-    material = read_material(ctx.inputs["material"])
-    density = material.density
-    if not p.angle_min <= p.rest_angle <= p.angle_max:
-        raise ConfigError(f"robot.rest_angle: {p.rest_angle:g} deg: allowed range [angle_min, angle_max] = "
-                          f"[{p.angle_min:g}, {p.angle_max:g}] deg")
-    geo = ServoGeometry(p.rest_angle, p.horn_length, p.angle_min, p.angle_max)
     orient = read_orient(ctx.inputs["orient"])
+    sc = orient.scene.with_overrides(**{k: getattr(p, k) for k in _SCENE_KEYS})
+    if sc.angle_min >= sc.angle_max:
+        raise ConfigError(f"robot.angle_min/angle_max: ({sc.angle_min:g}, {sc.angle_max:g}) deg: need min < max")
+    material = read_material(ctx.inputs["material"])
+    if sc.rest_angle is not None and not sc.angle_min <= sc.rest_angle <= sc.angle_max:
+        raise ConfigError(f"robot.rest_angle: {sc.rest_angle:g} deg: allowed range [angle_min, angle_max] = "
+                          f"[{sc.angle_min:g}, {sc.angle_max:g}] deg")
+    geo = sc.servo_geometry()
     ctx.progress("building robots", 0, 5)
-    scene = {"rod_length": p.rod_length, "geometry": geo}
+    scene = {"rod_length": sc.rod_length, "geometry": geo, "gravity": sc.gravity}
+    # a scene with a sheet mass (the authors': 32 g) gives every sheet that mass, whatever its material
+    foam_mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": material.density}
+    sil_mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": p.silicone_density}
     robots = {  # the foam: the sheets' own per-element constants along their fibres
-        "foam": six_dof_robot(orient.sheets(), density=density, **scene),
+        "foam": six_dof_robot(orient.sheets(), **foam_mass, **scene),
         "silicone": six_dof_robot(orient.sheets(need_constants=False), Isotropic(p.silicone_E, p.silicone_nu),
-                                  density=p.silicone_density, **scene),
+                                  **sil_mass, **scene),
     }
     if p.compare_published and not paper.is_published(material.material):
-        robots["published"] = six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, density=density,
+        robots["published"] = six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, **foam_mass,
                                             **scene)
     cases = {}
     for i, (name, rob) in enumerate(robots.items()):
@@ -89,7 +101,8 @@ def run(ctx: StageContext) -> dict:
         "units": {"J": "rows x, y, z [mm/rad], rx, ry, rz [rad/rad]; columns motors 0-5",
                   "per_degree": "mm/deg and deg/deg", "singular_values": "of diag(1,1,1,L,L,L) J, L = length_scale"},
         "frame": "rod along world x, gravity -z, effector = rod centre (origin); motors 0-2 sheet A (x<0), 3-5 B",
-        "geometry": foam.info,
+        "geometry": {**foam.info, "scene": sc.scene, "sheet_mass_g": sc.sheet_mass_g,
+                     "gravity_mm_s2": list(sc.gravity)},
         "materials": {name: c.to_dict() for name, c in cases.items()},
     }
     write_jacobian(ctx.path("jacobian.json"), out)
@@ -111,7 +124,11 @@ def run(ctx: StageContext) -> dict:
                "rod_rotation_finite_deg_per_deg": round(c.rod_rotation_finite, 5)}
         for name, c in cases.items()
     } | {"n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
-       "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"]}
+       "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"],
+       "scene": sc.scene, "rod_length_mm": sc.rod_length, "sheet_mass_g": sc.sheet_mass_g}
+
+
+_SCENE_KEYS = ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth", "angle_min", "angle_max")
 
 
 def _convergence(ctx: StageContext, orient, density: float, scene: dict) -> None:
