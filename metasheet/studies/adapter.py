@@ -15,6 +15,7 @@ import numpy as np
 from .. import paper
 from ..errors import ConfigError, ConvergenceError
 from ..material import Isotropic, TransverseIsotropic, interpolate
+from ..material_model import check_model
 from ..robot.builder import SheetPair
 from ..sheet.geometry import SheetMesh
 from .model import ReachResult, check_motor_range, pose_errors
@@ -35,6 +36,7 @@ class RobotSpec:
     horn_length [mm]; motor_range (lo, hi) [deg]; density [t/mm^3].
     consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
     stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
+    model : the material model, "ours" or "authors" (:mod:`metasheet.material_model`).
     rot_weight [mm/rad], max_step_deg [deg], stall_steps, refresh_angle_deg [deg]: inverse-loop
     settings. A goal counts as unreachable after ``stall_steps`` steps without progress (the
     controller's default 15 makes every unreachable workspace point cost 15+ FEM steps). The
@@ -73,9 +75,11 @@ class RobotSpec:
     chord_tol: float = 0.3
     consts: np.ndarray | None = None
     consts_m: np.ndarray | None = None
+    model: str = "ours"
 
     def __post_init__(self):
         check_motor_range("motor_range", *self.motor_range)
+        check_model(self.model, "model")
         for name in ("material", "design"):
             if len(getattr(self, name)) != 5:
                 raise ConfigError(f"{name}: {getattr(self, name)!r}: expected (E_t, E_l, nu_t, nu_tl, mu_l)")
@@ -91,7 +95,7 @@ class RobotSpec:
             h.update(b"-" if a is None else np.ascontiguousarray(a).tobytes())
         h.update(repr((self.material, self.design, self.rod_length, self.rest_angle, self.horn_length,
                        self.motor_range, self.density, self.rot_weight, self.max_step_deg,
-                       self.stall_steps, self.refresh_angle_deg, self.chord_tol)).encode())
+                       self.stall_steps, self.refresh_angle_deg, self.chord_tol, self.model)).encode())
         return "fem-" + h.hexdigest()[:24]
 
     @property
@@ -153,7 +157,8 @@ class FemRobot:
         mat = None if sheets.has_constants else TransverseIsotropic(*spec.material)
         geo = ServoGeometry(spec.rest_angle, spec.horn_length, min(paper.ANGLE_MIN, spec.rest_angle),
                             max(paper.ANGLE_MAX, spec.rest_angle))
-        self.robot = six_dof_robot(sheets, mat, rod_length=spec.rod_length, geometry=geo, density=spec.density)
+        self.robot = six_dof_robot(sheets, mat, rod_length=spec.rod_length, geometry=geo, density=spec.density,
+                                   model=spec.model)
         # the limits may exclude the rest angles (the motor-range study): set them after the build
         na = len(self.robot.angle_min)
         self.robot = replace(self.robot, angle_min=np.full(na, np.radians(spec.motor_range[0])),

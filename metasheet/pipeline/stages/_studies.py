@@ -57,7 +57,7 @@ def build_spec(ctx: StageContext):
 
     The scene (rod, servos, stroke) is the robot stage's, read from its ``jacobian.json``,
     when it is in the pipeline, else :data:`DEFAULT_SCENE`; this stage's own parameters
-    override it field by field.
+    override it field by field. The material model is the material stage's (material.json).
     """
     p = ctx.params
     up = read_robot_scene(ctx.inputs["robot"]) if "robot" in ctx.inputs else DEFAULT_SCENE
@@ -84,7 +84,7 @@ def build_spec(ctx: StageContext):
     if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
         sheets = replace(sheets, constants=None, constants_mirrored=None)
     return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=mat.density,
-                                 rot_weight=p.rot_weight, max_step_deg=p.max_step_deg, **scene)
+                                 rot_weight=p.rot_weight, max_step_deg=p.max_step_deg, model=mat.model, **scene)
 
 
 def remesh(orient: OrientFile, mesh_size: float):

@@ -17,6 +17,11 @@ When the sheets' constants are not the paper's published ones (e.g. homogenised 
 printed Polyfoam cell), a third case ``published`` builds the same robot with the paper's
 constants (:data:`metasheet.paper.PAPER_FOAM`) along the same fibres, so the report can put
 the robot's figures for both side by side.
+
+The sheets' tensor follows the material stage's ``model`` (:mod:`metasheet.material_model`).
+With ``compare_models`` the foam (and published) robots are also built under the other model,
+as cases ``foam_<other>`` (and ``published_<other>``), so the report can show which of the
+paper's claims depend on the shear modulus mu_l (the authors' force field does not use it).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from pydantic import Field
 from ... import paper
 from ...errors import ConfigError
 from ...material import Isotropic
+from ...material_model import other_model
 from ...robot.builder import six_dof_robot
 from ...robot.compare import evaluate
 from ...robot.robots import ServoGeometry
@@ -50,6 +56,8 @@ class RobotParams(Params):
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     compare_published: bool = Field(True, description="also evaluate the robot with the paper's published "
                                     "constants when the material differs from them")
+    compare_models: bool = Field(True, description="also evaluate the foam (and published) robots under the other "
+                                 "material model ('ours' / 'authors'), for the report's mu_l table")
     picture: bool = Field(True, description="write robot.png")
 
 
@@ -66,20 +74,35 @@ def run(ctx: StageContext) -> dict:
     orient = read_orient(ctx.inputs["orient"])
     ctx.progress("building robots", 0, 5)
     scene = {"rod_length": p.rod_length, "geometry": geo}
-    robots = {  # the foam: the sheets' own per-element constants along their fibres
-        "foam": six_dof_robot(orient.sheets(), density=density, **scene),
+    model, other = material.model, other_model(material.model)
+
+    def build(name: str, m: str):  # the foam: the sheets' own per-element constants along their fibres
+        if name == "foam":
+            return six_dof_robot(orient.sheets(), density=density, model=m, **scene)
+        return six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, density=density, model=m, **scene)
+
+    robots = {
+        "foam": build("foam", model),
         "silicone": six_dof_robot(orient.sheets(need_constants=False), Isotropic(p.silicone_E, p.silicone_nu),
                                   density=p.silicone_density, **scene),
     }
     if p.compare_published and not paper.is_published(material.material):
-        robots["published"] = six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, density=density,
-                                            **scene)
+        robots["published"] = build("published", model)
+    skipped = {}
+    if p.compare_models:  # the same robots under the other material model
+        for name in ("foam", "published"):
+            if name in robots:
+                try:
+                    robots[f"{name}_{other}"] = build(name, other)
+                except ConfigError as exc:  # the authors' tensor is indefinite for these constants
+                    skipped[f"{name}_{other}"] = str(exc)
     cases = {}
     for i, (name, rob) in enumerate(robots.items()):
         ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, len(robots) + 2)
         cases[name] = evaluate(rob, name, delta_deg=p.delta_deg, length_scale=p.length_scale)
     foam = robots["foam"]
     out = {
+        "material_model": model,
         "units": {"J": "rows x, y, z [mm/rad], rx, ry, rz [rad/rad]; columns motors 0-5",
                   "per_degree": "mm/deg and deg/deg", "singular_values": "of diag(1,1,1,L,L,L) J, L = length_scale"},
         "frame": "rod along world x, gravity -z, effector = rod centre (origin); motors 0-2 sheet A (x<0), 3-5 B",
@@ -101,7 +124,8 @@ def run(ctx: StageContext) -> dict:
                "rod_rotation_deg_per_deg": round(c.rod_rotation_per_degree, 5),
                "rod_rotation_finite_deg_per_deg": round(c.rod_rotation_finite, 5)}
         for name, c in cases.items()
-    } | {"n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
+    } | {"material_model": model, "other_model": other if p.compare_models else None, "model_skipped": skipped,
+         "n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
        "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"]}
 
 
