@@ -200,21 +200,37 @@ def diff(
         raise typer.Exit(1)
 
 
-def goto_robot(orient: Path | None = None, mesh_size: float = 8.0):
+def goto_model(orient: Path | None, model: str | None) -> str:
+    """The material model ``robot goto`` uses: ``model`` when given, else the material stage's
+    next to the orient stage (``<orient>/../material/material.json``) when there is one, else "ours"."""
+    from .material_model import check_model
+
+    if model is not None:
+        return check_model(model, "--model")
+    if orient is not None and (Path(orient).parent / "material" / "material.json").is_file():
+        from .pipeline.artefacts import read_material
+
+        return read_material(Path(orient).parent / "material").model
+    return "ours"
+
+
+def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, model: str | None = None):
     """The 6-DOF robot ``robot goto`` drives: from an orient stage's sheets (their own
     per-element constants), else freshly meshed sheets (``mesh_size`` [mm]) with the paper's
-    foam along the default spiral; the paper's scene and foam density either way."""
+    foam along the default spiral; the paper's scene and foam density either way; the
+    material model of :func:`goto_model`."""
     from . import paper
     from .robot.builder import SheetPair, six_dof_robot
 
+    model = goto_model(orient, model)
     if orient is not None:
         from .pipeline.artefacts import read_orient
 
-        return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY)
+        return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY, model=model)
     from .sheet.geometry import SheetParams
 
     return six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=mesh_size)), paper.PAPER_FOAM,
-                         density=paper.FOAM_DENSITY)
+                         density=paper.FOAM_DENSITY, model=model)
 
 
 def _pose_text(pose) -> str:
@@ -261,6 +277,8 @@ def robot_goto(
         metavar="POSE", help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
     orient: Annotated[Optional[Path], typer.Option("--orient", help="an orient stage's output directory")] = None,
     mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no --orient")] = 8.0,
+    model: Annotated[Optional[str], typer.Option("--model", help="material model 'ours' or 'authors' (default: the "
+                                                 "material stage's next to --orient, else 'ours')")] = None,
 ) -> None:
     """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles.
 
@@ -271,7 +289,7 @@ def robot_goto(
     from .robot.inverse import InverseController
 
     goal = parse_pose(pose)
-    robot = goto_robot(orient, mesh_size)
+    robot = goto_robot(orient, mesh_size, model)
     res = InverseController(robot).goto(goal)
     say(format_result(res), err=False)
     if not res.reached:

@@ -30,6 +30,7 @@ import numpy as np
 from ..conventions import GRAVITY
 from ..errors import ConfigError
 from ..material import CONSTANT_NAMES, TransverseIsotropic
+from ..material_model import authors_effective, check_model, model_stiffness
 from ..robot.builder import SheetPair
 from ..robot.scenes import RobotScene  # noqa: F401  (the robot stage's scene; read_robot_scene returns it)
 from ..sheet.geometry import SheetMesh, SheetParams
@@ -165,17 +166,27 @@ def read_print_model(chart_dir: Path, cell_dir: Path | None = None, homogenize_d
 
 @dataclass(frozen=True)
 class MaterialFile:
-    """``material.json``: the sheets' ``material``, mass ``density`` [t/mm^3], ``source``."""
+    """``material.json``: the sheets' ``material``, mass ``density`` [t/mm^3], ``source`` and
+    the material ``model`` the robot builds its tensor with (:mod:`metasheet.material_model`)."""
 
     material: TransverseIsotropic
     density: float
     source: str
+    model: str = "ours"
 
 
-def write_material(path: Path, material: TransverseIsotropic, *, density: float, source: str) -> None:
-    """``material.json``: constants, units, derived nu_lt and alpha, stiffness and compliance."""
+def write_material(path: Path, material: TransverseIsotropic, *, density: float, source: str,
+                   model: str = "ours") -> None:
+    """``material.json``: constants, units, derived nu_lt and alpha, stiffness and compliance
+    (of the five constants), the material ``model`` and the tensor the robot uses under it
+    (``model_stiffness``); under "authors" also the constants that tensor really has."""
+    check_model(model)
     units = {k: ("-" if k.startswith("nu") else "MPa") for k in CONSTANT_NAMES}
+    extra = {"authors_effective_constants": authors_effective(material).to_dict()} if model == "authors" else {}
     write_json_atomic(path, {
+        "model": model,
+        "model_stiffness": model_stiffness(material, model),
+        **extra,
         "source": source,
         "constants": material.to_dict(),
         "units": {**units, "density": "t/mm^3"},
@@ -194,7 +205,8 @@ def read_material(directory: Path) -> MaterialFile:
     path = directory / "material.json"
     data = _json(path)
     m = TransverseIsotropic.from_mapping(_field(data, "constants", path), where=f"{path}: constants")
-    return MaterialFile(m, float(_field(data, "density", path)), str(data.get("source", "")))
+    model = check_model(str(_field(data, "model", path)), f"{path}: model")
+    return MaterialFile(m, float(_field(data, "density", path)), str(data.get("source", "")), model)
 
 
 # ---------------------------------------------------------------------------- orient

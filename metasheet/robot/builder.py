@@ -3,7 +3,9 @@
 The robot stage, the ``metasheet robot goto`` command, the studies (in every worker) and the
 tests and benchmarks all call :func:`six_dof_robot`, so the sheets' stiffness is made one
 way: per-element constants (a graded design, as the orient stage wrote them) or a single
-material, rotated so that its axis 3 (the soft l axis) follows each element's fibre.
+material, rotated so that its axis 3 (the soft l axis) follows each element's fibre, and one
+material model (:mod:`metasheet.material_model`: ours, all five constants, or the authors'
+force field's tensor) turns constants into a tensor.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from .. import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError
 from ..material import Isotropic, TransverseIsotropic
+from ..material_model import check_model, model_stiffness
 from ..sheet.elements import as_element, check_element
 from ..sheet.geometry import SheetMesh, SheetParams
 from ..voigt import stiffness_along
@@ -75,18 +78,18 @@ class SheetPair:
         return self.constants is not None and self.constants_mirrored is not None
 
 
-def material_stiffness(material, fibers: np.ndarray) -> np.ndarray:
+def material_stiffness(material, fibers: np.ndarray, model: str = "ours") -> np.ndarray:
     """Sheet-frame stiffness [MPa] of one material: (6, 6) when isotropic, else (m, 6, 6)
-    with axis 3 along ``fibers`` (m, 3)."""
-    C = material.stiffness()
+    with axis 3 along ``fibers`` (m, 3); ``model``: see :mod:`metasheet.material_model`."""
+    C = model_stiffness(material, model)
     if isinstance(material, Isotropic):
         return C
     return stiffness_along(C, fibers)
 
 
-def element_stiffness(fibers: np.ndarray, constants: np.ndarray) -> np.ndarray:
+def element_stiffness(fibers: np.ndarray, constants: np.ndarray, model: str = "ours") -> np.ndarray:
     """(m, 6, 6) sheet-frame stiffness [MPa] from per-element constants (m, 5), axis 3 along
-    ``fibers`` (m, 3). Elements whose constants agree to 1e-12 share one tensor (a graded
+    ``fibers`` (m, 3), under ``model`` (:mod:`metasheet.material_model`). Elements whose constants agree to 1e-12 share one tensor (a graded
     design has a few distinct materials); each group uses its first element's constants."""
     keys = np.round(np.asarray(constants, float), 12)
     _, first, inv = np.unique(keys, axis=0, return_index=True, return_inverse=True)
@@ -94,23 +97,24 @@ def element_stiffness(fibers: np.ndarray, constants: np.ndarray) -> np.ndarray:
     C = np.empty((len(fibers), 6, 6))
     for i, row in enumerate(first):
         sel = np.flatnonzero(inv == i)
-        C[sel] = stiffness_along(TransverseIsotropic(*constants[row]).stiffness(), fibers[sel])
+        C[sel] = stiffness_along(model_stiffness(TransverseIsotropic(*constants[row]), model), fibers[sel])
     return C
 
 
-def _plain(material):
+def _plain(material, model: str = "ours"):
     """An exactly isotropic transverse-isotropic material as :class:`Isotropic` (no fibre
-    rotation needed: the anisotropy sweep's alpha = 0 end)."""
+    rotation needed: the anisotropy sweep's alpha = 0 end). The authors' model ignores mu_l."""
     if isinstance(material, TransverseIsotropic) and material.alpha < 1e-9 \
             and abs(material.nu_tl - material.nu_t) < 1e-12 \
-            and abs(material.mu_l - material.mu_t) <= 1e-12 * material.mu_t:
+            and (model == "authors" or abs(material.mu_l - material.mu_t) <= 1e-12 * material.mu_t):
         return Isotropic(material.E_t, material.nu_t)
     return material
 
 
 def six_dof_robot(sheets: SheetPair, material=None, *, density: float | None = None,
                   sheet_mass_g: float | None = None, rod_length: float = paper.ROD_LENGTH,
-                  geometry: ServoGeometry = ServoGeometry(), gravity=(0.0, 0.0, -GRAVITY)) -> Robot:
+                  geometry: ServoGeometry = ServoGeometry(), gravity=(0.0, 0.0, -GRAVITY),
+                  model: str = "ours") -> Robot:
     """The paper's 6-DOF robot (two tripods face to face, rod along x) from ``sheets``.
 
     Parameters
@@ -124,19 +128,23 @@ def six_dof_robot(sheets: SheetPair, material=None, *, density: float | None = N
     sheet_mass_g : the mass of each sheet [g] (the authors' scene: 32 g); the density is then
         mass / volume of ``sheets.sheet`` (the mirrored sheet has the same volume). Give one.
     rod_length : [mm]; geometry : servo placement and stroke; gravity : (3,) [mm/s^2].
+    model : how constants become a tensor, "ours" (all five) or "authors" (their SOFA force
+        field: longitudinal shear from E_t and nu_t, mu_l unused); see
+        :mod:`metasheet.material_model`. The one place the robot's material model is applied.
     """
+    check_model(model, "model")
     density = resolve_density(sheets.sheet, density, sheet_mass_g)
     if material is None:
         if not sheets.has_constants:
             raise ConfigError("material: None: the sheets carry no per-element constants; give a material")
-        Ca = element_stiffness(sheets.fibers, sheets.constants)
-        Cb = element_stiffness(sheets.fibers_mirrored, sheets.constants_mirrored)
+        Ca = element_stiffness(sheets.fibers, sheets.constants, model)
+        Cb = element_stiffness(sheets.fibers_mirrored, sheets.constants_mirrored, model)
     else:
         if not isinstance(material, (Isotropic, TransverseIsotropic)):
             raise ConfigError(f"material: {type(material).__name__}: expected Isotropic or TransverseIsotropic")
-        material = _plain(material)
-        Ca = material_stiffness(material, sheets.fibers)
-        Cb = material_stiffness(material, sheets.fibers_mirrored)
+        material = _plain(material, model)
+        Ca = material_stiffness(material, sheets.fibers, model)
+        Cb = material_stiffness(material, sheets.fibers_mirrored, model)
     return six_dof(as_element(sheets.sheet, sheets.element), Ca, as_element(sheets.mirrored, sheets.element), Cb,
                    rod_length=rod_length, geometry=geometry, density=density, gravity=gravity)
 

@@ -16,6 +16,7 @@ from .. import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError, ConvergenceError
 from ..material import Isotropic, TransverseIsotropic, interpolate
+from ..material_model import check_model
 from ..robot.builder import SheetPair
 from ..sheet.geometry import SheetMesh
 from .model import ReachResult, check_motor_range, pose_errors
@@ -38,6 +39,7 @@ class RobotSpec:
     motor_range (lo, hi) [deg]; density [t/mm^3]; gravity (3,) [mm/s^2].
     consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
     stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
+    model : the material model, "ours" or "authors" (:mod:`metasheet.material_model`).
     rot_weight [mm/rad], max_step_deg [deg], stall_steps, refresh_angle_deg [deg]: inverse-loop
     settings. A goal counts as unreachable after ``stall_steps`` steps without progress (the
     controller's default 15 makes every unreachable workspace point cost 15+ FEM steps). The
@@ -80,9 +82,11 @@ class RobotSpec:
     consts: np.ndarray | None = None
     consts_m: np.ndarray | None = None
     element: str = "p1"
+    model: str = "ours"
 
     def __post_init__(self):
         check_motor_range("motor_range", *self.motor_range)
+        check_model(self.model, "model")
         for name in ("material", "design"):
             if len(getattr(self, name)) != 5:
                 raise ConfigError(f"{name}: {getattr(self, name)!r}: expected (E_t, E_l, nu_t, nu_tl, mu_l)")
@@ -99,7 +103,7 @@ class RobotSpec:
         h.update(repr((self.material, self.design, self.rod_length, self.rest_angle, self.horn_length,
                        self.servo_radius, self.servo_depth, tuple(self.gravity), self.motor_range, self.density,
                        self.rot_weight, self.max_step_deg, self.stall_steps, self.refresh_angle_deg, self.chord_tol,
-                       self.element)).encode())
+                       self.element, self.model)).encode())
         return "fem-" + h.hexdigest()[:24]
 
     @property
@@ -167,7 +171,7 @@ class FemRobot:
             geo = ServoGeometry(spec.rest_angle, spec.horn_length, min(paper.ANGLE_MIN, spec.rest_angle),
                                 max(paper.ANGLE_MAX, spec.rest_angle))
         self.robot = six_dof_robot(sheets, mat, rod_length=spec.rod_length, geometry=geo, density=spec.density,
-                                   gravity=spec.gravity)
+                                   gravity=spec.gravity, model=spec.model)
         # the limits may exclude the rest angles (the motor-range study): set them after the build
         na = len(self.robot.angle_min)
         self.robot = replace(self.robot, angle_min=np.full(na, np.radians(spec.motor_range[0])),

@@ -7,6 +7,20 @@ reached point the six rotations +-``rot_deg`` about x, y and z of the orientatio
 there are tried from that point's state, each within ``tol_rot_deg`` (and ``tol_mm``). An axis
 counts when both signs succeed (the second sign is skipped, NaN, when the first fails). Classes: 3, 2, 1 axes, 0 = reachable only, -1 = unreachable.
 
+Two rotation tests (:data:`ROTATION_TESTS`, ``WorkspaceSettings.test``): ``"paper"`` (the
+default) as the paper describes it, +-10 deg about x, y and z, each within 2 deg, each tried
+from the point's state; ``"authors_code"`` as the authors' controller ran it
+(VannesteFelix/anisotropy, ``examples/Tripod/inverse_simu/utility/tripodcontroller.py``:
+``stepAngle = 5`` line 55, ``angle_offset = 3`` and ``pos_offset = 1`` lines 166-167, +5 deg
+then -10 deg about the goal's local y only, lines 202 and 214, the x and z tries commented
+out, lines 225-237; a point fails when the centre is more than 1 mm from the goal or moved
+more than 1 mm since two animation steps earlier, lines 173-189 and 249-251): +-5 deg about y
+in sequence (the -5 deg goal starts from the +5 deg state), within 3 deg and ``tol_mm``, and no
+jump of more than ``jump_mm`` = 1 mm in any coordinate of the effector between successive test
+states (point, +5, -5): the quasi-static reading of their settling check. In their scene the
+goal's local y is perpendicular to the rod, like our y (rod along x). Their controller then
+draws a point that passes as "3T + 3R" (line 272); here it counts one axis (class 1).
+
 Beyond the paper: the largest principal strain at each reached point against a limit
 (the homogenisation's domain of validity), the smallest Jacobian singular value (loss of
 control), and continuity: a graph whose nodes are the reached points (and the rest pose),
@@ -23,7 +37,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from ..errors import ConvergenceError, check_range
+from ..errors import ConfigError, ConvergenceError, check_range
 from ..executor import Executor
 from .grid import StarGrid
 from .model import MODELS, ModelSpec, pose_errors
@@ -31,14 +45,29 @@ from .resume import UnitCache
 
 CLASS_NAMES = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
 
+#: The rotation tests (see the module docstring): rotation [deg], its tolerance [deg], the axes,
+#: the largest jump between successive test states [mm] (None: not checked), sequential tries.
+ROTATION_TESTS = {
+    "paper": {"rot_deg": 10.0, "tol_rot_deg": 2.0, "rot_axes": "xyz", "jump_mm": None, "sequential": False},
+    "authors_code": {"rot_deg": 5.0, "tol_rot_deg": 3.0, "rot_axes": "y", "jump_mm": 1.0, "sequential": True},
+}
+
 
 @dataclass(frozen=True)
 class WorkspaceSettings:
-    """Tolerances and switches of the workspace study (lengths mm, angles deg)."""
+    """Tolerances and switches of the workspace study (lengths mm, angles deg).
+
+    ``test`` names the rotation test it follows (:data:`ROTATION_TESTS`); build one with
+    :meth:`for_test` so rot_deg, tol_rot_deg, rot_axes, jump_mm and sequential are the test's.
+    """
 
     tol_mm: float = 1.0
     rot_deg: float = 10.0
     tol_rot_deg: float = 2.0
+    test: str = "paper"
+    rot_axes: str = "xyz"  # the axes tried, a subset of "xyz"
+    jump_mm: float | None = None  # largest effector jump between successive test states (None: unchecked)
+    sequential: bool = False  # each rotation from the previous one's state (else from the point's)
     max_steps: int = 60
     rotations: bool = True
     stop_after: int = 2  # consecutive failures on a ray before its outer points are left untried (0: try all)
@@ -60,6 +89,26 @@ class WorkspaceSettings:
         check_range("stop_after", self.stop_after, 0, 100000)
         check_range("strain_limit", self.strain_limit, 0.0, None, lo_open=True)
         check_range("substeps", self.substeps, 1, 1000)
+        if self.test not in ROTATION_TESTS:
+            raise ConfigError(f"workspace.test: {self.test!r}: allowed values are "
+                              f"{', '.join(repr(k) for k in ROTATION_TESTS)}")
+        if not self.rot_axes or set(self.rot_axes) - set("xyz") or len(set(self.rot_axes)) != len(self.rot_axes):
+            raise ConfigError(f"rot_axes: {self.rot_axes!r}: allowed: distinct letters of 'xyz'")
+        if self.jump_mm is not None:
+            check_range("jump_mm", self.jump_mm, 0.0, None, lo_open=True)
+
+    @classmethod
+    def for_test(cls, test: str = "paper", **overrides) -> WorkspaceSettings:
+        """Settings of the rotation test ``test`` (:data:`ROTATION_TESTS`); ``overrides`` that
+        are not None replace its values or set the other fields."""
+        if test not in ROTATION_TESTS:
+            raise ConfigError(f"workspace.test: {test!r}: allowed values are {', '.join(repr(k) for k in ROTATION_TESTS)}")
+        return cls(test=test, **{**ROTATION_TESTS[test], **{k: v for k, v in overrides.items() if v is not None}})
+
+    @property
+    def axis_indices(self) -> tuple[int, ...]:
+        """Indices (0, 1, 2 for x, y, z) of the axes tried, in order."""
+        return tuple("xyz".index(a) for a in self.rot_axes)
 
 
 @dataclass(frozen=True)
@@ -80,7 +129,8 @@ class PointRecords:
     rot_ok (k, 3) bool per axis; strain, sigma_min (k,) (NaN when not reached);
     parent (k,) int: index in the ray of the point continuation started from (-1 = rest);
     converged (k,) bool: False where the model's equilibrium solver failed on the point reach
-    (counted as not reached, with its error as recorded).
+    (counted as not reached, with its error as recorded); rot_jump_mm (k,): the largest
+    effector jump between successive test states [mm] (NaN unless the test checks it).
     """
 
     tried: np.ndarray
@@ -96,6 +146,7 @@ class PointRecords:
     sigma_min: np.ndarray
     parent: np.ndarray
     converged: np.ndarray
+    rot_jump_mm: np.ndarray
 
 
 def rotation_goals(point: np.ndarray, rest_rot: np.ndarray, rot_deg: float) -> np.ndarray:
@@ -128,7 +179,7 @@ def explore_ray(task: RayTask) -> PointRecords:
                motors_deg=np.full((k, len(model.rest_motors())), np.nan), steps=np.zeros(k, int),
                rot_error_mm=np.full((k, 6), np.nan), rot_error_deg=np.full((k, 6), np.nan),
                rot_ok=np.zeros((k, 3), bool), strain=nan.copy(), sigma_min=nan.copy(), parent=np.full(k, -1),
-               converged=np.ones(k, bool))
+               converged=np.ones(k, bool), rot_jump_mm=nan.copy())
     state, parent, fails = start_state(model), -1, 0
     for i, p in enumerate(task.goals):
         if s.stop_after and fails >= s.stop_after:
@@ -151,16 +202,31 @@ def explore_ray(task: RayTask) -> PointRecords:
         rec["strain"][i] = model.max_principal_strain(res.state)
         rec["sigma_min"][i] = model.min_singular_value(res.state)
         if s.rotations:
-            base = rest[3:] if s.hold_orientation else res.pose[3:]
-            for j, g in enumerate(rotation_goals(p, base, s.rot_deg)):
-                if j % 2 and not _within(rec, i, j - 1, s):
-                    continue  # the axis failed one way already: the other sign cannot save it (NaN)
-                r = model.reach(g, state=res.state, tol_mm=s.tol_mm, tol_deg=s.tol_rot_deg, max_steps=s.max_steps)
-                rec["rot_error_mm"][i, j], rec["rot_error_deg"][i, j] = pose_errors(g, r.pose)
-            ok = (rec["rot_error_mm"][i] <= s.tol_mm) & (rec["rot_error_deg"][i] <= s.tol_rot_deg)
-            rec["rot_ok"][i] = ok.reshape(3, 2).all(axis=1)
+            _rotation_test(model, s, rec, i, p, rest[3:] if s.hold_orientation else res.pose[3:], res)
         state, parent = res.state, i
     return PointRecords(**rec)
+
+
+def _rotation_test(model, s: WorkspaceSettings, rec: dict, i: int, point, base, res) -> None:
+    """The +-rot_deg tries about ``s.rot_axes`` at reached point ``i`` (position ``point`` (3,),
+    orientation ``base`` (3,) [rad], reach result ``res``), written into ``rec``."""
+    goals = rotation_goals(point, base, s.rot_deg)
+    state, pose, jump = res.state, res.pose, 0.0
+    for a in s.axis_indices:
+        for j in (2 * a, 2 * a + 1):
+            if j % 2 and not _within(rec, i, j - 1, s):
+                continue  # the axis failed one way already: the other sign cannot save it (NaN)
+            r = model.reach(goals[j], state=state if s.sequential else res.state, tol_mm=s.tol_mm,
+                            tol_deg=s.tol_rot_deg, max_steps=s.max_steps)
+            rec["rot_error_mm"][i, j], rec["rot_error_deg"][i, j] = pose_errors(goals[j], r.pose)
+            jump = max(jump, float(np.abs(r.pose[:3] - pose[:3]).max()))  # [mm], any coordinate
+            if s.sequential:
+                state, pose = r.state, r.pose
+    ok = (rec["rot_error_mm"][i] <= s.tol_mm) & (rec["rot_error_deg"][i] <= s.tol_rot_deg)
+    if s.jump_mm is not None:
+        rec["rot_jump_mm"][i] = jump
+        ok &= jump <= s.jump_mm
+    rec["rot_ok"][i] = ok.reshape(3, 2).all(axis=1)
 
 
 def _within(rec, i, j, s) -> bool:

@@ -49,6 +49,9 @@ class StudyRobotParams(Params):
         "element); None: orient's mesh [mm]")
     layers: int | None = Field(None, ge=0, le=16, description="elements through the thickness of the "
                                "re-meshed sheet; None: orient's")
+    grip_size: float | None = Field(None, ge=0, le=50, description="element size at the grip borders of the "
+                                    "re-meshed sheet [mm] (0: uniform); None: orient's")
+    element: Literal["p1", "p2"] | None = Field(None, description="the study robot's element; None: orient's")
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
@@ -61,7 +64,7 @@ def build_spec(ctx: StageContext):
     ``jacobian.json``, when it is in the pipeline, else the one the orient stage named
     (``sheet.json``), else :data:`DEFAULT_SCENE`; this stage's own parameters override it
     field by field. A scene with a sheet mass sets the density to mass / volume of the
-    sheet the study meshes.
+    sheet the study meshes. The material model is the material stage's (material.json).
     """
     p = ctx.params
     up = scene_of(ctx)
@@ -85,15 +88,15 @@ def build_spec(ctx: StageContext):
     sc = up.with_overrides(rod_length=p.rod_length, rest_angle=p.rest_angle, horn_length=p.horn_length)
     scene = {k: getattr(sc, k) for k in ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth")}
     sheets = orient.sheets(need_constants=orient.graded)
-    if p.mesh_size is not None or p.layers is not None:
+    if any(v is not None for v in (p.mesh_size, p.layers, p.grip_size, p.element)):
         sheets = remesh(orient, orient.sheet_params.mesh_size if p.mesh_size is None else p.mesh_size,
-                        p.layers)
+                        p.layers, p.element, p.grip_size)
     if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
         sheets = replace(sheets, constants=None, constants_mirrored=None)
     density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat.density, sc.sheet_mass_g)
     return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=density,
                                  gravity=tuple(sc.gravity), rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
-                                 **scene)
+                                 model=mat.model, **scene)
 
 
 def scene_of(ctx: StageContext) -> RobotScene:
@@ -106,16 +109,18 @@ def scene_of(ctx: StageContext) -> RobotScene:
     return DEFAULT_SCENE
 
 
-def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, element: str | None = None):
-    """The orient sheet pair re-meshed at ``mesh_size`` [mm] (``layers`` through the thickness
-    and ``element``, None: orient's) with the same geometry and fibre law; per-element
-    constants (when the sheets carry them) carried over by nearest centroid."""
+def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, element: str | None = None,
+           grip_size: float | None = None):
+    """The orient sheet pair re-meshed at ``mesh_size`` [mm] (``layers`` through the thickness,
+    ``element`` and ``grip_size`` [mm], None: orient's) with the same geometry and fibre law;
+    per-element constants (when the sheets carry them) carried over by nearest centroid."""
     from scipy.spatial import cKDTree
 
     from ...robot.builder import SheetPair
 
     sp = replace(orient.sheet_params, mesh_size=float(mesh_size),
-                 **({} if layers is None else {"layers": int(layers)}))
+                 **({} if layers is None else {"layers": int(layers)}),
+                 **({} if grip_size is None else {"grip_size": float(grip_size)}))
     element = orient.element if element is None else element
     fresh = SheetPair.spiral(sp, element, **orient.fiber_settings)
     meshes, consts = [], []

@@ -4,7 +4,10 @@ Writes ``anisotropy.csv`` (alpha, for pull and push: applied motor change, rod r
 lateral and axial translation, full pose change), ``anisotropy.png`` and ``anisotropy.json``.
 When the sheets' material is not the paper's published foam, ``anisotropy.json`` also holds
 the sweep's end point computed with the published constants (``published_end_point``), so
-the two materials' Fig. 7 end points can be compared.
+the two materials' Fig. 7 end points can be compared. With ``compare_models`` the end point
+(only it: the sweep is expensive) is also computed under the other material model
+(:mod:`metasheet.material_model`), for the pipeline's constants (``model_end_points[<other>]``)
+and the published ones (``model_end_points["published_<other>"]``).
 """
 
 from __future__ import annotations
@@ -12,7 +15,12 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
+from dataclasses import replace
+
 from ... import paper
+from ...errors import ConfigError
+from ...material import TransverseIsotropic
+from ...material_model import model_stiffness, other_model
 from ...studies.anisotropy import anisotropy_sweep
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
@@ -26,6 +34,8 @@ class AnisotropyParams(StudyRobotParams):
     ramp_deg: float = Field(5.0, gt=0, le=90, description="largest motor increment per forward solve [deg]")
     compare_published: bool = Field(True, description="also compute the end point with the paper's published "
                                     "constants when the material differs from them")
+    compare_models: bool = Field(True, description="also compute the end point under the other material model "
+                                 "('ours' / 'authors') for the report's mu_l table")
 
 
 def run(ctx: StageContext) -> dict:
@@ -66,18 +76,34 @@ def run(ctx: StageContext) -> dict:
     }
     published = _published_spec(ctx, spec) if p.compare_published else None
     if published is not None:
-        end = anisotropy_sweep(published, [published.design_alpha], pull_deg=p.pull_deg, push_deg=p.push_deg,
-                               ramp_deg=p.ramp_deg, executor=ctx.executor, progress=progress(ctx),
-                               cache=unit_cache(ctx))
-        summary["published_end_point"] = {
-            "alpha_percent": round(float(end.alpha[0]), 4),
-            "rod_rotation_deg": {"pull": _listed(end.rod_rotation_deg[:, 0])[0],
-                                 "push": _listed(end.rod_rotation_deg[:, 1])[0]},
-            "lateral_mm": {"pull": _listed(end.lateral_mm[:, 0])[0], "push": _listed(end.lateral_mm[:, 1])[0]},
-        }
+        summary["published_end_point"] = _end_point(ctx, published)
+    if p.compare_models and hasattr(spec, "model"):  # the FEM robot: the other material model's end points
+        other = other_model(spec.model)
+        summary["material_model"], summary["model_end_points"] = spec.model, {}
+        for name, sp in ((other, spec), (f"published_{other}", published)):
+            if sp is None:
+                continue
+            try:  # the authors' tensor may be indefinite for these constants: say so, skip it
+                model_stiffness(TransverseIsotropic(*sp.design), other)
+            except ConfigError as exc:
+                summary["model_end_points"][name] = {"skipped": str(exc)}
+                continue
+            summary["model_end_points"][name] = _end_point(ctx, replace(sp, model=other))
     write_json_atomic(ctx.path("anisotropy.json"), summary)
     drop_cache(ctx)
     return summary
+
+
+def _end_point(ctx: StageContext, spec) -> dict:
+    """The sweep's end point (alpha = the spec's design alpha) of ``spec``: alpha [%], rod
+    rotation [deg] and lateral translation [mm] for pull and push (None: not converged)."""
+    p = ctx.params
+    end = anisotropy_sweep(spec, [spec.design_alpha], pull_deg=p.pull_deg, push_deg=p.push_deg, ramp_deg=p.ramp_deg,
+                           executor=ctx.executor, progress=progress(ctx), cache=unit_cache(ctx))
+    return {"alpha_percent": round(float(end.alpha[0]), 4),
+            "rod_rotation_deg": {"pull": _listed(end.rod_rotation_deg[:, 0])[0],
+                                 "push": _listed(end.rod_rotation_deg[:, 1])[0]},
+            "lateral_mm": {"pull": _listed(end.lateral_mm[:, 0])[0], "push": _listed(end.lateral_mm[:, 1])[0]}}
 
 
 def _listed(values) -> list:
@@ -97,8 +123,6 @@ def _published_spec(ctx: StageContext, spec):
         return None
     if "orient" in ctx.inputs and read_orient(ctx.inputs["orient"]).graded:
         return None
-    from dataclasses import replace
-
     # the sweep interpolates from the spec's design material: the published set is both
     # same density as the spec's (the material's, or the scene's sheet mass over the sheet volume)
     return replace(spec.with_material(paper.PAPER_FOAM), design=paper.PAPER_FOAM.as_tuple())

@@ -5,6 +5,11 @@ The constants come from the ``homogenize`` stage when it is in the pipeline (and
 independent constants are taken; nu_lt = nu_tl E_l / E_t is derived, so the
 compliance is symmetric by construction (the authors' published set lists
 nu_tl alone and is used here the same way).
+
+``model`` chooses how the robot turns the constants into a tensor (everywhere: robot stage,
+studies, ``metasheet robot goto``): "ours" uses all five; "authors" is the authors' SOFA force
+field, whose longitudinal shear is E_t / (2 (1 + nu_t)) whatever mu_l, and whose c13 differs
+(:mod:`metasheet.material_model`). ``material.json`` records it with the tensor it gives.
 """
 
 from __future__ import annotations
@@ -35,6 +40,9 @@ class MaterialParams(Params):
     E: float = Field(paper.SILICONE.E, gt=0, description="isotropic Young's modulus [MPa] (kind = 'isotropic')")
     nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="isotropic Poisson ratio [-] (kind = 'isotropic')")
     density: float = Field(paper.FOAM_DENSITY, gt=0, description="mass density of the sheet [t/mm^3]")
+    model: Literal["ours", "authors"] = Field(
+        "ours", description="'ours': the tensor of all five constants; 'authors': the authors' SOFA force field's "
+        "(longitudinal shear E_t / (2 (1 + nu_t)), mu_l unused; c13 as their code)")
 
 
 def material_from_params(p: MaterialParams) -> TransverseIsotropic:
@@ -52,8 +60,8 @@ def run(ctx: StageContext) -> dict:
         m, origin = constants_material(ctx.inputs["homogenize"]), "homogenize"
     else:
         m, origin = material_from_params(p), "config"
-    write_material(ctx.path("material.json"), m, density=p.density, source=origin)
-    return {"source": origin, **m.to_dict(), "alpha_percent": round(m.alpha, 3)}
+    write_material(ctx.path("material.json"), m, density=p.density, source=origin, model=p.model)
+    return {"source": origin, "model": p.model, **m.to_dict(), "alpha_percent": round(m.alpha, 3)}
 
 
 register(

@@ -47,7 +47,8 @@ def run(ctx: StageContext) -> dict:
         summaries["scene"] = sheet_info.get("scene")
     if "material" in ctx.inputs:
         m = read_material(ctx.inputs["material"])
-        summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source}
+        summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source,
+                                 "model": m.model}
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}

@@ -19,6 +19,11 @@ When the sheets' constants are not the paper's published ones (e.g. homogenised 
 printed Polyfoam cell), a third case ``published`` builds the same robot with the paper's
 constants (:data:`metasheet.paper.PAPER_FOAM`) along the same fibres, so the report can put
 the robot's figures for both side by side.
+
+The sheets' tensor follows the material stage's ``model`` (:mod:`metasheet.material_model`).
+With ``compare_models`` the foam (and published) robots are also built under the other model,
+as cases ``foam_<other>`` (and ``published_<other>``), so the report can show which of the
+paper's claims depend on the shear modulus mu_l (the authors' force field does not use it).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from pydantic import Field
 from ... import paper
 from ...errors import ConfigError
 from ...material import Isotropic
+from ...material_model import other_model
 from ...robot.builder import six_dof_robot
 from ...robot.compare import evaluate
 from ..artefacts import read_material, read_orient, write_jacobian, write_rest_vtu
@@ -62,10 +68,12 @@ class RobotParams(Params):
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     compare_published: bool = Field(True, description="also evaluate the robot with the paper's published "
                                     "constants when the material differs from them")
+    compare_models: bool = Field(True, description="also evaluate the foam (and published) robots under the other "
+                                 "material model ('ours' / 'authors'), for the report's mu_l table")
     picture: bool = Field(True, description="write robot.png")
-    convergence: list[tuple[Literal["p1", "p2"], float, int]] = Field(
-        default_factory=list, description="mesh levels [element, mesh_size [mm], layers] of the convergence "
-        "study (convergence.json); the orient mesh is added; empty: no study")
+    convergence: list[tuple[Literal["p1", "p2"], float, int, float]] = Field(
+        default_factory=list, description="mesh levels [element, mesh_size [mm], layers, grip_size [mm]] of the "
+        "convergence study (convergence.json); the orient mesh is added; empty: no study")
 
 
 def run(ctx: StageContext) -> dict:
@@ -84,20 +92,35 @@ def run(ctx: StageContext) -> dict:
     # a scene with a sheet mass (the authors': 32 g) gives every sheet that mass, whatever its material
     foam_mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": material.density}
     sil_mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": p.silicone_density}
-    robots = {  # the foam: the sheets' own per-element constants along their fibres
-        "foam": six_dof_robot(orient.sheets(), **foam_mass, **scene),
+    model, other = material.model, other_model(material.model)
+
+    def build(name: str, m: str):  # the foam: the sheets' own per-element constants along their fibres
+        if name == "foam":
+            return six_dof_robot(orient.sheets(), model=m, **foam_mass, **scene)
+        return six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, model=m, **foam_mass, **scene)
+
+    robots = {
+        "foam": build("foam", model),
         "silicone": six_dof_robot(orient.sheets(need_constants=False), Isotropic(p.silicone_E, p.silicone_nu),
                                   **sil_mass, **scene),
     }
     if p.compare_published and not paper.is_published(material.material):
-        robots["published"] = six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, **foam_mass,
-                                            **scene)
+        robots["published"] = build("published", model)
+    skipped = {}
+    if p.compare_models:  # the same robots under the other material model
+        for name in ("foam", "published"):
+            if name in robots:
+                try:
+                    robots[f"{name}_{other}"] = build(name, other)
+                except ConfigError as exc:  # the authors' tensor is indefinite for these constants
+                    skipped[f"{name}_{other}"] = str(exc)
     cases = {}
     for i, (name, rob) in enumerate(robots.items()):
         ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, len(robots) + 2)
         cases[name] = evaluate(rob, name, delta_deg=p.delta_deg, length_scale=p.length_scale)
     foam = robots["foam"]
     out = {
+        "material_model": model,
         "units": {"J": "rows x, y, z [mm/rad], rx, ry, rz [rad/rad]; columns motors 0-5",
                   "per_degree": "mm/deg and deg/deg", "singular_values": "of diag(1,1,1,L,L,L) J, L = length_scale"},
         "frame": "rod along world x, gravity -z, effector = rod centre (origin); motors 0-2 sheet A (x<0), 3-5 B",
@@ -108,7 +131,7 @@ def run(ctx: StageContext) -> dict:
     write_jacobian(ctx.path("jacobian.json"), out)
     if p.convergence:
         ctx.progress("convergence study", len(robots), len(robots) + 2)
-        _convergence(ctx, orient, density, scene)
+        _convergence(ctx, orient, lambda: build("foam", model), {"model": model, **foam_mass, **scene})
     write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
     if p.picture:
         ctx.progress("picture", len(robots) + 1, len(robots) + 2)
@@ -123,28 +146,30 @@ def run(ctx: StageContext) -> dict:
                "rod_rotation_deg_per_deg": round(c.rod_rotation_per_degree, 5),
                "rod_rotation_finite_deg_per_deg": round(c.rod_rotation_finite, 5)}
         for name, c in cases.items()
-    } | {"n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
-       "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"],
-       "scene": sc.scene, "rod_length_mm": sc.rod_length, "sheet_mass_g": sc.sheet_mass_g}
+    } | {"material_model": model, "other_model": other if p.compare_models else None, "model_skipped": skipped,
+         "n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
+         "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"],
+         "scene": sc.scene, "rod_length_mm": sc.rod_length, "sheet_mass_g": sc.sheet_mass_g}
 
 
 _SCENE_KEYS = ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth", "angle_min", "angle_max")
 
 
-def _convergence(ctx: StageContext, orient, density: float, scene: dict) -> None:
+def _convergence(ctx: StageContext, orient, build_foam, robot_kw: dict) -> None:
     """``convergence.json``: the foam robot over the mesh levels of ``convergence`` (and the
     orient mesh, checked against the tolerances); each level's seconds go to the manifest."""
     from ...robot.convergence import Level, convergence_summary, run_levels
     from ._studies import remesh
 
     sp = orient.sheet_params
-    own = Level(orient.element, float(sp.mesh_size), int(sp.layers))
-    levels = list(dict.fromkeys([Level(e, float(h), int(n)) for e, h, n in ctx.params.convergence] + [own]))
+    own = Level(orient.element, float(sp.mesh_size), int(sp.layers), float(sp.grip_size))
+    levels = list(dict.fromkeys([Level(e, float(h), int(n), float(g)) for e, h, n, g in ctx.params.convergence]
+                                + [own]))
 
     def build(lev: Level):
         if lev == own:
-            return six_dof_robot(orient.sheets(), density=density, **scene)
-        return six_dof_robot(remesh(orient, lev.mesh_size, lev.layers, lev.element), density=density, **scene)
+            return build_foam()
+        return six_dof_robot(remesh(orient, lev.mesh_size, lev.layers, lev.element, lev.grip_size), **robot_kw)
 
     results = run_levels(build, levels, progress=ctx.progress)
     for r in results:

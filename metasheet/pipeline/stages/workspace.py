@@ -2,12 +2,15 @@
 strain), loss of control (smallest Jacobian singular value) and continuity (components).
 
 Writes ``workspace.csv`` (one row per goal point), ``workspace.vtp`` (the point cloud with
-the same fields), ``workspace.png`` (front / side / top views) and ``workspace.json``.
+the same fields), ``workspace.png`` (front / side / top views) and ``workspace.json``, which
+records the rotation test (``test``: "paper" or "authors_code", see
+:data:`metasheet.studies.workspace.ROTATION_TESTS`) with the values it ran.
 """
 
 from __future__ import annotations
 
 import time
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -21,9 +24,14 @@ ROT_COLS = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
 class WorkspaceParams(GridParams):
-    rot_deg: float = Field(10.0, gt=0, le=90, description="rotation tried at each reached point [deg]")
-    tol_rot_deg: float = Field(2.0, gt=0, le=90, description="rotation tolerance [deg]")
-    rotations: bool = Field(True, description="try the +-rot_deg rotations about x, y, z")
+    test: Literal["paper", "authors_code"] = Field(
+        "paper", description="rotation test: 'paper' (+-10 deg about x, y, z, within 2 deg) or 'authors_code' "
+        "(their controller: +-5 deg about y in sequence, within 3 deg, no effector jump > 1 mm)")
+    rot_deg: float | None = Field(None, gt=0, le=90, description="rotation tried at each reached point [deg]; "
+                                  "None: the test's (10 or 5)")
+    tol_rot_deg: float | None = Field(None, gt=0, le=90, description="rotation tolerance [deg]; None: the test's "
+                                      "(2 or 3)")
+    rotations: bool = Field(True, description="try the test's +-rot_deg rotations")
     strain_limit: float = Field(0.3, gt=0, description="max principal strain of the homogenisation's validity [-]")
     continuity: bool = Field(True, description="test paths between neighbouring reached points")
     substeps: int = Field(3, ge=1, le=1000, description="intermediate goals on a continuity path [-]")
@@ -31,9 +39,10 @@ class WorkspaceParams(GridParams):
 
 
 def settings_from(p) -> WorkspaceSettings:
-    return WorkspaceSettings(tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_rot_deg, max_steps=p.max_steps,
-                             rotations=p.rotations, stop_after=p.stop_after, strain_limit=p.strain_limit,
-                             continuity=p.continuity, substeps=p.substeps, hold_orientation=p.hold_orientation)
+    return WorkspaceSettings.for_test(
+        p.test, tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_rot_deg, max_steps=p.max_steps,
+        rotations=p.rotations, stop_after=p.stop_after, strain_limit=p.strain_limit, continuity=p.continuity,
+        substeps=p.substeps, hold_orientation=p.hold_orientation)
 
 
 def write_vtp(path, points, fields: dict) -> None:
@@ -50,18 +59,20 @@ def run(ctx: StageContext) -> dict:
     spec = build_spec(ctx)
     grid = grid_from(p)
     t0 = time.perf_counter()
-    res = explore_workspace(spec, grid, settings_from(p), executor=ctx.executor, progress=progress(ctx),
+    settings = settings_from(p)
+    res = explore_workspace(spec, grid, settings, executor=ctx.executor, progress=progress(ctx),
                             cache=unit_cache(ctx))
     wall = time.perf_counter() - t0
     r = res.records
     header = (["point", "ray", "step", "x_mm", "y_mm", "z_mm", "class", "class_name", "tried", "reached",
                "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
               + [f"rot{c}_error_deg" for c in ROT_COLS] + [f"rot{c}_error_mm" for c in ROT_COLS]
-              + ["rot_x_ok", "rot_y_ok", "rot_z_ok", "max_principal_strain", "valid", "min_singular_value",
-                 "component", "converged"])
+              + ["rot_x_ok", "rot_y_ok", "rot_z_ok", "rot_jump_mm", "max_principal_strain", "valid",
+                 "min_singular_value", "component", "converged"])
     rows = ([i, grid.ray[i], grid.index[i], *res.goals[i], res.cls[i], CLASS_NAMES[res.cls[i]], r.tried[i],
              r.reached[i], r.error_mm[i], r.error_deg[i], r.steps[i], *r.motors_deg[i], *r.rot_error_deg[i],
-             *r.rot_error_mm[i], *r.rot_ok[i], r.strain[i], res.valid[i], r.sigma_min[i], res.component[i],
+             *r.rot_error_mm[i], *r.rot_ok[i], r.rot_jump_mm[i], r.strain[i], res.valid[i], r.sigma_min[i],
+             res.component[i],
              r.converged[i]]
             for i in range(len(grid)))
     write_csv(ctx.path("workspace.csv"), header, rows)
@@ -72,7 +83,7 @@ def run(ctx: StageContext) -> dict:
 
     counts = res.counts()
     title = (f"Workspace (paper Fig. 5): {len(grid)} goals, {int(r.reached.sum())} reachable, "
-             f"{res.n_components} connected component(s) [{p.model}]")
+             f"{res.n_components} connected component(s) [{p.model}, {settings.test} rotation test]")
     ctx.path("workspace.png").write_bytes(workspace_picture(
         res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title))
     reached = r.reached
@@ -87,6 +98,10 @@ def run(ctx: StageContext) -> dict:
         "in_rest_component": int((res.component == 0).sum()),
         "wall_s": round(wall, 2), "s_per_point": round(wall / max(1, int(r.tried.sum())), 4),
         "executor": ctx.executor.kind, "model": p.model,
+        "material_model": getattr(spec, "model", None),
+        "rotation_test": {"test": settings.test, "rot_deg": settings.rot_deg, "tol_rot_deg": settings.tol_rot_deg,
+                          "axes": settings.rot_axes, "tol_mm": settings.tol_mm, "jump_mm": settings.jump_mm,
+                          "sequential": settings.sequential, "rotations": settings.rotations},
         "n_tets_per_sheet": int(len(spec.tets)) if hasattr(spec, "tets") else None,
     }
     write_json_atomic(ctx.path("workspace.json"), summary)
