@@ -41,9 +41,10 @@ class SheetParams:
         structured layers (each prism split into three tets), the explicit control the
         bending of a thin sheet needs.
     grip_size : element size at the borders of the rigid sets (the centre disk's circle and
-        each grip's cut across its arm) [mm], growing by half the distance away from them up
-        to ``mesh_size``; 0 for a uniform mesh. The sheet is clamped along these lines, where
-        the strains are singular: a uniform mesh converges slowly there, whatever its order.
+        each grip's cut across its arm) and at sharp concave corners [mm], growing by half the
+        distance away from them up to ``mesh_size``; 0 for a uniform mesh. The sheet is clamped
+        along these lines, where the strains are singular: a uniform mesh converges slowly
+        there, whatever its order.
     tip_box : (along the arm, across the arm, along z) size of the box centred on each
         arm's end whose nodes the servo horn holds [mm].
     centre_radius : nodes within this distance of the centre are tied to the effector [mm].
@@ -279,13 +280,18 @@ GRIP_GROWTH = 0.5
 def _grip_size_field(gmsh, params: SheetParams) -> None:
     """Element size ``grip_size + GRIP_GROWTH * d`` (capped at ``mesh_size``), d the distance to
     the nearest grip border: |r - centre_radius| or, per arm, |s - (reach - tip_box[0] / 2)|
-    along the arm (the grip's cut; no other arm reaches that s)."""
+    along the arm (the grip's cut; no other arm reaches that s), and to the concave corners
+    when they are sharp (no fillet)."""
     def num(v) -> str:  # parenthesised: gmsh's expression parser takes no "*-"
         return f"({float(v):.17g})"
 
     cut = params.reach - 0.5 * params.tip_box[0]
     dists = [f"Fabs(Sqrt(x*x+y*y)-{num(params.centre_radius)})"]
     dists += [f"Fabs(x*{num(np.cos(a))}+y*{num(np.sin(a))}-{num(cut)})" for a in ARM_ANGLES]
+    if not params.fillet_radius:  # a sharp concave corner is a singular point too
+        rc = params.arm_width / np.sqrt(3.0)
+        dists += [f"Sqrt((x-{num(rc * np.cos(a + np.pi / 3))})^2+(y-{num(rc * np.sin(a + np.pi / 3))})^2)"
+                  for a in ARM_ANGLES]
     d = dists[0]
     for e in dists[1:]:
         d = f"Min({d},{e})"

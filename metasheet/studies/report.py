@@ -11,6 +11,7 @@ from collections.abc import Mapping
 
 from ..material import CONSTANT_NAMES
 from .constants_report import constants_section
+from .convergence_report import convergence_section
 from .model_report import model_section
 
 
@@ -75,6 +76,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         pic = [f"![robot]({pictures['robot']})", ""] if "robot" in pictures else []
         lines += ["## Robot, silicone vs foam (reproduces paper Fig. 4 and Fig. 8)", "", *pic, _table(flat), ""]
     section, found = model_section(s.get("robot"), s.get("anisotropy"))
+    lines += section
+    diffs += found
+    section, found = convergence_section(s.get("convergence"), summaries.get("meshes") or {})
     lines += section
     diffs += found
     if "workspace" in s:

@@ -69,7 +69,7 @@ class OrientParams(Params):
     layers: int = Field(0, ge=0, le=16, description="elements through the thickness; 0: gmsh's free mesh")
     grip_size: float = Field(0.0, ge=0, le=50, description="element size at the grip borders (centre circle, "
                              "tip cuts), growing away from them [mm]; 0: uniform")
-    element: Literal["p1", "p2"] = Field("p1", description="the robot's element on the sheets: linear "
+    element: Literal["p1", "p2"] = Field("p2", description="the robot's element on the sheets: linear "
                                          "or quadratic tetrahedra (sheet.vtu stays linear)")
     tip_box: tuple[float, float, float] | None = Field(
         None, description="arm-tip box (along arm, across, z), centred on the arm end [mm];" + _SCENE

@@ -14,6 +14,7 @@ from pydantic import Field
 
 from ...studies.report import build_report
 from ..artefacts import read_cell_design, read_cell_info, read_chart, read_constants, read_material, read_summary
+from ..manifest import read_manifest
 from ..registry import Params, Stage, StageContext, register
 
 STUDIES = ("workspace", "ranges", "anisotropy", "maze")
@@ -49,9 +50,32 @@ def run(ctx: StageContext) -> dict:
         m = read_material(ctx.inputs["material"])
         summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source,
                                  "model": m.model}
+    if "robot" in ctx.inputs and (ctx.inputs["robot"] / "convergence.json").exists():
+        summaries["convergence"] = json.loads((ctx.inputs["robot"] / "convergence.json").read_text())
+        summaries["meshes"] = _robot_meshes(ctx)
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}
+
+
+def _robot_meshes(ctx: StageContext) -> dict:
+    """Stage -> the robot mesh it ran on (element, mesh_size, layers, grip_size): the orient
+    stage's for the robot stage, with each study's own overrides (its manifest's params)."""
+    if "orient" not in ctx.inputs:
+        return {}
+    info = json.loads((ctx.inputs["orient"] / "sheet.json").read_text())
+    g = info.get("geometry", {})
+    base = {"element": info.get("element", "p1"), "mesh_size": g.get("mesh_size"), "layers": g.get("layers", 0),
+            "grip_size": g.get("grip_size", 0.0)}
+    out = {"robot": base}
+    for name in ("workspace", "ranges", "anisotropy", "maze"):
+        if name not in ctx.inputs:
+            continue
+        params = (read_manifest(ctx.inputs[name]) or {}).get("params", {})
+        if params.get("model", "robot") != "robot":
+            continue
+        out[name] = {k: (base[k] if params.get(k) is None else params[k]) for k in base}
+    return out
 
 
 def _cell_shrink(ctx: StageContext) -> float | None:

@@ -1,0 +1,77 @@
+"""Report section: mesh convergence of the robot (``robot/convergence.json``, issue 14).
+
+Shows every mesh level the robot stage measured (P1 and P2, uniform and graded towards the
+grips), each family's extrapolated limit with its fitted order, and for the meshes the
+pipeline actually runs on (the robot stage's, each study's) their errors against the
+reference limit and whether they meet the tolerances (Jacobian 2 %, rod compliance 5 %).
+A study whose mesh was not among the measured levels says so: its accuracy is unknown.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..robot.convergence import TOLERANCES, Level
+
+
+def _label(m: Mapping) -> str:
+    return Level(m["element"], float(m["mesh_size"]), int(m.get("layers", 0)), float(m.get("grip_size", 0.0))).label
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.2f} %"
+
+
+def convergence_section(conv: Mapping | None, meshes: Mapping[str, Mapping]) -> tuple[list[str], list[str]]:
+    """(Markdown lines, differences) of the convergence section.
+
+    conv : ``convergence.json`` (None: no study ran, no section).
+    meshes : stage name -> its robot mesh {element, mesh_size, layers, grip_size}.
+    """
+    if not conv:
+        return [], []
+    ref = conv["reference"]
+    lines = ["## Mesh convergence of the robot (issue 14)", "",
+             f"Figures at the rest equilibrium under gravity (published foam scene of this pipeline); errors "
+             f"against the extrapolated limit of the `{ref}` family ({', '.join(conv['reference_levels'])}); "
+             f"tolerances: Jacobian {_pct(TOLERANCES['jacobian'])}, rod compliance "
+             f"{_pct(TOLERANCES['rod_compliance'])}.", "",
+             "| mesh | tets | dofs | sv max | sv min | rod rotation [deg/deg] | rod compliance [mm/N] | "
+             "gravity sag [mm] | error J | error W_rod |", "|---|---|---|---|---|---|---|---|---|---|"]
+    by_label = {}
+    for row in conv["levels"]:
+        lab = _label(row)
+        by_label[lab] = row
+        e = row["errors"]
+        sv = row["singular_values"]
+        lines.append(f"| {lab} | {row['tets']} | {row['dofs']} | {sv[0]:.3f} | {sv[-1]:.3f} | "
+                     f"{row['rod_rotation_deg_per_deg']:.4f} | {row['rod_compliance_mm_per_N']:.3f} | "
+                     f"{row['gravity_sag_mm']:.4f} | {_pct(e['jacobian'])} | {_pct(e['rod_compliance'])} |")
+    lines += ["", "| family | fitted from | singular values | rod rotation | rod compliance | orders (J, W_rod) |",
+              "|---|---|---|---|---|---|"]
+    for fam, lim in conv["limits"].items():
+        v, o = lim["limits"], lim["fitted_orders"]
+        lines.append(f"| {fam} | {', '.join(lim['from_levels'])} | {np.round(v['singular_values'], 3).tolist()} | "
+                     f"{v['rod_rotation_deg_per_deg']:.4f} | {v['rod_compliance_mm_per_N']:.3f} | "
+                     f"{o['J']:.2f}, {o['rod_compliance_mm_per_N']:.2f} |")
+    lines += ["", "| stage | mesh | error J | error W_rod | within tolerance |", "|---|---|---|---|---|"]
+    diffs = []
+    for stage, mesh in meshes.items():
+        lab = _label(mesh)
+        row = by_label.get(lab)
+        if row is None:
+            lines.append(f"| {stage} | {lab} | not measured | not measured | unknown |")
+            diffs.append(f"{stage}: its mesh ({lab}) is not among the convergence levels: accuracy unknown")
+            continue
+        e = row["errors"]
+        ok = all(e[k] <= t for k, t in TOLERANCES.items())
+        lines.append(f"| {stage} | {lab} | {_pct(e['jacobian'])} | {_pct(e['rod_compliance'])} | "
+                     f"{'yes' if ok else 'no'} |")
+        if not ok:
+            diffs.append(f"{stage} runs on {lab}: Jacobian {_pct(e['jacobian'])}, rod compliance "
+                         f"{_pct(e['rod_compliance'])} from the converged limit (tolerances "
+                         f"{_pct(TOLERANCES['jacobian'])}, {_pct(TOLERANCES['rod_compliance'])}); "
+                         f"a converged mesh costs too much for this study without a reduced model")
+    return lines + [""], diffs
