@@ -1,6 +1,8 @@
 """Robot speed: one inverse control step and the rest equilibrium on the 6-DOF robot.
 
 Run: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_robot.py [--mesh-size 5.0] [--steps 40]
+         [--element p1|p2] [--grip-size 0] (the converged paper mesh: --element p2 --mesh-size 10
+         --grip-size 1; P1 at about its accuracy needs far finer meshes, see bench_convergence.py)
 
 Prints one table (medians, same process, this machine, with the load average) comparing
 peers: SuperLU vs CHOLMOD (when scikit-sparse is installed) for the factorisation and the
@@ -60,6 +62,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh-size", type=float, default=5.0)
     ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--element", choices=("p1", "p2"), default="p1")
+    ap.add_argument("--grip-size", type=float, default=0.0)
     a = ap.parse_args()
     from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
     from metasheet.robot.builder import SheetPair, six_dof_robot
@@ -67,7 +71,8 @@ def main():
     from metasheet.robot.statics import Linearizer, solve_equilibrium
     from metasheet.sheet.geometry import SheetParams
 
-    rob = six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=a.mesh_size)), PAPER_FOAM, density=FOAM_DENSITY)
+    rob = six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=a.mesh_size, grip_size=a.grip_size), a.element),
+                        PAPER_FOAM, density=FOAM_DENSITY)
     solve_equilibrium(rob, rob.coupling.rest_angles)  # numba warm-up
     solvers = ["superlu"] + (["cholmod"] if available("cholmod") else [])
     rows = []
@@ -111,6 +116,8 @@ def main():
                      f"{ctl.refreshes}/{a.steps} fresh {ctl.refresh_reasons}; drift <= {1e3 * drift:.1f} um"))
     # peer: scikit-fem's generic assembly of the linear stiffness of the same mesh (isotropic)
     try:
+        if a.element != "p1":
+            raise ValueError("the peer assembles linear tetrahedra only")
         import skfem
         from skfem.models.elasticity import lame_parameters, linear_elasticity
 
@@ -120,7 +127,7 @@ def main():
         rows.append(("peer: scikit-fem assembly (linear, same mesh)", peer, f"ours/peer = {t_ft / peer:.3f}"))
     except Exception as exc:  # pragma: no cover
         rows.append(("peer: scikit-fem", float("nan"), f"failed: {exc}"))
-    print(f"6-DOF robot: {rob.info['n_tets']} tets ({rob.info['n_tets_per_sheet']} per sheet), "
+    print(f"6-DOF robot ({a.element}, mesh {a.mesh_size:g} mm, grip {a.grip_size:g} mm): {rob.info['n_tets']} tets ({rob.info['n_tets_per_sheet']} per sheet), "
           f"{rob.body.n_nodes} nodes, {3 * len(rob.coupling.free)} free DOFs; BLAS: {_blas()}; "
           f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; solvers: {', '.join(solvers)}")
     print(f"{'case':52s} {'median [ms]':>12s}  notes")

@@ -251,6 +251,12 @@ class Linearization:
         return dq_e, dx_f
 
 
+def slope(lin: Linearization, dq_e, dx_f) -> float:
+    """The reduced residual at ``lin`` projected on the step (dq_e, dx_f): the work [N mm] the
+    residual forces and moments do along it (negative along an exact Newton step)."""
+    return float(dq_e @ lin.res_e + dx_f @ lin.res_f)
+
+
 def apply_step(robot, state: RobotState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> RobotState:
     """New :class:`RobotState` after the increment alpha * (dq_e, dq_a, dx_f)."""
     c = robot.coupling
@@ -389,13 +395,29 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
             # less than an ulp "succeed" on a residual evaluated in another summation order.
             noise = res <= floor
             alpha = 1.0
+            s0 = slope(lin, dq_e, dx_f) if lin.exact and not noise else 0.0
+            lo, hi = 0.0, None
             for _ in range(1 if noise else 12):
                 trial = apply_step(robot, st, dq_e, dx_f, alpha=alpha)
                 f_trial = robot.body.forces(trial.x)
                 new = lz.update(lin, trial, f_trial)
                 if new.residual_norm <= (0.5 if noise else 1.0 - 1e-4 * alpha) * res:
                     break
-                alpha *= 0.5
+                # A thin sheet's exact Newton step can be right along itself while the residual
+                # grows across it (the in-plane pull-in a bending step implies, ~ its square):
+                # backtracking on the norm then creeps a percent per iteration (50-200 iterations
+                # for a sagging silicone sheet). Accept it when the force along the step has
+                # dropped (Crisfield's line search on s = step . residual) and the next Newton
+                # step, with a fresh tangent, takes the in-plane part.
+                if s0 < 0:
+                    s_a = slope(new, dq_e, dx_f)
+                    if abs(s_a) <= 0.5 * abs(s0) and new.residual_norm <= 1e3 * res:
+                        break
+                    if s_a > 0:  # past the zero of s: bisect the bracket [lo, hi] around it
+                        hi = alpha
+                    elif hi is not None:
+                        lo = alpha
+                alpha = 0.5 * (lo + hi) if hi is not None else 0.5 * alpha
             else:
                 if not lin.fresh:  # a stale tangent may give a poor direction: refresh, retry
                     lin = lz.linearize(st)
