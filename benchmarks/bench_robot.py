@@ -43,7 +43,7 @@ def _control_run(rob, rest, steps, **kw):
     """A moving goal (small circle + twist): every step does real work. Returns times, drift, ctl."""
     from metasheet.robot.inverse import InverseController, InverseSettings
     from metasheet.rotations import rotation_matrix
-    from metasheet.robot.statics import solve_equilibrium
+    from metasheet.robot.equilibrium import solve_equilibrium
 
     ctl = InverseController(rob, rest, InverseSettings(max_step_deg=2.0, **kw))
     ts, drift = [], []
@@ -68,7 +68,8 @@ def main():
     from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
     from metasheet.robot.builder import SheetPair, six_dof_robot
     from metasheet.fem.solvers import available
-    from metasheet.robot.statics import Linearizer, solve_equilibrium
+    from metasheet.robot.statics import Linearizer
+    from metasheet.robot.equilibrium import solve_equilibrium
     from metasheet.sheet.geometry import SheetParams
 
     rob = six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=a.mesh_size, grip_size=a.grip_size), a.element),

@@ -8,7 +8,7 @@ from metasheet.material import Isotropic
 from metasheet.robot.robots import grip_centre, ServoGeometry, tripod
 from metasheet.robot.kinematics import kinematics_at
 from metasheet.rotations import rotation_matrix, rotation_vector
-from metasheet.robot.statics import solve_equilibrium
+from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet
 
 

@@ -12,7 +12,7 @@ from metasheet.robot.robots import tripod
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.qp import solve_step_qp
 from metasheet.rotations import rotation_vector
-from metasheet.robot.statics import solve_equilibrium
+from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet
 
 

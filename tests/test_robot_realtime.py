@@ -17,7 +17,8 @@ from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.kinematics import kinematics
 from metasheet.fem.solvers import SparseSolver, available, resolve
 from metasheet.rotations import rotation_matrix, rotation_vector
-from metasheet.robot.statics import Linearizer, solve_equilibrium
+from metasheet.robot.statics import Linearizer
+from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet
 
 # CHOLMOD needs a system library (apt): these run in .ci/run's second phase (``-m system``)

@@ -11,12 +11,8 @@ import pytest
 from metasheet import paper
 from metasheet.errors import ConvergenceError
 from metasheet.robot.builder import SheetPair, six_dof_robot
-from metasheet.robot.statics import (
-    Linearization,
-    RobotState,
-    residual_floor,
-    solve_equilibrium,
-)
+from metasheet.robot.equilibrium import residual_floor, solve_equilibrium
+from metasheet.robot.statics import Linearization, RobotState
 from metasheet.sheet.geometry import SheetParams
 
 MOVE_DEG = np.array([3.0, -2.0, 4.0, 1.0, -3.0, 2.0])  # a few degrees on each motor

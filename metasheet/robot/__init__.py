@@ -12,7 +12,7 @@ _PUBLIC = {
     "RigidCoupling": "rigid", "Servo": "rigid",
     "Robot": "robots", "ServoGeometry": "robots", "tripod": "robots", "six_dof": "robots",
     "SheetPair": "builder", "six_dof_robot": "builder",
-    "RobotState": "statics", "Equilibrium": "statics", "Linearizer": "statics", "solve_equilibrium": "statics",
+    "RobotState": "statics", "Equilibrium": "equilibrium", "Linearizer": "statics", "solve_equilibrium": "equilibrium",
     "Kinematics": "kinematics", "kinematics": "kinematics",
     "InverseController": "inverse", "InverseSettings": "inverse", "InverseResult": "inverse",
     "QPStep": "qp", "solve_step_qp": "qp", "TangentCache": "tangent",

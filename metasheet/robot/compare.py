@@ -17,7 +17,8 @@ import numpy as np
 from ..rotations import rotation_vector
 from .kinematics import Kinematics, kinematics
 from .robots import Robot
-from .statics import RobotState, solve_equilibrium
+from .statics import RobotState
+from .equilibrium import solve_equilibrium
 
 
 @dataclass(frozen=True)

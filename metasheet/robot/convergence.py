@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .kinematics import kinematics
-from .statics import solve_equilibrium
+from .equilibrium import solve_equilibrium
 
 #: figures extrapolated per level (scalar, or the vector of singular values)
 FIGURES = ("singular_values", "rod_rotation_deg_per_deg", "rod_compliance_mm_per_N", "gravity_sag_mm")

@@ -43,7 +43,7 @@ returned, never an exception), or "max_steps".
 
 The reported pose is always an equilibrium at the final motor angles within a stated
 residual tolerance: the reduced residual (the norm of :attr:`.statics.Linearization.
-residual_norm`) at most ``eq_tol`` times the force scale of :func:`.statics.force_scale`.
+residual_norm`) at most ``eq_tol`` times the force scale of :func:`.equilibrium.force_scale`.
 :meth:`InverseController.certify` gets there with the loop's own kept tangent: chord
 (modified-Newton) corrections at fixed motor angles, each judged on the true residual, at
 most ``polish_iters`` of them (a few ms each), and only when they fail with the full Newton
@@ -76,7 +76,8 @@ from ..fem.solvers import resolve
 from ..rotations import rotation_matrix, rotation_vector
 from .qp import SOLVERS as QP_SOLVERS
 from .qp import QPStep, pose_error, solve_step_qp, weighted_norm
-from .statics import Linearizer, RobotState, apply_step, force_scale, solve_equilibrium
+from .statics import Linearizer, RobotState, apply_step
+from .equilibrium import force_scale, solve_equilibrium
 from .tangent import TangentCache
 
 
@@ -294,7 +295,7 @@ class InverseController:
         Corrections at fixed motor angles on the loop's own linearisation, each judged on the
         true residual: a kept tangent while each step cuts the residual by ``polish_rate``, a
         fresh one (a Newton step) when it does not; the full Newton solve with line search
-        (:func:`.statics.solve_equilibrium`, from the current state or, failing that,
+        (:func:`.equilibrium.solve_equilibrium`, from the current state or, failing that,
         ``start``) only when even a fresh step does not contract, or after ``polish_iters``.
         Returns (state, residual [N], force scale [N], "chord" | "newton").
         """

@@ -10,7 +10,7 @@ brackets, from :class:`.inverse.InverseSettings`)
 * "age": it is ``refactor_every`` steps old [20];
 * "angle": a motor moved more than ``refresh_angle_deg`` from where it was taken [8 deg];
 * "residual": the reduced residual exceeds ``chord_tol`` times the force scale [1.0]
-  (:func:`.statics.force_scale`; divergence guard);
+  (:func:`.equilibrium.force_scale`; divergence guard);
 * "drift": the pending equilibrium correction of the effector, ``dq_e^0`` [mm, rotations
   weighted by ``rot_weight``], exceeds ``drift_tol * pos_tol`` [0.5 * 0.1 mm];
 
@@ -33,7 +33,8 @@ import numpy as np
 
 from .kinematics import jacobian_from_schur
 from .qp import weighted_norm
-from .statics import Linearization, Linearizer, RobotState, force_scale
+from .statics import Linearization, Linearizer, RobotState
+from .equilibrium import force_scale
 
 OWN_STATES = 16  # states a loop remembers as its own (continuation without a refresh)
 REASONS = ("age", "angle", "residual", "drift")  # why a kept tangent is dropped, in test order

@@ -215,7 +215,7 @@ class FemRobot:
         return ReachResult(ok, pose, np.degrees(st.angles), e_mm, e_deg, int(steps), st, converged)
 
     def equilibrium(self, motors_deg, *, state=None):
-        from ..robot.statics import solve_equilibrium
+        from ..robot.equilibrium import solve_equilibrium
 
         eq = solve_equilibrium(self.robot, np.radians(np.asarray(motors_deg, float)),
                                state=self.rest if state is None else state, linearizer=self.lz)

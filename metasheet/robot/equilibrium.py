@@ -1,0 +1,228 @@
+"""Static equilibrium of the coupled robot (paper eq. 1) by Newton's method with line search.
+
+Each Newton step is the linearisation's (:class:`.statics.Linearization`); the line search
+backtracks on the reduced residual's norm, or accepts a step along which the residual's
+projection has dropped (:func:`slope`); motor motions are taken in increments, halved when
+one fails; the solve stops at the residual's round-off floor (:func:`residual_floor`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, ConvergenceError
+from .statics import Linearization, RobotState, apply_step
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """Result of :func:`solve_equilibrium`.
+
+    Attributes
+    ----------
+    state : the converged :class:`RobotState`.
+    iterations : Newton iterations in all.
+    residuals : reduced residual norm [N] before each iteration and at the end.
+    reference : force scale the relative tolerance refers to [N].
+    time : wall time [s].
+    floor : round-off floor [N] of the reduced residual at ``state`` (:func:`residual_floor`).
+    at_floor : True when ``tol`` asked for less than round-off allows and the solve stopped
+        where Newton stalls, at a residual ``residuals[-1] <= floor``, instead of at
+        ``tol * reference``; False when the tolerance itself was met.
+    """
+
+    state: RobotState
+    iterations: int
+    residuals: tuple
+    reference: float
+    time: float
+    floor: float = 0.0
+    at_floor: bool = False
+
+    @property
+    def residual(self) -> float:
+        """The achieved reduced residual norm [N] (``residuals[-1]``)."""
+        return float(self.residuals[-1])
+
+
+
+
+def slope(lin: Linearization, dq_e, dx_f) -> float:
+    """The reduced residual at ``lin`` projected on the step (dq_e, dx_f): the work [N mm] the
+    residual forces and moments do along it (negative along an exact Newton step)."""
+    return float(dq_e @ lin.res_e + dx_f @ lin.res_f)
+
+
+
+
+def force_scale(robot, lin: Linearization) -> float:
+    """Force scale [N] the equilibrium tolerances are relative to: the norm of the forces on
+    the rigid nodes plus that of the external loads (gravity) at ``lin``'s state."""
+    f = lin.r + robot.f_ext
+    return float(np.linalg.norm(f[robot.coupling.rigid_nodes]) + np.linalg.norm(robot.f_ext))
+
+
+def residual_floor(robot, lin: Linearization) -> float:
+    """Round-off floor [N] of the reduced residual norm (:attr:`Linearization.residual_norm`)
+    at ``lin``'s state: no residual below it can be told from zero, and Newton stalls there.
+
+    Each entry of the internal force carries an error of order ``eps |K_e| |x|``: the element
+    force ``R K_e (R^T x_e - X_e)`` (:mod:`.kernels`; at a quadrature point, the strain from
+    ``F = sum_a x_a g_a^T``) cancels positions of size ``|x|`` [mm] down to a displacement,
+    and the positions themselves are only known to ``eps |x|``. It is not ``eps`` times the
+    forces: at the light foam robot's equilibria (nodal forces <= 0.64 N) the residual stalls
+    at 2e-12 N, and one-ulp changes of the free positions move it by 5e-12 N, a thousand times
+    ``eps |f|_max sqrt(dofs)`` = 6e-15 N. With the body's per-entry bound
+    ``delta = 10 eps |K_e|_max max|x|`` (``|K_e|_max`` the body's ``stiffness_scale``; as
+    :attr:`~.body.ElasticBody.force_floor`, but at the current positions) and errors summing
+    in quadrature, the reduced residual ``[J_e^T r ; r_f]`` has 3 n_f free entries, 3 n_e in
+    the effector's force sum and 3 n_e in its moment divided by ``moment_scale`` (the rms
+    lever arm, so these count about once each):
+
+        floor = delta sqrt(3 n_f + 6 n_e) + eps (sum_i |r_i| + sum_i |a_i| |r_i| / L)
+
+    the last term the round-off of summing the effector nodes' (large, cancelling) forces
+    r_i and moments about the reference point, a_i = x_i - p, L = ``moment_scale`` [mm].
+    On the foam robot this is 9e-11 N, some 40 times the stall level measured above.
+    """
+    c = robot.coupling
+    eps = np.finfo(float).eps
+    body = robot.body
+    k = getattr(body, "stiffness_scale", None)  # [N/mm]; P1-only bodies carry K_e instead
+    k = float(np.abs(body.Ke).max()) if k is None else float(k)
+    delta = 10 * eps * k * float(np.abs(lin.state.x).max())  # [N]
+    e = c.effector_nodes
+    r_e = np.linalg.norm(lin.r[e], axis=1)  # [N]
+    a_e = np.linalg.norm(lin.state.x[e] - lin.state.p, axis=1)  # [mm]
+    summed = eps * float(r_e.sum() + (a_e * r_e).sum() / lin.moment_scale)
+    return float(delta * np.sqrt(3 * len(c.free) + 6 * len(e)) + summed)
+
+
+def solve_equilibrium(robot, angles, *, state=None, max_angle_step: float = np.radians(10.0),
+                      max_cuts: int = 3, **kw) -> Equilibrium:
+    """Static equilibrium at motor ``angles`` (na,) [rad] (:func:`solve_increments`); when an
+    increment fails, the solve starts again from ``state`` with increments half as large, up
+    to ``max_cuts`` times (a large motion whose Newton path crosses a snap of the sheets
+    converges in smaller steps), then raises the last :class:`ConvergenceError`."""
+    for cut in range(max_cuts + 1):
+        try:
+            return solve_increments(robot, angles, state=state, max_angle_step=max_angle_step / 2**cut, **kw)
+        except ConvergenceError:
+            if cut == max_cuts:
+                raise
+
+
+def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: int = 50,
+                     max_angle_step: float = np.radians(10.0), reuse_ratio: float = 0.25,
+                     linearizer=None) -> Equilibrium:
+    """Static equilibrium (eq. 1) at motor ``angles`` (na,) [rad] by Newton + line search.
+
+    Starts from ``state`` (default: the rest state) and moves the motors in increments of at
+    most ``max_angle_step`` [rad]; each increment begins with the linearised predictor (the
+    motors and the rest of the robot move together) and is then corrected by Newton with a
+    backtracking line search on the residual norm. The tangent (and the LU of K_ff) is kept
+    while each step cuts the residual by at least ``reuse_ratio`` (a chord step costs one
+    force evaluation and one solve) and recomputed otherwise; ``reuse_ratio = 0`` gives plain
+    Newton. Converged when the reduced residual is below ``tol`` times the force scale
+    (forces on the rigid nodes plus the external loads); when that scale is itself below the
+    residual's round-off floor (:func:`residual_floor`; no loads, no motion), below the floor:
+    an unloaded rest state is an equilibrium as it stands, whatever BLAS evaluated its forces.
+    The test is on the true residual, whatever tangent was used.
+
+    A ``tol`` below round-off cannot be met: once the residual is below the floor, Newton
+    goes on only while a full step (with a fresh tangent) halves it, which real progress does
+    and steps in round-off do not; then, or when ``max_iter`` runs out below the floor, the
+    solve has converged as far as it can and returns with ``at_floor`` set and the achieved
+    residual in ``residuals[-1]`` (as :func:`.dirichlet.solve_static` stops at its floor).
+
+    Raises :class:`ConvergenceError` (with the residual history) when an increment fails
+    above the floor.
+    """
+    target = np.asarray(angles, dtype=float).reshape(-1)
+    if target.shape != (robot.coupling.n_act,):
+        raise ConfigError(f"angles: shape {target.shape}: expected ({robot.coupling.n_act},) [rad]")
+    if tol <= 0 or max_iter < 1:
+        raise ConfigError(f"tol: {tol!r}, max_iter: {max_iter!r}: need tol > 0, max_iter >= 1")
+    check_reuse = float(reuse_ratio)
+    if not 0.0 <= check_reuse < 1.0:
+        raise ConfigError(f"reuse_ratio: {reuse_ratio!r}: allowed range [0, 1)")
+    t0 = time.perf_counter()
+    lz = linearizer or robot.linearizer()
+    st = state if state is not None else robot.rest_state()
+    jump = target - st.angles
+    n_inc = max(1, int(np.ceil(np.max(np.abs(jump), initial=0.0) / max_angle_step - 1e-12)))
+    history, iters, ref, floor = [], 0, 0.0, 0.0
+    for inc in range(n_inc):
+        dq_a = jump / n_inc if np.any(jump) else None
+        lin = lz.linearize(st)
+        at_floor = False
+        for it in range(max_iter + 1):
+            res = lin.residual_norm
+            ref = max(force_scale(robot, lin), 1e-300)
+            floor = residual_floor(robot, lin)
+            history.append(res)
+            unloaded = ref <= floor  # the force scale itself is round-off: nothing to resolve
+            if dq_a is None and (res <= tol * ref or res < 1e-13 * max(ref, 1.0) or (unloaded and res <= floor)):
+                break
+            if it == max_iter:
+                if dq_a is None and res <= floor:  # steps that only shuffle round-off: done
+                    at_floor = True
+                    break
+                raise ConvergenceError(
+                    f"statics: no convergence in {max_iter} Newton iterations (increment {inc + 1}/"
+                    f"{n_inc}); residual {res:.3e} N > {tol:g} x {ref:.3e} N", history)
+            dq_e, dx_f = lin.newton_step(dq_a)
+            iters += 1
+            if dq_a is not None:  # predictor: move the motors with the linearised response
+                st = apply_step(robot, st, dq_e, dx_f, dq_a)
+                dq_a = None
+                lin = lz.linearize(st)
+                continue
+            # Below the floor a step counts only when it is plainly more than noise: the full
+            # step must halve the residual. Backtracking there would chase round-off: steps of
+            # less than an ulp "succeed" on a residual evaluated in another summation order.
+            noise = res <= floor
+            alpha = 1.0
+            s0 = slope(lin, dq_e, dx_f) if lin.exact and not noise else 0.0
+            lo, hi = 0.0, None
+            for _ in range(1 if noise else 12):
+                trial = apply_step(robot, st, dq_e, dx_f, alpha=alpha)
+                f_trial = robot.body.forces(trial.x)
+                new = lz.update(lin, trial, f_trial)
+                if new.residual_norm <= (0.5 if noise else 1.0 - 1e-4 * alpha) * res:
+                    break
+                # A thin sheet's exact Newton step can be right along itself while the residual
+                # grows across it (the in-plane pull-in a bending step implies, ~ its square):
+                # backtracking on the norm then creeps a percent per iteration (50-200 iterations
+                # for a sagging silicone sheet). Accept it when the force along the step has
+                # dropped (Crisfield's line search on s = step . residual) and the next Newton
+                # step, with a fresh tangent, takes the in-plane part.
+                if s0 < 0:
+                    s_a = slope(new, dq_e, dx_f)
+                    if abs(s_a) <= 0.5 * abs(s0) and new.residual_norm <= 1e3 * res:
+                        break
+                    if s_a > 0:  # past the zero of s: bisect the bracket [lo, hi] around it
+                        hi = alpha
+                    elif hi is not None:
+                        lo = alpha
+                alpha = 0.5 * (lo + hi) if hi is not None else 0.5 * alpha
+            else:
+                if not lin.fresh:  # a stale tangent may give a poor direction: refresh, retry
+                    lin = lz.linearize(st)
+                    history.pop()
+                    continue
+                if noise:  # Newton has stalled in round-off: done, on the better of the two states
+                    if new.residual_norm < res:
+                        st = trial
+                        history.append(new.residual_norm)
+                    at_floor = True
+                    break
+                raise ConvergenceError(
+                    f"statics: line search failed at residual {res:.3e} N, above the round-off "
+                    f"floor {floor:.3e} N (increment {inc + 1}/{n_inc})", history)
+            st = trial
+            lin = new if new.residual_norm <= reuse_ratio * res else lz.linearize(st)
+    return Equilibrium(st, iters, tuple(history), ref, time.perf_counter() - t0, floor, at_floor)
