@@ -34,9 +34,11 @@ def convergence_section(conv: Mapping | None, meshes: Mapping[str, Mapping]) -> 
         return [], []
     ref = conv["reference"]
     lines = ["## Mesh convergence of the robot (issue 14)", "",
-             f"Figures at the rest equilibrium under gravity (published foam scene of this pipeline); errors "
-             f"against the extrapolated limit of the `{ref}` family ({', '.join(conv['reference_levels'])}); "
-             f"tolerances: Jacobian {_pct(TOLERANCES['jacobian'])}, rod compliance "
+             f"The foam robot of this pipeline (its constants and scene) at the rest equilibrium under "
+             f"gravity, on each mesh. Errors against the extrapolated limit of the `{ref}` family "
+             f"({', '.join(conv['reference_levels'])}; fit q = q_inf + c h^p, p >= 1, its scatter in "
+             f"convergence.json: a limit fitted to coarse levels is indicative only); tolerances: Jacobian "
+             f"{_pct(TOLERANCES['jacobian'])} (relative Frobenius), rod compliance "
              f"{_pct(TOLERANCES['rod_compliance'])}.", "",
              "| mesh | tets | dofs | sv max | sv min | rod rotation [deg/deg] | rod compliance [mm/N] | "
              "gravity sag [mm] | error J | error W_rod |", "|---|---|---|---|---|---|---|---|---|---|"]
