@@ -240,14 +240,11 @@ class ElasticBody:
 
     def deformation_gradients(self, x) -> np.ndarray:
         """(m, nq, 3, 3) deformation gradients at the quadrature points for positions ``x`` (n, 3) [mm]."""
-        x = self.check_positions(x)
-        return np.einsum("mai,mqaj->mqij", x[self.tets], self.quad_grads)
+        return quadrature.deformation_gradients(self.check_positions(x), self.tets, self.quad_grads)
 
     def max_principal_strain(self, x) -> np.ndarray:
         """(m,) largest principal Green-Lagrange strain [-] over each element's quadrature points."""
-        F = self.deformation_gradients(x)
-        E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
-        return np.linalg.eigvalsh(E)[..., -1].max(axis=1)
+        return quadrature.max_principal_green_strain(self.check_positions(x), self.tets, self.quad_grads)
 
     def stresses(self, x) -> np.ndarray:
         """(m, 6) element stresses [MPa], Voigt in global axes: ``R C (S - I) R^T`` (corotated).
