@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
-from .statics import Linearization, RobotState, apply_step
+from .statics import Linearization, RobotState
 
 
 @dataclass(frozen=True)
@@ -151,7 +151,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
         raise ConfigError(f"reuse_ratio: {reuse_ratio!r}: allowed range [0, 1)")
     t0 = time.perf_counter()
     lz = linearizer or robot.linearizer()
-    st = state if state is not None else robot.rest_state()
+    st = state if state is not None else lz.robot.rest_state()
     jump = target - st.angles
     n_inc = max(1, int(np.ceil(np.max(np.abs(jump), initial=0.0) / max_angle_step - 1e-12)))
     history, iters, ref, floor = [], 0, 0.0, 0.0
@@ -161,8 +161,8 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
         at_floor = False
         for it in range(max_iter + 1):
             res = lin.residual_norm
-            ref = max(force_scale(robot, lin), 1e-300)
-            floor = residual_floor(robot, lin)
+            ref = max(lz.force_scale(lin), 1e-300)
+            floor = lz.residual_floor(lin)
             history.append(res)
             unloaded = ref <= floor  # the force scale itself is round-off: nothing to resolve
             if dq_a is None and (res <= tol * ref or res < 1e-13 * max(ref, 1.0) or (unloaded and res <= floor)):
@@ -177,7 +177,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
             dq_e, dx_f = lin.newton_step(dq_a)
             iters += 1
             if dq_a is not None:  # predictor: move the motors with the linearised response
-                st = apply_step(robot, st, dq_e, dx_f, dq_a)
+                st = lz.apply(st, dq_e, dx_f, dq_a)
                 dq_a = None
                 lin = lz.linearize(st)
                 continue
@@ -189,9 +189,8 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
             s0 = slope(lin, dq_e, dx_f) if lin.exact and not noise else 0.0
             lo, hi = 0.0, None
             for _ in range(1 if noise else 12):
-                trial = apply_step(robot, st, dq_e, dx_f, alpha=alpha)
-                f_trial = robot.body.forces(trial.x)
-                new = lz.update(lin, trial, f_trial)
+                trial = lz.apply(st, dq_e, dx_f, alpha=alpha)
+                new = lz.update(lin, trial)
                 if new.residual_norm <= (0.5 if noise else 1.0 - 1e-4 * alpha) * res:
                     break
                 # A thin sheet's exact Newton step can be right along itself while the residual

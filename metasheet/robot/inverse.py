@@ -76,8 +76,8 @@ from ..fem.solvers import resolve
 from ..rotations import rotation_matrix, rotation_vector
 from .qp import SOLVERS as QP_SOLVERS
 from .qp import QPStep, pose_error, solve_step_qp, weighted_norm
-from .statics import Linearizer, RobotState, apply_step
-from .equilibrium import force_scale, solve_equilibrium
+from .statics import Linearizer, RobotState
+from .equilibrium import solve_equilibrium
 from .tangent import TangentCache
 
 
@@ -209,7 +209,7 @@ class InverseController:
     def __init__(self, robot, state: RobotState | None = None, settings: InverseSettings = InverseSettings()):
         self.robot = robot
         self.settings = settings
-        self.tangent = TangentCache(Linearizer(robot, solver=settings.linear_solver))
+        self.tangent = TangentCache(robot.linearizer(settings.linear_solver))
         self.state = state if state is not None else solve_equilibrium(
             robot, robot.coupling.rest_angles, linearizer=self.linearizer).state
         self.n_steps = 0
@@ -248,8 +248,8 @@ class InverseController:
         evaluated at every step, never assumed (:meth:`.tangent.TangentCache.linearization`).
         """
         s = self._settings(settings)
-        if resolve(s.linear_solver) != self.linearizer.solver_name:  # another sparse solver asked for
-            self.tangent.use(Linearizer(self.robot, solver=s.linear_solver))
+        if not self.linearizer.uses(s.linear_solver):  # another sparse solver asked for
+            self.tangent.use(self.robot.linearizer(s.linear_solver))
         return self.tangent.linearization(self.state, s)
 
     def refresh(self, state: RobotState | None = None):
@@ -282,7 +282,7 @@ class InverseController:
         e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
         qp = solve_step_qp(self.tangent.J, e - dq_e0, self.state.angles, rob.angle_min, rob.angle_max, s)
         dq_e, dx_f = lin.newton_step(qp.dq)
-        self._produce(apply_step(rob, self.state, dq_e, dx_f, qp.dq))
+        self._produce(self.linearizer.apply(self.state, dq_e, dx_f, qp.dq))
         self.n_steps += 1
         self.total_steps += 1
         return StepInfo(qp.dq, lin.residual_norm, weighted_norm(e, s.rot_weight), qp.ok,
@@ -303,7 +303,7 @@ class InverseController:
         prev, fresh_step = np.inf, False
         for _ in range(s.polish_iters + 1):
             lin = self.linearization(s)
-            res, ref = lin.residual_norm, max(force_scale(rob, lin), 1e-300)
+            res, ref = lin.residual_norm, max(self.linearizer.force_scale(lin), 1e-300)
             if res <= s.eq_tol * ref:
                 self.certified["chord"] += 1
                 return self.state, res, ref, "chord"
@@ -315,7 +315,7 @@ class InverseController:
                     lin = self.linearization(s)
             prev, fresh_step = res, lin.fresh
             dq_e, dx_f = lin.newton_step(None)
-            self._produce(apply_step(rob, self.state, dq_e, dx_f))
+            self._produce(self.linearizer.apply(self.state, dq_e, dx_f))
         self.tangent.drop()
         # the line search's tangent is kept on the same terms as the polish's (polish_rate)
         kw = dict(tol=s.eq_tol, linearizer=self.linearizer, reuse_ratio=s.polish_rate)

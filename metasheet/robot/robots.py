@@ -143,11 +143,12 @@ class Robot:
         c = self.coupling
         return RobotState(c.origin.copy(), np.eye(3), c.rest_angles.copy(), c.rest.copy())
 
-    def linearizer(self):
-        """A fresh :class:`metasheet.robot.statics.Linearizer` for this robot."""
+    def linearizer(self, solver: str = "superlu"):
+        """A fresh :class:`metasheet.robot.statics.Linearizer` for this robot (``solver``: its
+        sparse solver, :data:`metasheet.fem.solvers.FACTOR_SOLVERS`)."""
         from .statics import Linearizer
 
-        return Linearizer(self)
+        return Linearizer(self, solver=solver)
 
 
 def _rotate_local(C, Q) -> np.ndarray:

@@ -80,6 +80,29 @@ class Linearizer:
         """The current factor of K_ff (kept for callers of the SuperLU-only version)."""
         return self.factor
 
+    def uses(self, solver: str) -> bool:
+        """Whether this linearizer factorises with ``solver`` (a name :func:`~metasheet.fem.solvers.resolve` knows)."""
+        from ..fem.solvers import resolve
+
+        return resolve(solver) == self.solver_name
+
+    # -- the model interface the solvers use (a reduced model's linearizer has the same) -----
+    def apply(self, state: RobotState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> RobotState:
+        """The state after the increment (:func:`apply_step`)."""
+        return apply_step(self.robot, state, dq_e, dx_f, dq_a, alpha)
+
+    def force_scale(self, lin: "Linearization") -> float:
+        """Force scale [N] of the equilibrium tolerances (:func:`.equilibrium.force_scale`)."""
+        from .equilibrium import force_scale
+
+        return force_scale(self.robot, lin)
+
+    def residual_floor(self, lin: "Linearization") -> float:
+        """Round-off floor [N] of the residual norm (:func:`.equilibrium.residual_floor`)."""
+        from .equilibrium import residual_floor
+
+        return residual_floor(self.robot, lin)
+
     def _blocks(self, K):
         if self._maps is None or K.nnz != self._pattern[0] or not np.array_equal(K.indptr, self._pattern[1]):
             r, f = self.dof_r, self.dof_f

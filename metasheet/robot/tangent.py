@@ -34,7 +34,6 @@ import numpy as np
 from .kinematics import jacobian_from_schur
 from .qp import weighted_norm
 from .statics import Linearization, Linearizer, RobotState
-from .equilibrium import force_scale
 
 OWN_STATES = 16  # states a loop remembers as its own (continuation without a refresh)
 REASONS = ("age", "angle", "residual", "drift")  # why a kept tangent is dropped, in test order
@@ -104,7 +103,7 @@ class TangentCache:
             return "age"
         if np.max(np.abs(state.angles - self.angles), initial=0.0) > np.radians(s.refresh_angle_deg):
             return "angle"
-        if lin.residual_norm > s.chord_tol * max(force_scale(self.linearizer.robot, lin), 1e-300):
+        if lin.residual_norm > s.chord_tol * max(self.linearizer.force_scale(lin), 1e-300):
             return "residual"
         if weighted_norm(lin.newton_step(None)[0], s.rot_weight) > s.drift_tol * s.pos_tol:
             return "drift"

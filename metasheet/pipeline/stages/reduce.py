@@ -1,0 +1,144 @@
+"""Stage ``reduce``: the reduced-order robot (issue 16), trained and certified against the full one.
+
+Builds the study robot (:func:`._studies.build_spec`: the orient stage's mesh and element,
+the robot stage's scene, the material stage's constants), solves full-model equilibria at
+motor angles spread over the training box (through the executor: a local pool or
+``--scheduler`` on dask; resumable), trains the basis and the element sample by their error
+targets (:mod:`metasheet.robot.rom_training`) and certifies the result on held-out angles
+(:mod:`metasheet.robot.rom_certificate`). Writes
+
+* ``basis.npz``: the basis, the sampled elements and weights, the training box, the robot's key;
+* ``reduce.json``: sizes, targets, training record and the certificate (worst and p95 of the
+  position, orientation, Jacobian and inverse-model errors), and the rows of the held-out set.
+
+Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydantic import Field
+
+from ...errors import ConfigError, ConvergenceError
+from ...robot.rom_certificate import TARGETS, compare, held_out_angles, summarize
+from ..manifest import write_json_atomic
+from ..registry import Stage, StageContext, register
+from ._studies import StudyRobotParams, build_spec, drop_cache, unit_cache
+
+
+class ReduceParams(StudyRobotParams):
+    snapshots: int = Field(48, ge=4, le=2000, description="training equilibria (Sobol points in the box, "
+                           "plus its all-low and all-high corners)")
+    box_deg: float | None = Field(None, gt=0, le=180, description="training box: the rest angles +- this [deg], "
+                                  "cut to the motor range; None: the whole motor range")
+    basis_tol_mm: float = Field(0.01, gt=0, le=10, description="POD target: worst nodal projection error of the "
+                                "training snapshots [mm]")
+    ecsw_tol: float = Field(1e-3, gt=0, lt=1, description="first ECSW relative force tolerance (tightened by 4 "
+                            "until fit_tol_mm is met)")
+    fit_tol_mm: float = Field(0.02, gt=0, le=10, description="the reduced model must reproduce the training "
+                              "equilibria within this [mm]")
+    held_out: int = Field(16, ge=0, le=1000, description="certificate poses (Sobol, another seed) besides the "
+                          "two mixed corners")
+    seed: int = Field(0, ge=0, description="Sobol scrambling seed of the training set (held-out: seed + 1)")
+
+
+def _snapshot(unit):
+    """Work unit: the full model's equilibrium at motor angles [rad] from rest, compactly, or None."""
+    from ...studies.model import MODELS
+
+    spec, angles = unit
+    fem = MODELS.get(spec)
+    try:
+        st = solve_from_rest(fem, np.asarray(angles))
+    except ConvergenceError:
+        return None
+    c = fem.robot.coupling
+    return st.p, st.R, st.angles, (st.x[c.free] - c.rest[c.free]).ravel()
+
+
+def solve_from_rest(fem, angles):
+    from ...robot.equilibrium import solve_equilibrium
+
+    return solve_equilibrium(fem.robot, angles, state=fem.rest, linearizer=fem.lz).state
+
+
+def _states(fem, rows):
+    """Full :class:`RobotState` s from the units' compact results (failures skipped)."""
+    from ...robot.statics import RobotState
+
+    c = fem.robot.coupling
+    out = []
+    for r in rows:
+        if r is not None:
+            p, R, ang, u = r
+            out.append(RobotState(p, R, ang, c.positions(p, R, ang, c.rest[c.free] + u.reshape(-1, 3))))
+    return out
+
+
+def training_box(robot, box_deg: float | None):
+    """(lo, hi) (na,) [rad]: the motor range, or the rest angles +- ``box_deg`` inside it."""
+    lo, hi = robot.angle_min, robot.angle_max
+    if box_deg is None:
+        return lo.copy(), hi.copy()
+    th0 = robot.coupling.rest_angles
+    return np.maximum(lo, th0 - np.radians(box_deg)), np.minimum(hi, th0 + np.radians(box_deg))
+
+
+def run(ctx: StageContext) -> dict:
+    from ...robot.reduced import ReducedRobot
+    from ...robot.rom_training import motor_design, train
+
+    p: ReduceParams = ctx.params
+    if p.model != "robot":
+        raise ConfigError(f"reduce.model: {p.model!r}: the reduced model is of the FEM robot: use 'robot'")
+    spec = build_spec(ctx)
+    fem = spec.build()
+    rob = fem.robot
+    lo, hi = training_box(rob, p.box_deg)
+    cache = unit_cache(ctx)
+    t0 = time.perf_counter()
+    angles = motor_design(lo, hi, p.snapshots, p.seed)
+    ctx.progress("training equilibria (full model)", 0, 3)
+    rows = cache.map(ctx.executor, _snapshot, [(spec, a) for a in angles],
+                     progress=lambda d, n: ctx.progress("training equilibria (full model)", d, n))
+    snaps = _states(fem, rows)
+    if len(snaps) < max(4, len(angles) // 2):
+        raise ConvergenceError(f"reduce: only {len(snaps)} of {len(angles)} training equilibria converged")
+    ctx.timings["snapshots"] = time.perf_counter() - t0
+    ctx.progress("basis and element sample", 1, 3)
+    t1 = time.perf_counter()
+    basis = train(rob, snaps, fem.rest, basis_tol_mm=p.basis_tol_mm, ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm,
+                  box=(lo, hi))
+    ctx.timings["training"] = time.perf_counter() - t1
+    red = ReducedRobot(rob, basis)
+    ctx.progress("certificate (held-out poses)", 2, 3)
+    t2 = time.perf_counter()
+    held_rows = cache.map(ctx.executor, _snapshot, [(spec, a) for a in held_out_angles(lo, hi, p.held_out, p.seed + 1)],
+                          progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
+    held = _states(fem, held_rows)
+    rl, fl = red.linearizer(), rob.linearizer()
+    comps = [compare(rob, s, red, rl, fl) for s in held]
+    cert = summarize(comps)
+    cert["held_out_failed_full"] = int(sum(r is None for r in held_rows))
+    ctx.timings["certificate"] = time.perf_counter() - t2
+    basis.save(ctx.path("basis.npz"))
+    info = {k: v for k, v in basis.info.items() if k != "seconds"}
+    out = {"box_deg": [np.degrees(lo).round(4).tolist(), np.degrees(hi).round(4).tolist()],
+           "k": basis.k, "elements": int(len(basis.elements)), "elements_total": int(rob.body.n_elements),
+           "free_dofs": int(basis.V.shape[0]), "training": info,
+           "snapshots_failed": int(sum(r is None for r in rows)), "targets": TARGETS, "certificate": cert,
+           "held_out": [c.__dict__ for c in comps], "robot_key": basis.robot_key}
+    write_json_atomic(ctx.path("reduce.json"), out)
+    drop_cache(ctx)
+    ctx.progress("done", 3, 3)
+    return {"k": basis.k, "elements": out["elements"], "certified": cert["met"],
+            "position_mm_worst": cert["position_mm"]["worst"], "jacobian_rel_worst": cert["jacobian_rel"]["worst"]}
+
+
+register(Stage(
+    name="reduce", params=ReduceParams, run=run, requires=("orient", "material"), optional=("robot",),
+    outputs=("basis.npz", "reduce.json"),
+    doc="reduced-order robot: POD basis + ECSW element sample, certified on held-out poses",
+))

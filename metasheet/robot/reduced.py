@@ -1,0 +1,354 @@
+"""A reduced-order model of the robot (issue 16): a few coordinates for the sheets, a few elements for their forces.
+
+Coordinates ``q = (q_e (6), q_a (na), a (k))``. The rigid ones are the full model's, exact
+(:mod:`.rigid`: the effector pose and the motor angles place every rigid node); the free nodes
+move in a basis, ``x_f = X_f + V a`` with ``V`` (3 n_f, k) orthonormal (:mod:`.rom_basis`).
+Eq. (1) projected on these coordinates is the Galerkin residual
+
+    G(q) = (dx/dq)^T (f(x(q)) - f_ext),          dx/dq = T = [J_r 0 ; 0 V]
+
+and its tangent ``T^T K T`` plus the rigid bodies' geometric term (as in :mod:`.statics`).
+Hyper-reduction (energy-conserving sampling and weighting, :mod:`.ecsw`): the internal part is
+summed over a sample E of the elements with weights w_e >= 0, ``sum_{e in E} w_e T_e^T f_e``.
+A corotational element force is linear in its stiffness tensor, so the weighted sample is
+itself an :class:`~.body.ElasticBody` (the sampled elements, their tensors times w_e, on
+their own nodes): the full model's kernel evaluates it. Gravity is exact and closed-form
+(each rigid body's first mass moment, the projected free-node weights).
+
+:class:`ReducedRobot` has the interface the solvers use (:meth:`ReducedRobot.linearizer`,
+:meth:`~ReducedRobot.rest_state`, ``coupling``, the motor limits), so the equilibrium solver,
+the kinematics and the inverse controller run on it unchanged; its linearisations are
+:class:`.statics.Linearization` objects whose "free" part is ``a``. Its states are
+:class:`ReducedState` (no node positions: :meth:`ReducedRobot.positions` reconstructs them).
+
+Training data (basis, sample, weights, the motor box it was trained on) is a
+:class:`ReducedBasis`; :mod:`.rom_training` makes one and certifies it against the full model.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import ConfigError
+from ..rotations import axis_rotation, rotation_matrix, rotation_vector, skew
+from .statics import Linearization
+
+
+@dataclass(frozen=True)
+class ReducedBasis:
+    """What training produced (:mod:`.rom_training`).
+
+    Attributes
+    ----------
+    V : (3 n_f, k) orthonormal basis of the free nodes' displacements from rest [-] (free
+        nodes in :attr:`.rigid.RigidCoupling.free` order, node-major).
+    elements : (s,) int sampled elements of the full body; weights : (s,) float > 0 [-].
+    box_lo, box_hi : (na,) the motor box trained on [rad]: outside it the model extrapolates.
+    robot_key : identity of the full robot it was trained on (:func:`robot_key`).
+    info : JSON-able training record (sizes, tolerances, errors).
+    """
+
+    V: np.ndarray
+    elements: np.ndarray
+    weights: np.ndarray
+    box_lo: np.ndarray
+    box_hi: np.ndarray
+    robot_key: str
+    info: dict = field(default_factory=dict)
+
+    @property
+    def k(self) -> int:
+        return int(self.V.shape[1])
+
+    def save(self, path: Path) -> None:
+        """Write ``path`` (.npz) atomically."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez(tmp, V=self.V, elements=self.elements, weights=self.weights, box_lo=self.box_lo,
+                 box_hi=self.box_hi, robot_key=np.array(self.robot_key), info=np.array(json.dumps(self.info)))
+        tmp.replace(path)
+
+    @classmethod
+    def load(cls, path: Path) -> "ReducedBasis":
+        path = Path(path)
+        if not path.is_file():
+            raise ConfigError(f"reduced model: {path} is missing; run the 'reduce' stage")
+        with np.load(path) as z:
+            return cls(z["V"], z["elements"], z["weights"], z["box_lo"], z["box_hi"], str(z["robot_key"]),
+                       json.loads(str(z["info"])))
+
+
+def robot_key(robot) -> str:
+    """A content hash of the full robot's mesh, tensors, couplings and loads: a basis only
+    fits the robot it was trained on."""
+    import hashlib
+
+    h = hashlib.sha256()
+    b, c = robot.body, robot.coupling
+    for a in (b.rest, b.tets, b.stiffness, b.mass, c.effector_nodes, robot.gravity):
+        h.update(np.ascontiguousarray(a).tobytes())
+    for s in c.servos:
+        h.update(np.ascontiguousarray(np.concatenate([s.axis, s.pivot, [s.rest_angle]])).tobytes())
+        h.update(np.ascontiguousarray(s.nodes).tobytes())
+    return h.hexdigest()[:24]
+
+
+@dataclass(frozen=True)
+class ReducedState:
+    """A configuration of the reduced robot: effector ``p`` (3,) [mm] and ``R`` (3, 3), motor
+    ``angles`` (na,) [rad], and the sheets' reduced coordinates ``a`` (k,) [mm]."""
+
+    p: np.ndarray
+    R: np.ndarray
+    angles: np.ndarray
+    a: np.ndarray
+
+    @property
+    def pose(self) -> np.ndarray:
+        """(6,) effector pose: position [mm] and rotation vector [rad]."""
+        return np.concatenate([self.p, rotation_vector(self.R)])
+
+
+class ReducedRobot:
+    """The robot on a :class:`ReducedBasis` (see the module docstring).
+
+    Parameters
+    ----------
+    full : the full :class:`~.robots.Robot` the basis was trained on (checked by key).
+    basis : the trained basis, sample and weights.
+
+    Attributes
+    ----------
+    full, basis, coupling, body (the full body: strains on reconstructed positions),
+    angle_min, angle_max (the full robot's motor limits [rad]), gravity, axis, name, info.
+    sub : the weighted sampled elements as an :class:`~.body.ElasticBody`.
+    """
+
+    def __init__(self, full, basis: ReducedBasis, *, check_key: bool = True):
+        from .body import ElasticBody
+
+        c = full.coupling
+        if basis.V.shape[0] != 3 * len(c.free):
+            raise ConfigError(f"basis.V: {basis.V.shape[0]} rows: the robot has {3 * len(c.free)} free dofs")
+        if check_key and basis.robot_key != robot_key(full):
+            raise ConfigError("reduced model: trained on another robot (mesh, material or scene differ); "
+                              "run the 'reduce' stage again")
+        if np.any(basis.weights <= 0):
+            raise ConfigError("basis.weights: must be > 0")
+        self.full, self.basis, self.coupling, self.body = full, basis, c, full.body
+        self.angle_min, self.angle_max = full.angle_min, full.angle_max
+        self.gravity, self.axis, self.name = full.gravity, full.axis, full.name + "_reduced"
+        self.info = {**full.info, "reduced": {"k": basis.k, "elements": int(len(basis.elements))}}
+        self.k, self.na = basis.k, c.n_act
+        self.nq = 6 + self.na + self.k
+        tets = full.body.tets[basis.elements]
+        nodes, inv = np.unique(tets, return_inverse=True)
+        C = full.body.stiffness[basis.elements] * basis.weights[:, None, None]
+        self.sub = ElasticBody(full.body.rest[nodes], inv.reshape(tets.shape), C, density=full.body.density)
+        self.sub_nodes = nodes
+        owner = np.full(full.body.n_nodes, -1)
+        owner[c.effector_nodes] = 0
+        for k, s in enumerate(c.servos):
+            owner[s.nodes] = k + 1
+        own = owner[nodes]
+        free_index = np.full(full.body.n_nodes, -1)
+        free_index[c.free] = np.arange(len(c.free))
+        self._free = np.flatnonzero(own < 0)  # sub-node positions of free nodes
+        rows = (3 * free_index[nodes[self._free]][:, None] + np.arange(3)).ravel()
+        self._V = np.ascontiguousarray(basis.V[rows])  # (3 n_sf, k)
+        self._X = full.body.rest[nodes]
+        self._eff = np.flatnonzero(own == 0)
+        self._rho = self._X[self._eff] - c.origin
+        self._servo = [np.flatnonzero(own == k + 1) for k in range(self.na)]
+        # gravity, exactly: each rigid body's first mass moment, the free nodes' projected weights
+        f_ext = full.f_ext
+        self._F_e = f_ext[c.effector_nodes].sum(axis=0)  # [N]
+        g = np.asarray(full.gravity, float)
+        m = full.body.mass
+        self._g = g
+        self._s_e = (m[c.effector_nodes, None] * c.rho).sum(axis=0)  # [t mm]
+        self._s_k = [(m[s.nodes, None] * (c.rest[s.nodes] - s.pivot)).sum(axis=0) for s in c.servos]
+        self._ext_a = basis.V.T @ f_ext[c.free].ravel()  # (k,) [N]
+        self.f_ext_norm = float(np.linalg.norm(f_ext))
+        self._free_rest = c.rest[c.free]
+
+    # -- the interface of :class:`~.robots.Robot` ---------------------------------------------
+    def rest_state(self) -> ReducedState:
+        """The undeformed configuration (a = 0, motors at their rest angles, no sag)."""
+        c = self.coupling
+        return ReducedState(c.origin.copy(), np.eye(3), c.rest_angles.copy(), np.zeros(self.k))
+
+    def linearizer(self, solver: str = "superlu") -> "ReducedLinearizer":
+        """A :class:`ReducedLinearizer` (dense: ``solver`` is accepted for the interface)."""
+        return ReducedLinearizer(self)
+
+    def with_limits(self, lo, hi) -> "ReducedRobot":
+        """The same model with motor limits ``lo``, ``hi`` (na,) [rad] (shares the sample)."""
+        out = object.__new__(ReducedRobot)
+        out.__dict__.update(self.__dict__)
+        out.angle_min, out.angle_max = np.asarray(lo, float), np.asarray(hi, float)
+        return out
+
+    def in_box(self, angles, tol: float = 1e-9) -> bool:
+        """Whether motor ``angles`` (na,) [rad] lie in the training box."""
+        a = np.asarray(angles, float)
+        return bool(np.all(a >= self.basis.box_lo - tol) and np.all(a <= self.basis.box_hi + tol))
+
+    # -- positions ------------------------------------------------------------------------
+    def positions(self, st: ReducedState) -> np.ndarray:
+        """(n, 3) [mm] every node of the full mesh at ``st`` (for strains, pictures, a full solve)."""
+        c = self.coupling
+        x_f = self._free_rest + (self.basis.V @ st.a).reshape(-1, 3)
+        return c.positions(st.p, st.R, st.angles, x_f)
+
+    def full_state(self, st: ReducedState):
+        """The full model's :class:`~.statics.RobotState` with these positions (a Newton start)."""
+        from .statics import RobotState
+
+        return RobotState(st.p, st.R, st.angles, self.positions(st))
+
+    def sub_positions(self, st: ReducedState) -> np.ndarray:
+        """(n_s, 3) [mm] the sampled elements' nodes at ``st``."""
+        x = np.empty_like(self._X)
+        x[self._free] = self._X[self._free] + (self._V @ st.a).reshape(-1, 3)
+        x[self._eff] = st.p + self._rho @ st.R.T
+        for s, idx, th in zip(self.coupling.servos, self._servo, st.angles):
+            Q = axis_rotation(s.axis, th - s.rest_angle)
+            x[idx] = s.pivot + (self._X[idx] - s.pivot) @ Q.T
+        return x
+
+    def jacobian(self, x: np.ndarray, st: ReducedState) -> np.ndarray:
+        """(3 n_s, nq) T = dx_s / dq at sub-node positions ``x`` (n_s, 3) [mm]."""
+        T = np.zeros((len(x), 3, self.nq))
+        T[self._eff, :, 0:3] = np.eye(3)
+        T[self._eff, :, 3:6] = -skew(x[self._eff] - st.p)
+        for k, (s, idx) in enumerate(zip(self.coupling.servos, self._servo)):
+            T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
+        T = T.reshape(-1, self.nq)
+        rows = (3 * self._free[:, None] + np.arange(3)).ravel()
+        T[rows, 6 + self.na:] = self._V
+        return T
+
+    # -- generalised forces ---------------------------------------------------------------
+    def _gravity(self, st: ReducedState) -> np.ndarray:
+        """(nq,) generalised external forces: effector force [N], moment [N mm], servo torques [N mm], V^T f_ext [N]."""
+        g = np.zeros(self.nq)
+        g[:3] = self._F_e
+        g[3:6] = np.cross(st.R @ self._s_e, self._g)
+        for k, (s, sk, th) in enumerate(zip(self.coupling.servos, self._s_k, st.angles)):
+            Q = axis_rotation(s.axis, th - s.rest_angle)
+            g[6 + k] = s.axis @ np.cross(Q @ sk, self._g)
+        g[6 + self.na:] = self._ext_a
+        return g
+
+    def _gravity_geometric(self, st: ReducedState) -> np.ndarray:
+        """(6 + na, 6 + na) the rigid geometric term of the gravity loads (:meth:`.rigid.RigidCoupling.rigid_geometric`)."""
+        G = np.zeros((6 + self.na, 6 + self.na))
+        a = st.R @ self._s_e
+        G[3:6, 3:6] = np.outer(a, self._g) - (a @ self._g) * np.eye(3)
+        for k, (s, sk, th) in enumerate(zip(self.coupling.servos, self._s_k, st.angles)):
+            d = axis_rotation(s.axis, th - s.rest_angle) @ sk
+            G[6 + k, 6 + k] = self._g @ np.cross(s.axis, np.cross(s.axis, d))
+        return G
+
+    def _internal_geometric(self, x: np.ndarray, st: ReducedState, f: np.ndarray) -> np.ndarray:
+        G = np.zeros((6 + self.na, 6 + self.na))
+        a, fe = x[self._eff] - st.p, f[self._eff]
+        G[3:6, 3:6] = a.T @ fe - np.sum(a * fe) * np.eye(3)
+        for k, (s, idx) in enumerate(zip(self.coupling.servos, self._servo)):
+            G[6 + k, 6 + k] = np.sum(f[idx] * np.cross(s.axis, np.cross(s.axis, x[idx] - s.pivot)))
+        return G
+
+    def evaluate(self, st: ReducedState, tangent: bool = True):
+        """Hyper-reduced internal forces ``g_int`` (nq,) [N, N mm], external ``g_ext`` (nq,), and
+        the tangent dG/dq (nq, nq) (None unless ``tangent``) at ``st``."""
+        x = self.sub_positions(st)
+        f, data = self.sub.evaluate(x, tangent)
+        T = self.jacobian(x, st)
+        g_int = T.T @ f
+        g_ext = self._gravity(st)
+        if not tangent:
+            return g_int, g_ext, None
+        K = self.sub.pattern.matrix(data)
+        A = T.T @ (K @ T)
+        r = f.reshape(-1, 3)
+        nr = 6 + self.na
+        A[:nr, :nr] += self._internal_geometric(x, st, r) - self._gravity_geometric(st)
+        return g_int, g_ext, A
+
+
+class ReducedLinearizer:
+    """The reduced model's :class:`.statics.Linearizer`: same methods, dense algebra.
+
+    A linearisation's ``S`` is the Schur complement of ``a`` in the reduced tangent, ``Y``
+    (k, 6 + na) and ``y_r`` (k,) its solves, ``res_f`` (k,) the projected free residual
+    ``V^T r_f`` [N] and ``r`` the generalised internal forces (nq,) (the force scale's input).
+    """
+
+    solver_name = "dense"
+
+    def __init__(self, robot: ReducedRobot):
+        self.robot = robot
+        self.factor = None
+        self.factorizations = 0
+        self.stats = {"tangents": 0, "forces": 0}
+
+    def uses(self, solver: str) -> bool:
+        return True  # one dense solver whatever the sparse one asked for
+
+    def _lin(self, st, g_int, g_ext, S, Y, C, fresh, exact) -> Linearization:
+        rob = self.robot
+        nr = 6 + rob.na
+        G = g_int - g_ext
+        y_r = sla.lu_solve(self.factor, G[nr:])
+        return Linearization(state=st, r=g_int, S=S, Y=Y, y_r=y_r, C=C, R_rigid=G[:nr] - C @ y_r,
+                             res_e=G[:6], res_f=G[nr:], fresh=fresh, moment_scale=rob.coupling.length_scale,
+                             exact=exact)
+
+    def linearize(self, state: ReducedState, *, exact: bool = True) -> Linearization:
+        """Fresh reduced tangent, its condensation onto the rigid coordinates and the residual at ``state``."""
+        rob = self.robot
+        g_int, g_ext, A = rob.evaluate(state, tangent=True)
+        self.stats["tangents"] += 1
+        nr = 6 + rob.na
+        self.factor = sla.lu_factor(A[nr:, nr:], check_finite=False)
+        self.factorizations += 1
+        Y = sla.lu_solve(self.factor, A[nr:, :nr])
+        C = A[:nr, nr:]
+        return self._lin(state, g_int, g_ext, A[:nr, :nr] - C @ Y, Y, C, True, True)
+
+    def update(self, lin: Linearization, state: ReducedState, f=None) -> Linearization:
+        """Fresh residual at ``state`` on ``lin``'s tangent (a chord step)."""
+        g_int, g_ext, _ = self.robot.evaluate(state, tangent=False)
+        self.stats["forces"] += 1
+        return self._lin(state, g_int, g_ext, lin.S, lin.Y, lin.C, False, False)
+
+    def apply(self, state: ReducedState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> ReducedState:
+        """The state after the increment alpha (dq_e, dq_a, da); ``dx_f`` is da (k,)."""
+        p = state.p + alpha * dq_e[:3]
+        R = rotation_matrix(alpha * dq_e[3:]) @ state.R
+        angles = state.angles if dq_a is None else state.angles + dq_a
+        return ReducedState(p, R, angles, state.a + alpha * np.asarray(dx_f))
+
+    def force_scale(self, lin: Linearization) -> float:
+        """Force scale [N]: the rigid bodies' generalised internal forces (moments and torques
+        over the effector's ``length_scale``) plus the norm of the nodal weights."""
+        rob = self.robot
+        L = rob.coupling.length_scale
+        g = lin.r[:6 + rob.na].copy()
+        g[3:] /= L
+        return float(np.linalg.norm(g) + rob.f_ext_norm)
+
+    def residual_floor(self, lin: Linearization) -> float:
+        """Round-off floor [N] of the reduced residual: the sampled body's force round-off
+        (:func:`.equilibrium.residual_floor`'s per-entry bound) over its dofs."""
+        sub = self.robot.sub
+        eps = np.finfo(float).eps
+        x = self.robot.sub_positions(lin.state)
+        delta = 10 * eps * sub.stiffness_scale * float(np.abs(x).max())
+        return float(delta * np.sqrt(3 * sub.n_nodes) + eps * self.force_scale(lin))

@@ -1,0 +1,89 @@
+"""The reduced model's certificate (issue 16): reduced against full on poses not used in training.
+
+For held-out motor angles (a Sobol set of its own over the motor box and the box's
+mixed corners, the sheets' largest deformations) each model's equilibrium is solved and
+compared: effector position [mm] and orientation [deg] for the same motor angles, the
+Jacobian (relative Frobenius norm), and the inverse model: the reduced model's QP driven to the
+full model's pose returns motor angles, compared with the ones that produced it [deg].
+Worst and 95th percentile of each, against the targets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConvergenceError
+from .equilibrium import solve_equilibrium
+from .inverse import InverseController, InverseSettings
+from .kinematics import kinematics
+
+#: the certificate's targets: position [mm], orientation [deg], Jacobian [relative], motors [deg]
+TARGETS = {"position_mm": 0.1, "orientation_deg": 0.1, "jacobian_rel": 0.02}
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One held-out pose: motor angles [deg] and the reduced model's errors (nan: it failed)."""
+
+    angles_deg: tuple
+    position_mm: float
+    orientation_deg: float
+    jacobian_rel: float
+    inverse_motor_deg: float
+    strain: float
+
+
+def held_out_angles(lo, hi, n: int, seed: int) -> np.ndarray:
+    """(n + 2, na) [rad]: a Sobol set (its own seed) and the two mixed corners (sheet A's
+    motors low and B's high, and the reverse)."""
+    from .rom_training import motor_design
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    half = len(lo) // 2
+    mixed = [np.r_[lo[:half], hi[half:]], np.r_[hi[:half], lo[half:]]]
+    return np.vstack([motor_design(lo, hi, n, seed, corners=False), *mixed])
+
+
+def compare(full_robot, full_state, reduced, reduced_lz, full_lz) -> Comparison:
+    """Reduced vs full at the full model's equilibrium ``full_state``."""
+    nan = float("nan")
+    deg = tuple(np.degrees(full_state.angles).round(4).tolist())
+    strain = float(full_robot.body.max_principal_strain(full_state.x).max())
+    try:
+        r = solve_equilibrium(reduced, full_state.angles, linearizer=reduced_lz).state
+    except ConvergenceError:
+        return Comparison(deg, nan, nan, nan, nan, strain)
+    pos = float(np.linalg.norm(r.p - full_state.p))
+    rot = float(np.degrees(np.linalg.norm(_log(r.R @ full_state.R.T))))
+    Jf = kinematics(full_lz.linearize(full_state)).J
+    Jr = kinematics(reduced_lz.linearize(r)).J
+    jrel = float(np.linalg.norm(Jr - Jf) / np.linalg.norm(Jf))
+    goal = np.concatenate([full_state.p, np.degrees(full_state.pose[3:])])
+    settings = InverseSettings(pos_tol=0.01, rot_tol_deg=0.01, max_steps=400, stall_steps=30)
+    inv = InverseController(reduced, settings=settings).goto(goal)
+    motors = float(np.abs(inv.angles_deg - np.degrees(full_state.angles)).max()) if inv.reached else nan
+    return Comparison(deg, pos, rot, jrel, motors, strain)
+
+
+def _log(R):
+    from ..rotations import rotation_vector
+
+    return rotation_vector(R)
+
+
+def summarize(rows: list[Comparison]) -> dict:
+    """Worst and 95th percentile per measure, failures counted, and the verdict per target."""
+    out = {"poses": len(rows)}
+    for name in ("position_mm", "orientation_deg", "jacobian_rel", "inverse_motor_deg"):
+        v = np.array([getattr(r, name) for r in rows], float)
+        ok = v[np.isfinite(v)]
+        out[name] = {"worst": float(ok.max()) if len(ok) else None,
+                     "p95": float(np.percentile(ok, 95)) if len(ok) else None, "failed": int((~np.isfinite(v)).sum())}
+        if name in TARGETS:
+            out[name]["target"] = TARGETS[name]
+            out[name]["met"] = bool(len(ok) == len(v) and len(ok) and ok.max() <= TARGETS[name])
+    out["max_strain"] = float(max(r.strain for r in rows)) if rows else None
+    out["met"] = all(out[n]["met"] for n in TARGETS)
+    return out

@@ -1,0 +1,154 @@
+"""Training a :class:`.reduced.ReducedRobot`: snapshots, basis, element sample, each by an error target.
+
+1. Snapshots: full-model equilibria (:func:`.equilibrium.solve_equilibrium`) at motor angles
+   spread over the motor box (:func:`motor_design`: a scrambled Sobol sequence plus the rest
+   angles and the box's all-low / all-high corners, which bend the sheets most).
+2. Basis (:func:`.rom_basis.pod_basis`): the rest equilibrium's static modes plus POD modes
+   until every snapshot's worst nodal projection error is below ``basis_tol_mm``.
+3. Elements (:func:`.ecsw.ecsw`): per training state, every element's contribution to the
+   generalised forces (force rows [N]; moment and torque rows over the effector's length
+   scale). Training states are the projected snapshots and, so the sample also fits the
+   forces away from equilibrium (the tangent), each one moved along its own static response.
+4. The ECSW tolerance is tightened (by 4 each time) until the reduced model reproduces the
+   training equilibria within ``fit_tol_mm`` (:func:`train`).
+
+The certificate (:func:`certify`) then compares reduced and full on held-out angles.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import ConfigError, ConvergenceError
+from .ecsw import ecsw_path
+from .equilibrium import solve_equilibrium
+from .reduced import ReducedBasis, ReducedRobot, ReducedState, robot_key
+from .rom_basis import pod_basis
+
+
+def motor_design(lo, hi, n: int, seed: int, *, corners: bool = True) -> np.ndarray:
+    """(N, na) motor angles [rad]: ``n`` scrambled Sobol points in the box [lo, hi] (na,) [rad],
+    and (``corners``) the all-low and all-high corners."""
+    from scipy.stats import qmc
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if n < 1 or np.any(hi <= lo):
+        raise ConfigError(f"motor_design: n {n!r}, box {np.degrees(lo)}..{np.degrees(hi)} deg: need n >= 1, lo < hi")
+    # the first n points of the scrambled sequence (n need not be a power of 2 here)
+    pts = qmc.Sobol(len(lo), scramble=True, seed=seed).random(2 ** int(np.ceil(np.log2(n))))[:n]
+    out = lo + pts * (hi - lo)
+    if corners:
+        out = np.vstack([lo, hi, out])
+    return out
+
+
+def static_modes(robot, rest) -> np.ndarray:
+    """(3 n_f, 6 + na + 1) the free nodes' response at the rest equilibrium ``rest`` to each
+    rigid coordinate (eq. 6's ``K_ff^-1 K_fr J_r``) and to the sheets' weight (``K_ff^-1 f_g``)."""
+    lz = robot.linearizer()
+    lin = lz.linearize(rest)
+    c = robot.coupling
+    return np.column_stack([lin.Y, lz.factor.solve(robot.f_ext[c.free].ravel())])
+
+
+def projected_state(robot, V: np.ndarray, state) -> ReducedState:
+    """The reduced state closest to a full :class:`~.statics.RobotState`: rigid coordinates as
+    they are, ``a = V^T (x_f - X_f)``."""
+    c = robot.coupling
+    u = (state.x[c.free] - c.rest[c.free]).ravel()
+    return ReducedState(state.p, state.R, state.angles, V.T @ u)
+
+
+def element_contributions(robot, V: np.ndarray, st: ReducedState) -> np.ndarray:
+    """(6 + na + k, m) every element's generalised internal force ``T_e^T f_e`` at ``st``
+    (rows scaled: forces [N], moments and torques over the effector's length scale [N])."""
+    from .quadrature import corotational_quadrature_numpy
+
+    c, body = robot.coupling, robot.body
+    full = ReducedRobot.__new__(ReducedRobot)  # positions only: no sample needed
+    x_f = c.rest[c.free] + (V @ st.a).reshape(-1, 3)
+    x = c.positions(st.p, st.R, st.angles, x_f)
+    nq = 6 + c.n_act + V.shape[1]
+    T = np.zeros((len(x), 3, nq))
+    T[c.effector_nodes, :, :3] = np.eye(3)
+    from ..rotations import skew
+
+    T[c.effector_nodes, :, 3:6] = -skew(x[c.effector_nodes] - st.p)
+    for k, s in enumerate(c.servos):
+        T[s.nodes, :, 6 + k] = np.cross(s.axis, x[s.nodes] - s.pivot)
+    T[c.free, :, 6 + c.n_act:] = V.reshape(len(c.free), 3, -1)
+    del full
+    out = np.empty((nq, body.n_elements))
+    for start in range(0, body.n_elements, 4096):  # chunks bound the memory of the batched kernel
+        sl = slice(start, min(start + 4096, body.n_elements))
+        tets = body.tets[sl]
+        fe, _ = corotational_quadrature_numpy(x[tets], body.quad_grads[sl], body.quad_weights[sl],
+                                              body.stiffness[sl], tangent=False)
+        out[:, sl] = np.einsum("mai,maiq->qm", fe.reshape(len(tets), -1, 3), T[tets], optimize=True)
+    out[3:6 + c.n_act] /= c.length_scale
+    return out
+
+
+def fit_error(reduced: ReducedRobot, snaps) -> float:
+    """Worst effector position error [mm] of the reduced equilibria at the snapshots' angles."""
+    worst = 0.0
+    lz = reduced.linearizer()
+    for s in snaps:
+        try:
+            eq = solve_equilibrium(reduced, s.angles, linearizer=lz)
+        except ConvergenceError:
+            return np.inf
+        worst = max(worst, float(np.linalg.norm(eq.state.p - s.p)))
+    return worst
+
+
+def train(robot, snaps, rest, *, basis_tol_mm: float = 0.01, ecsw_tol: float = 1e-3,
+          fit_tol_mm: float = 0.02, box=None, max_rounds: int = 5, fit_count: int = 8) -> ReducedBasis:
+    """A :class:`ReducedBasis` for the full ``robot`` from snapshot equilibria ``snaps`` (full
+    :class:`~.statics.RobotState` s) and the rest equilibrium ``rest``.
+
+    ``basis_tol_mm`` : POD target (worst nodal projection error) [mm]; ``ecsw_tol`` : the
+    first ECSW tolerance, divided by 4 until ``fit_count`` training equilibria (the box corners
+    first) are reproduced within ``fit_tol_mm`` [mm] by the reduced model, at most
+    ``max_rounds`` times; ``box`` : (lo, hi) motor box [rad] (default: the robot's limits).
+    """
+    t0 = time.perf_counter()
+    c = robot.coupling
+    lo, hi = (robot.angle_min, robot.angle_max) if box is None else box
+    U = np.column_stack([(s.x[c.free] - c.rest[c.free]).ravel() for s in [rest, *snaps]])
+    statics = static_modes(robot, rest)
+    V, record = pod_basis(statics, U, basis_tol_mm)
+    t_basis = time.perf_counter() - t0
+    states = [projected_state(robot, V, s) for s in [rest, *snaps]]
+    # off-equilibrium states: each snapshot pushed along the static response (the tangent's data)
+    k_st = record["static_modes"]
+    rng = np.random.default_rng(0)
+    pushed = []
+    for st in states:
+        da = np.zeros(V.shape[1])
+        da[:k_st] = rng.normal(scale=0.5, size=k_st)
+        pushed.append(ReducedState(st.p, st.R, st.angles, st.a + da))
+    blocks = [element_contributions(robot, V, st) for st in states + pushed]
+    A = np.vstack([b / max(np.linalg.norm(b.sum(axis=1)), 1e-300) for b in blocks])
+    t_rows = time.perf_counter() - t0 - t_basis
+    key = robot_key(robot)
+    tols = [ecsw_tol / 4**i for i in range(max_rounds)]
+    rounds = []
+    check = snaps[:fit_count]
+    for tol, sample in zip(tols, ecsw_path(A, tols)):
+        basis = ReducedBasis(V, sample.elements, sample.weights, np.asarray(lo, float), np.asarray(hi, float), key)
+        err = fit_error(ReducedRobot(robot, basis), check)
+        rounds.append({"ecsw_tol": tol, "elements": int(len(sample.elements)), "force_error": sample.error,
+                       "fit_error_mm": err})
+        if err <= fit_tol_mm:
+            break
+    else:
+        raise ConvergenceError(f"reduce: the reduced model misses the training equilibria by {err:.3g} mm "
+                               f"> {fit_tol_mm:g} mm after {max_rounds} ECSW rounds (tol {tol:.1e})", rounds)
+    info = {**record, "k": int(V.shape[1]), "snapshots": len(snaps), "training_states": len(blocks),
+            "elements": int(len(sample.elements)), "elements_total": int(robot.body.n_elements),
+            "ecsw_rounds": rounds, "fit_tol_mm": fit_tol_mm,
+            "seconds": {"basis": t_basis, "ecsw_rows": t_rows, "ecsw_and_fit": time.perf_counter() - t0 - t_basis - t_rows}}
+    return ReducedBasis(V, sample.elements, sample.weights, np.asarray(lo, float), np.asarray(hi, float), key, info)

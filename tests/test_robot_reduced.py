@@ -1,0 +1,155 @@
+"""The reduced-order robot (issue 16) against the full model on a coarse robot.
+
+Exact answers: with the identity basis and every element at weight 1 the reduced model IS
+the full one (equilibria and Jacobians to round-off); with the static modes in the basis the
+rest Jacobian is the full one (static condensation is exact); the reduced tangent is the
+derivative of the reduced forces (finite differences); ECSW's weights are non-negative and
+meet their tolerance; a trained model reproduces its training equilibria and says when it is
+asked outside its motor box.
+"""
+
+import numpy as np
+import pytest
+
+from metasheet.errors import ConfigError, ConvergenceError
+from metasheet.robot.ecsw import ecsw
+from metasheet.robot.equilibrium import solve_equilibrium
+from metasheet.robot.inverse import InverseController
+from metasheet.robot.kinematics import kinematics
+from metasheet.robot.reduced import ReducedBasis, ReducedRobot, robot_key
+from metasheet.robot.rom_basis import nodal_error, pod_basis
+from metasheet.robot.rom_training import motor_design, static_modes, train
+from metasheet.studies.adapter import paper_robot_spec
+
+
+@pytest.fixture(scope="module")
+def full():
+    rob = paper_robot_spec(mesh_size=16.0).build().robot
+    lz = rob.linearizer()
+    rest = solve_equilibrium(rob, rob.coupling.rest_angles, linearizer=lz).state
+    return rob, lz, rest
+
+
+def _basis(rob, V, elements=None, weights=None):
+    m = rob.body.n_elements
+    el = np.arange(m) if elements is None else elements
+    return ReducedBasis(V, el, np.ones(len(el)) if weights is None else weights, rob.angle_min, rob.angle_max,
+                        robot_key(rob))
+
+
+def test_identity_basis_is_the_full_model(full):
+    rob, lz, _ = full
+    nf = len(rob.coupling.free)
+    red = ReducedRobot(rob, _basis(rob, np.eye(3 * nf)))
+    ang = rob.coupling.rest_angles + np.radians([10, -5, 3, 0, 8, -12])
+    ef = solve_equilibrium(rob, ang, linearizer=lz, tol=1e-10)
+    er = solve_equilibrium(red, ang, tol=1e-10)
+    assert np.abs(ef.state.pose - er.state.pose).max() < 1e-9
+    assert np.abs(red.positions(er.state) - ef.state.x).max() < 1e-9
+    Jf = kinematics(lz.linearize(ef.state)).J
+    Jr = kinematics(red.linearizer().linearize(er.state)).J
+    assert np.linalg.norm(Jf - Jr) < 1e-9 * np.linalg.norm(Jf)
+
+
+def test_static_modes_give_the_rest_jacobian(full):
+    rob, lz, rest = full
+    V, rec = pod_basis(static_modes(rob, rest), np.zeros((3 * len(rob.coupling.free), 1)), 1.0)
+    assert rec["pod_modes"] == 0 and rec["static_modes"] == 13
+    red = ReducedRobot(rob, _basis(rob, V))
+    er = solve_equilibrium(red, rob.coupling.rest_angles, tol=1e-10)
+    # the gravity sag lies in the basis (its static response), so the rest pose is the full one
+    assert np.linalg.norm(er.state.p - rest.p) < 1e-3 * np.linalg.norm(rest.p - rob.coupling.origin) + 1e-9
+    Jf = kinematics(lz.linearize(rest)).J
+    Jr = kinematics(red.linearizer().linearize(er.state)).J
+    assert np.linalg.norm(Jf - Jr) < 1e-3 * np.linalg.norm(Jf)
+
+
+def test_reduced_tangent_is_the_derivative_of_the_reduced_forces(full):
+    rob, _, rest = full
+    rng = np.random.default_rng(3)
+    nf = len(rob.coupling.free)
+    V = np.linalg.qr(rng.normal(size=(3 * nf, 8)))[0]
+    el = np.sort(rng.choice(rob.body.n_elements, 300, replace=False))
+    red = ReducedRobot(rob, _basis(rob, V, el, rng.uniform(0.5, 3.0, len(el))))
+    lz = red.linearizer()
+    st = lz.apply(red.rest_state(), rng.normal(scale=[2, 2, 2, .1, .1, .1]), rng.normal(scale=3.0, size=8),
+                  rng.normal(scale=0.2, size=6))
+    g0, e0, A = red.evaluate(st)
+    h = 1e-6
+    for j in range(red.nq):
+        d = np.zeros(red.nq)
+        d[j] = h
+        gp, ep, _ = red.evaluate(lz.apply(st, d[:6], d[12:], d[6:12]), tangent=False)
+        gm, em, _ = red.evaluate(lz.apply(st, -d[:6], -d[12:], -d[6:12]), tangent=False)
+        fd = ((gp - ep) - (gm - em)) / (2 * h)
+        assert np.linalg.norm(fd - A[:, j]) <= 1e-5 * np.abs(A).max(), j
+
+
+def test_ecsw_weights_are_nonnegative_and_meet_the_tolerance():
+    rng = np.random.default_rng(0)
+    A = rng.random((60, 400))
+    s = ecsw(A, 1e-3)
+    w = np.zeros(400)
+    w[s.elements] = s.weights
+    assert np.all(s.weights > 0) and len(s.elements) < 400
+    b = A.sum(axis=1)
+    assert np.linalg.norm(A @ w - b) <= 1e-3 * np.linalg.norm(b) * (1 + 1e-9)
+    with pytest.raises(ConvergenceError):
+        ecsw(A, 1e-12, max_elements=5)
+    with pytest.raises(ConfigError, match="tol"):
+        ecsw(A, 0.0)
+
+
+def test_pod_basis_meets_its_projection_target(full):
+    rob, _, rest = full
+    rng = np.random.default_rng(1)
+    U = rng.normal(size=(3 * len(rob.coupling.free), 5)) @ rng.normal(size=(5, 12))
+    V, rec = pod_basis(static_modes(rob, rest), U, 1e-6)
+    assert np.allclose(V.T @ V, np.eye(V.shape[1]), atol=1e-10)
+    assert nodal_error(U - V @ (V.T @ U)).max() <= 1e-6
+    assert rec["pod_modes"] <= 5
+
+
+@pytest.fixture(scope="module")
+def trained(full):
+    rob, lz, rest = full
+    c = rob.coupling
+    lo, hi = c.rest_angles - np.radians(8), c.rest_angles + np.radians(8)
+    snaps = [solve_equilibrium(rob, a, state=rest, linearizer=lz).state for a in motor_design(lo, hi, 10, 1)]
+    basis = train(rob, snaps, rest, box=(lo, hi), basis_tol_mm=0.005, fit_tol_mm=0.01)
+    return ReducedRobot(rob, basis), snaps
+
+
+def test_trained_model_reproduces_training_and_held_out_equilibria(full, trained):
+    rob, lz, rest = full
+    red, snaps = trained
+    assert np.all(red.basis.weights > 0) and len(red.basis.elements) < rob.body.n_elements
+    for s in snaps[:4]:
+        e = solve_equilibrium(red, s.angles)
+        assert np.linalg.norm(e.state.p - s.p) < 0.01
+    c = rob.coupling
+    for a in motor_design(c.rest_angles - np.radians(7), c.rest_angles + np.radians(7), 4, 9, corners=False):
+        f = solve_equilibrium(rob, a, state=rest, linearizer=lz).state
+        r = solve_equilibrium(red, a).state
+        assert np.linalg.norm(r.p - f.p) < 0.1  # the certificate's position target [mm]
+        assert np.degrees(np.linalg.norm(r.pose[3:] - f.pose[3:])) < 0.1
+
+
+def test_inverse_control_runs_on_the_reduced_model(full, trained):
+    rob, _, _ = full
+    red, _ = trained
+    goal = np.array([0.6, 0.3, -0.3, 0.0, 0.0, 0.0])
+    rr = InverseController(red).goto(goal)
+    rf = InverseController(rob).goto(goal)
+    assert rr.reached and rf.reached
+    assert np.abs(rr.angles_deg - rf.angles_deg).max() < 0.5
+    assert red.in_box(np.radians(rr.angles_deg))
+    assert not red.in_box(red.basis.box_hi + 0.1)
+
+
+def test_basis_of_another_robot_is_refused(full):
+    rob, _, _ = full
+    other = paper_robot_spec(mesh_size=16.0, rest_angle=55.0).build().robot
+    V = np.eye(3 * len(rob.coupling.free))[:, :3]
+    with pytest.raises(ConfigError, match="another robot"):
+        ReducedRobot(other, _basis(rob, V))
