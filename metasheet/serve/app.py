@@ -284,8 +284,8 @@ def serve(outputs, *, host: str = "127.0.0.1", port: int = 8080, model: str = "f
     from .loading import check_outputs, load_robot
     from .session import Session
 
-    check_port(host, port)
     check_outputs(outputs)
+    check_port(host, port)
     session = Session(lambda material: load_robot(outputs, model, material))
     session.start()
     server = viser.ViserServer(host=host, port=port, label="metasheet serve", verbose=False)

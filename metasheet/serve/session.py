@@ -133,6 +133,7 @@ class Session:
         self._material = material
         self._cond = threading.Condition()
         self._pending: dict[str, tuple] = {}  # "motion" / "material" -> the latest command
+        self.dropped = 0  # commands a newer one replaced before they ran
         self._job = None  # the running motion: a generator, one solver step per next()
         self._busy = False
         self._stopping = False
@@ -171,7 +172,7 @@ class Session:
     # -- commands (any thread) ----------------------------------------------------------
     def _post(self, key: str, command: tuple) -> None:
         with self._cond:
-            self._pending.pop(key, None)  # the latest wins, and goes to the end of the line
+            self.dropped += self._pending.pop(key, None) is not None  # the latest wins, at the end of the line
             self._pending[key] = command
             self._busy = True
             self._cond.notify_all()
