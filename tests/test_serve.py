@@ -6,6 +6,7 @@ The page in a real browser is tests/test_serve_browser.py (marker "system").
 import socket
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -310,6 +311,13 @@ def test_panel_text_and_rate(session):
     assert meter.rate() == pytest.approx(10.0)
 
 
+def wait_until(predicate, timeout=20.0):
+    deadline = time.time() + timeout
+    while not predicate():
+        assert time.time() < deadline, "not within the timeout"
+        time.sleep(0.02)
+
+
 def test_page_draws_a_snapshot_for_every_tab(session, outputs):
     """The page on a real (browserless) viser server: what it sends is the snapshot."""
     import viser
@@ -324,15 +332,14 @@ def test_page_draws_a_snapshot_for_every_tab(session, outputs):
     try:
         session.set_goal(GOAL)
         snap = session.wait_idle(60)
-        page.draw(snap)
+        wait_until(lambda: page.drawn == snap.version)  # the page's drawing thread
         np.testing.assert_allclose(page.effector.position, snap.state.p * SCALE, atol=1e-9)
         np.testing.assert_allclose([h.value for h in page.sliders], np.round(snap.angles_deg, 1))
         drawn = sum(len(h.faces) for h in page.bands if h.visible)
         assert drawn == len(page.surface.faces)
         assert "reached" in page.status.content and "pose [mm, deg]" in page.status.content
-        page.color_by.value = "strain"
-        page.draw(snap)
-        assert "max principal strain" in page.legend.content
+        page.color_by.value = "strain"  # as a tab would: the page redraws
+        wait_until(lambda: "max principal strain" in page.legend.content)
     finally:
         page.close()
         server.stop()

@@ -31,6 +31,7 @@ from .maze import maze_file, read_maze
 from .panel import RateMeter, status_markdown
 
 SCALE = 1e-3  # [m/mm]
+GOAL_NAMES = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
 #: how often the strain (the validity flag) is recomputed when it is not the field drawn [s]
 STRAIN_PERIOD = 0.1
 CAMERA = {"position": (0.11, -0.20, 0.09), "look_at": (0.0, 0.0, -0.005)}  # [m]
@@ -85,6 +86,7 @@ class Page:
         self._material = snap.material
         self.surface = scene.surface(*self._mesh_of(snap.material))
         self.draws = 0
+        self.drawn = -1  # the version of the last snapshot drawn
         self._build_scene(snap)
         self._build_gui(snap)
         cam = server.initial_camera  # every tab's first view, and its "reset view"
@@ -124,8 +126,10 @@ class Page:
         gui.add_markdown("**metasheet**: drive the robot. Drag the gizmo (the goal) or type a goal; "
                          "the inverse model (eq. 8) follows. Motor sliders: the forward model.")
         with gui.add_folder("Goal (inverse model)"):
-            self.goal_xyz = gui.add_vector3("goal X Y Z [mm]", tuple(snap.goal[:3]), step=0.1)
-            self.goal_rot = gui.add_vector3("goal RX RY RZ [deg]", tuple(snap.goal[3:]), step=0.1)
+            # one input per component: a vector input loses a component typed quickly after
+            # another (each edit sends the whole vector, built from a value not yet echoed)
+            self.goal_fields = [gui.add_number(f"goal {name}", float(round(v, 2)), step=0.1)
+                                for name, v in zip(GOAL_NAMES, snap.goal)]
             gui.add_button("Go to goal").on_click(self._on_go)
             gui.add_button("Reset to rest").on_click(lambda e: self._command(self.session.reset))
         with gui.add_folder("Motors (forward model)"):
@@ -150,6 +154,10 @@ class Page:
         panel.dock_left()
         panel.set_width(400)
 
+    def _show_goal(self, pose) -> None:
+        for f, v in zip(self.goal_fields, pose):
+            f.value = float(round(v, 2))
+
     def _command(self, fn, *args) -> None:
         """Post a command; a refused one (ConfigError) is shown on the page, never raised."""
         try:
@@ -161,11 +169,11 @@ class Page:
 
     def _on_gizmo(self, event) -> None:
         pose = _pose_of_handle(event.target)
-        self.goal_xyz.value, self.goal_rot.value = tuple(pose[:3].round(2)), tuple(pose[3:].round(2))
+        self._show_goal(pose)
         self._command(self.session.set_goal, pose)
 
     def _on_go(self, event) -> None:
-        pose = np.concatenate([self.goal_xyz.value, self.goal_rot.value])
+        pose = np.array([f.value for f in self.goal_fields], float)
         self.goal.position = pose[:3] * SCALE
         self.goal.wxyz = _wxyz(rotation_matrix(np.radians(pose[3:])))
         self._command(self.session.set_goal, pose)
@@ -253,7 +261,7 @@ class Page:
                 self._goal_version = snap.goal_version
                 self.goal.position = snap.goal[:3] * SCALE
                 self.goal.wxyz = _wxyz(rotation_matrix(np.radians(snap.goal[3:])))
-                self.goal_xyz.value, self.goal_rot.value = tuple(snap.goal[:3].round(2)), tuple(snap.goal[3:].round(2))
+                self._show_goal(snap.goal)
             for s, a in zip(self.sliders, snap.angles_deg):
                 s.value = float(round(a, 1))
             if self.material.value != snap.material:
@@ -266,6 +274,7 @@ class Page:
                                    rate=self.rate.rate(), model=self.model)
             self.status.content = text + (f"\n\nnote: {self.notice}" if self.notice else "")
         self.draws += 1
+        self.drawn = snap.version
 
     def close(self) -> None:
         self._stop.set()

@@ -68,7 +68,7 @@ class RateMeter:
     least every ``gap`` seconds (a burst of motion): the rate while the robot moves, kept
     after it stops instead of decaying to zero."""
 
-    def __init__(self, window: float = 2.0, gap: float = 1.0, clock=time.perf_counter):
+    def __init__(self, window: float = 3.0, gap: float = 2.0, clock=time.perf_counter):
         self.window, self.gap, self.clock = window, gap, clock
         self.times: deque = deque()
 
