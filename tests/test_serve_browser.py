@@ -218,8 +218,10 @@ def test_drive_the_robot_from_the_page(server, browser, outputs, tmp_path):
     after = canvas_pixels(browser)
     assert np.mean(np.abs(after - before)) > 0.5, "the drawn robot did not move"
     browser.save_screenshot(str(tmp_path / "serve.png"))
-    if os.environ.get("METASHEET_SERVE_SCREENSHOT"):
-        shutil.copy(tmp_path / "serve.png", os.environ["METASHEET_SERVE_SCREENSHOT"])
+    if os.environ.get("METASHEET_SERVE_SCREENSHOT"):  # the README's picture, in 128 colours (small)
+        from PIL import Image
+
+        Image.open(tmp_path / "serve.png").convert("RGB").quantize(128).save(os.environ["METASHEET_SERVE_SCREENSHOT"])
 
     # the same goal through the command line: the same motors and pose, within the loops' tolerances
     r = metasheet("robot", "goto", "--orient", str(outputs / "out" / "small" / "orient"), "--",

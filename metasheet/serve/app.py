@@ -21,6 +21,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from collections import deque
 
 import numpy as np
 
@@ -87,6 +88,7 @@ class Page:
         self.surface = scene.surface(*self._mesh_of(snap.material))
         self.draws = 0
         self.drawn = -1  # the version of the last snapshot drawn
+        self.draw_times: deque = deque(maxlen=1000)  # [s] of the last draws (benchmarks/bench_serve.py)
         self._build_scene(snap)
         self._build_gui(snap)
         cam = server.initial_camera  # every tab's first view, and its "reset view"
@@ -114,7 +116,7 @@ class Page:
                                         (30, 30, 30), thickness=0.004)
         self.effector = sc.add_frame("/effector", axes_length=0.03, axes_radius=0.0012)
         self.fibers = sc.add_line_segments("/robot/fibers", scene.fiber_segments(geo, snap.state.x) * SCALE,
-                                           (20, 20, 20), thickness=0.0005, visible=False)
+                                           (10, 10, 10), thickness=0.0007, visible=False)
         self.goal = sc.add_transform_controls("/goal", scale=0.05, depth_test=False, line_width=3.0)
         self.goal.on_update(self._on_gizmo)
 
@@ -233,6 +235,7 @@ class Page:
 
     def draw(self, snap) -> None:
         """Send ``snap`` to every tab."""
+        t0 = time.perf_counter()
         robot, info = self.session.robot_of(snap.material)
         geo, x = info.geometry, snap.state.x
         if snap.material != self._material:
@@ -245,17 +248,19 @@ class Page:
         colors = [tuple(int(c) for c in rgb) for rgb in scene.band_colors(self.field)] + [scene.OVER_LIMIT]
         strain_max, _ = scene.strain_flag(strain, self.strain_limit)
         with self.server.atomic():
+            fibers = bool(self.show_fibers.value)
             for k, h in enumerate(self.bands):
                 if k >= len(meshes) or len(meshes[k][1]) == 0:
                     h.visible = False
                     continue
                 v, f = meshes[k]
                 h.vertices, h.faces, h.color, h.visible = v * SCALE, f, colors[k], True
+                h.opacity = 0.3 if fibers else None  # the fibres run inside the sheets
             self.horns.points = scene.horn_segments(geo, x) * SCALE
             self.rod.points = scene.rod_segment(geo, snap.state.p, snap.state.R) * SCALE
             self.effector.position, self.effector.wxyz = snap.state.p * SCALE, _wxyz(snap.state.R)
-            self.fibers.visible = bool(self.show_fibers.value)
-            if self.fibers.visible:
+            self.fibers.visible = fibers
+            if fibers:
                 self.fibers.points = scene.fiber_segments(geo, x) * SCALE
             if snap.goal_version != self._goal_version:  # the session moved the goal: follow
                 self._goal_version = snap.goal_version
@@ -275,6 +280,7 @@ class Page:
             self.status.content = text + (f"\n\nnote: {self.notice}" if self.notice else "")
         self.draws += 1
         self.drawn = snap.version
+        self.draw_times.append(time.perf_counter() - t0)
 
     def close(self) -> None:
         self._stop.set()

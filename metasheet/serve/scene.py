@@ -28,7 +28,7 @@ FIELDS = {"displacement": ("|u|", "mm"), "strain": ("max principal strain", "-")
 BANDS = 12
 OVER_LIMIT = (230, 20, 60)  # faces whose strain exceeds the validity limit [RGB]
 FIBER_LENGTH = 4.0  # [mm]
-MAX_FIBERS = 2000  # segments drawn at most (every k-th element beyond)
+MAX_FIBERS = 1200  # segments drawn at most (every k-th element beyond)
 
 #: a tetrahedron's faces (corner indices) and, for the 10-node one, the midside node of each
 #: edge (edges (0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3) -> nodes 4..9, :mod:`metasheet.fem.tet10`)

@@ -12,7 +12,9 @@ the :class:`Snapshot` s the session publishes; every tab of the page sees the sa
   queued behind stale ones. The worker looks for newer commands after every control step.
 * A goal is driven by :class:`.tracking.GoalRun` (``goto``'s loop, one control step of
   eq. 8 at a time, each published): it ends "reached", or "unreachable" on the certified
-  closest pose (goto's "stalled" or "max_steps"); never an exception.
+  closest pose (goto's "stalled" or "max_steps"); never an exception. A pose near the goal
+  is certified only once the goal has stayed :data:`SETTLE` s: while a drag streams goals
+  the loop only steps.
 * Motor commands are the forward model: :func:`~metasheet.robot.equilibrium.solve_equilibrium`
   from the current state; when no newer command waits, a fresh linearisation then updates
   the Jacobian's singular values.
@@ -48,6 +50,9 @@ from .tracking import GoalRun, check_pose, pose_of
 
 #: the inverse loop's settings on the page (see the module docstring for drift_tol)
 LIVE_SETTINGS = InverseSettings(drift_tol=10.0)
+#: a goal must stay this long before the pose reached is certified [s]: a drag streams goals
+#: (~60 per second), and certifying each one it already is near would cost more than stepping
+SETTLE = 0.15
 #: rotations count as arc lengths at this radius in the singular values [mm/rad], as in
 #: :func:`metasheet.robot.kinematics.kinematics`
 LENGTH_SCALE = 50.0
@@ -298,7 +303,14 @@ class Session:
     def _drive(self, goal):
         certify = replace(self.settings, drift_tol=InverseSettings.drift_tol)  # see the module docstring
         run = GoalRun(self.current.ctrl, goal, self.settings, certify)
+        born = time.perf_counter()
         while True:
+            wait = SETTLE - (time.perf_counter() - born)
+            if wait > 0 and run.near():  # certify only once the drag pauses here
+                with self._cond:
+                    self._cond.wait_for(lambda: self._pending or self._stopping, wait)
+                if self._pending or self._stopping:
+                    return  # a newer goal: this one is dropped uncertified
             p = run.advance()
             if not p.done:
                 self._publish("inverse", "moving", f"control step {run.steps}", step_ms=1e3 * p.step_time)

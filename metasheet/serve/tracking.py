@@ -75,6 +75,11 @@ class GoalRun:
     def done(self) -> bool:
         return self.status != "moving"
 
+    def near(self) -> bool:
+        """Whether the controller's state is within the tolerances of the goal (the next
+        :meth:`advance` then certifies it instead of taking a control step)."""
+        return within(self._errors(self.ctrl.state)[0], self.settings)
+
     def _errors(self, state) -> tuple[np.ndarray, float, float]:
         e = pose_error(state.p, state.R, self.goal_p, self.goal_R)
         return e, float(np.linalg.norm(e[:3])), float(np.degrees(np.linalg.norm(e[3:])))
