@@ -322,6 +322,8 @@ def serve(
 
         raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
     outputs = find_outputs(pipeline, out)
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        say(f"note: --host {host}: the page is served beyond this machine; anyone who reaches it drives the robot")
     say(f"loading the robot of {outputs.directory} ...")
     try:
         serve_page(outputs, host=host, port=port, model=model,
