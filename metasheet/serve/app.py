@@ -149,12 +149,20 @@ class Page:
             self.show_fibers.on_update(lambda e: self._dirty.set())
             self.maze = gui.add_button("Play the maze path")
             self.maze.on_click(self._on_maze)
+            self._maze_button(snap.material)
         panel = gui.add_panel()  # the robot's state, docked left: visible while dragging
         with panel.add_tab("Robot state"):
             self.status = gui.add_markdown("")
             self.legend = gui.add_markdown("")
         panel.dock_left()
         panel.set_width(400)
+
+    def _maze_button(self, material: str) -> None:
+        """Enable the maze button only when the maze stage wrote this material's series."""
+        f = maze_file(self.outputs.directory, material)
+        self.maze.disabled = not f.is_file()
+        self.maze.hint = (f"replays {f}" if f.is_file() else
+                          f"no {f.name}: add the maze stage to the pipeline (pipelines/paper.toml has it)")
 
     def _show_goal(self, pose) -> None:
         for f, v in zip(self.goal_fields, pose):
@@ -240,6 +248,7 @@ class Page:
         geo, x = info.geometry, snap.state.x
         if snap.material != self._material:
             self.surface, self._material = scene.surface(geo.tets, geo.rest), snap.material
+            self._maze_button(snap.material)
         strain = self._strain_of(snap)
         values = scene.face_values(self.field, self.surface, geo, x, strain)
         lo, hi = scene.field_range(self.field, values, self.strain_limit)
