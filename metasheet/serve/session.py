@@ -23,13 +23,13 @@ the :class:`Snapshot` s the session publishes; every tab of the page sees the sa
 
 Live settings (:data:`LIVE_SETTINGS`): ``drift_tol`` 10 instead of 0.5. While a goal moves,
 every control step leaves a pending equilibrium correction of a few tenths of a mm, and at
-the default the kept tangent is refreshed at nearly every step (~200 ms each on the quick
-pipeline's robot against ~11 ms for a chord step: 5 instead of 10-16 updates/s,
-benchmarks/bench_serve.py). The QP already compensates the pending correction, and a reached
-goal is still certified as an equilibrium within ``eq_tol``, as ``goto`` certifies it, and
-with the default ``drift_tol``: certifying a closest pose with the loose one took 37 s
-instead of 0.8 s on that robot (the chord corrections stall and the full Newton solve has to
-start from far).
+the default the kept tangent is refreshed more often (~210 ms each on the quick pipeline's
+robot against ~15 ms for a chord step): 6.0 / 16.8 / 6.1 updates/s against 5.0 / 14.4 / 4.6
+on the three drags of benchmarks/bench_serve.py. The QP already compensates the pending
+correction, and a reached goal is still certified as an equilibrium within ``eq_tol``, as
+``goto`` certifies it, and with the default ``drift_tol``: certifying a closest pose with the
+loose one took 37 s instead of 0.8 s on that robot (the chord corrections stall and the full
+Newton solve has to start from far).
 """
 
 from __future__ import annotations
