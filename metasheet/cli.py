@@ -299,6 +299,40 @@ def robot_goto(
         )
 
 
+@app.command()
+def serve(
+    pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file whose robot to drive, e.g. pipelines/quick.toml")],
+    host: Annotated[str, typer.Option("--host", help="address to serve on (127.0.0.1: this machine only)")] = "127.0.0.1",
+    port: Annotated[int, typer.Option("--port", min=1, max=65535, help="port to serve on")] = 8080,
+    model: Annotated[str, typer.Option("--model", help="robot model: 'full' (FEM) or 'reduced' (the reduce "
+                                       "stage's reduced-order robot)")] = "full",
+    out: Annotated[Optional[Path], typer.Option("--out", help="output root the pipeline ran with (default: "
+                                                "outputs/ of the project)")] = None,
+) -> None:
+    """Drive the pipeline's robot from a browser: drag the goal, the inverse model follows live.
+
+    Serves a page at http://HOST:PORT showing the robot the robot stage built (run the
+    pipeline first); Ctrl-C stops it.
+    """
+    from .serve.app import serve as serve_page
+    from .serve.loading import MODELS, find_outputs
+
+    if model not in MODELS:
+        from .errors import ConfigError
+
+        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
+    outputs = find_outputs(pipeline, out)
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        say(f"note: --host {host}: the page is served beyond this machine; anyone who reaches it drives the robot")
+    say(f"loading the robot of {outputs.directory} ...")
+    try:
+        serve_page(outputs, host=host, port=port, model=model,
+                   ready=lambda url: say(f"serving the robot at {url} (Ctrl-C stops)"))
+    except KeyboardInterrupt:
+        say("stopped")
+        raise typer.Exit(130) from None
+
+
 def _pop_debug(args: list[str]) -> bool:
     """Remove ``--debug`` from ``args`` wherever it stands before ``--``; True if it was there."""
     end = args.index("--") if "--" in args else len(args)

@@ -1,0 +1,150 @@
+"""metasheet serve's update rate: visual updates per second while the goal is dragged.
+
+Run (the pipeline's outputs must exist: ``metasheet run pipelines/quick.toml`` first):
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_serve.py [pipelines/quick.toml] [--out ROOT]
+        [--model full|reduced] [--seconds 6] [--browser]
+
+Drives the page's own session (solver thread) and drawing thread on a real viser server on a
+free loopback port with scripted drags: the goal moves at 60 updates per second (a mouse
+drag's event rate), the latest goal winning as on the page. With ``--browser`` a headless
+chromium (Debian's chromium + chromium-driver, selenium) has the page open, so every update
+is also encoded and sent over the websocket; the browser's own rendering runs on the same
+cores here, which a user's machine would not share with the solver.
+
+Drags (from the rest pose): "translate", a circle of radius 3 mm in the y-z plane, one turn in
+2 s (9.4 mm/s); "roll", +-5 deg about the rod (the 6th DOF) at 0.5 Hz; "tilt", +-5 deg about y
+at 0.5 Hz. Each runs with the page's live settings and with the inverse loop's defaults
+(``drift_tol`` 0.5 instead of 10, :mod:`metasheet.serve.session`).
+
+Prints one table: control steps per second (each one published), median and 90th-percentile
+step time, page updates pushed per second, median draw time, the median tracking error
+while moving [mm, deg] and the kept-tangent refreshes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from metasheet.robot.inverse import InverseSettings  # noqa: E402
+from metasheet.serve.loading import find_outputs, load_robot  # noqa: E402
+from metasheet.serve.session import LIVE_SETTINGS, Session  # noqa: E402
+
+PERIOD = 2.0  # [s] of each drag's cycle
+DRAGS = {
+    "translate": lambda t: np.array([0.0, 3.0 * np.sin(2 * np.pi * t / PERIOD),
+                                     3.0 * (np.cos(2 * np.pi * t / PERIOD) - 1), 0.0, 0.0, 0.0]),
+    "roll": lambda t: np.array([0.0, 0.0, 0.0, 5.0 * np.sin(2 * np.pi * t / PERIOD), 0.0, 0.0]),
+    "tilt": lambda t: np.array([0.0, 0.0, 0.0, 0.0, 5.0 * np.sin(2 * np.pi * t / PERIOD), 0.0]),
+}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def open_browser(url: str):
+    import shutil
+
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = shutil.which("chromium")
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
+                "--enable-unsafe-swiftshader", "--window-size=1400,900"):
+        opts.add_argument(arg)
+    driver = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=opts)
+    driver.get(url)
+    time.sleep(5)
+    return driver
+
+
+def run_drag(session, page, drag, seconds: float) -> dict:
+    """Stream the drag's goals for ``seconds``; the rates and times while it moves."""
+    session.reset()
+    session.wait_idle(120)
+    rest = session.snapshot().pose
+    ctrl = session.current.ctrl
+    refreshes0 = ctrl.refreshes
+    snaps, draws0 = [], page.draws
+    page.draw_times.clear()
+    t0 = time.perf_counter()
+    last = session.snapshot().version
+    while (t := time.perf_counter() - t0) < seconds:
+        session.set_goal(rest + DRAGS[drag](t))
+        snap = session.wait(last, timeout=1 / 60)
+        if snap is not None:
+            last = snap.version
+            if snap.mode == "inverse" and snap.status == "moving":
+                snaps.append(snap)
+    span = time.perf_counter() - t0
+    draws = page.draws - draws0
+    steps = np.array([s.step_ms for s in snaps]) if snaps else np.array([np.nan])
+    return {"steps/s": len(snaps) / span, "step ms median": float(np.median(steps)),
+            "step ms p90": float(np.percentile(steps, 90)), "updates/s": draws / span,
+            "draw ms median": 1e3 * float(np.median(page.draw_times or [np.nan])),
+            "error mm": float(np.median([s.pos_error for s in snaps] or [np.nan])),
+            "error deg": float(np.median([s.rot_error for s in snaps] or [np.nan])),
+            "refreshes": ctrl.refreshes - refreshes0}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("pipeline", nargs="?", default=str(ROOT / "pipelines" / "quick.toml"))
+    ap.add_argument("--out", default=None, help="output root the pipeline ran with")
+    ap.add_argument("--model", default="full")
+    ap.add_argument("--seconds", type=float, default=6.0)
+    ap.add_argument("--browser", action="store_true", help="keep the page open in headless chromium")
+    args = ap.parse_args()
+
+    import viser
+
+    from metasheet.serve.app import Page
+
+    outputs = find_outputs(args.pipeline, args.out)
+    rows = []
+    for name, settings in (("live", LIVE_SETTINGS), ("default", InverseSettings())):
+        session = Session(lambda m: load_robot(outputs, args.model, m), settings=settings)
+        session.start()
+        port = free_port()
+        server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
+        page = Page(server, session, outputs, strain_limit=0.3, model=args.model)
+        driver = open_browser(f"http://127.0.0.1:{port}") if args.browser else None
+        try:
+            for drag in DRAGS:
+                rows.append((drag, name, run_drag(session, page, drag, args.seconds)))
+        finally:
+            if driver is not None:
+                driver.quit()
+            page.close()
+            session.stop()
+            server.stop()
+    info = session.robot_of("foam")[1]
+    print(f"\nmetasheet serve, {outputs.directory} ({args.model} model: {info.description})")
+    print(f"drags of {args.seconds:g} s, goal events at 60 Hz; browser connected: {args.browser}; "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
+          f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
+    keys = list(rows[0][2])
+    print("| drag | settings | " + " | ".join(keys) + " |")
+    print("|---|---|" + "---|" * len(keys))
+    for drag, name, r in rows:
+        print(f"| {drag} | {name} | " + " | ".join(str(r[k]) if k == "refreshes" else f"{r[k]:.2f}" if "error" in k
+                                               else f"{r[k]:.1f}" for k in keys)
+              + " |")
+
+
+if __name__ == "__main__":
+    main()

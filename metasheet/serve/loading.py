@@ -1,0 +1,180 @@
+"""The robot ``metasheet serve`` drives: the one the robot stage built from a pipeline's outputs.
+
+The page shows the robot as the pipeline built it, so it is rebuilt here from the same
+artefacts the robot stage read, in the same way (:mod:`metasheet.pipeline.stages.robot`):
+
+* the orient stage's sheets (``orient/sheet.vtu``, ``sheet_mirrored.vtu``) with their fibres
+  and per-element constants;
+* the scene the robot stage recorded in ``robot/jacobian.json`` (rod length, servo geometry,
+  stroke, gravity, sheet mass: the orient stage's scene with the robot stage's overrides);
+* the material stage's density and material model (``material/material.json``); a scene with
+  a sheet mass gives every sheet that mass instead, as in the robot stage.
+
+The "silicone" robot is the robot stage's silicone case: the same sheets, isotropic silicone
+(the pipeline's ``[robot]`` silicone constants, else :data:`metasheet.paper.SILICONE`), the
+silicone density or the scene's sheet mass.
+
+Every robot is built by :func:`load_robot`, the one place a robot model is chosen: ``"full"``
+is the FEM robot; ``"reduced"`` (the reduce stage's reduced-order robot) is not available yet
+and is a clear error. Missing outputs are a :class:`~metasheet.errors.ConfigError` naming
+the file and the command that writes it; nothing falls back to a default robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError
+
+#: the robot models ``--model`` accepts
+MODELS = ("full", "reduced")
+#: the sheet materials the page switches between
+MATERIALS = ("foam", "silicone")
+#: the artefacts the page needs, per stage
+REQUIRED = {
+    "orient": ("sheet.json", "sheet.vtu", "sheet_mirrored.vtu"),
+    "material": ("material.json",),
+    "robot": ("jacobian.json",),
+}
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Where a pipeline's outputs are: ``directory`` = ``<out root>/<pipeline name>``;
+    ``run_command``: the command that writes them (for error messages); ``silicone``: the
+    pipeline's silicone (E [MPa], nu [-], density [t/mm^3]) for the material switch."""
+
+    directory: Path
+    run_command: str
+    silicone: tuple[float, float, float]
+    stages: tuple[str, ...] = ()
+
+
+def find_outputs(pipeline: str | Path, out: str | Path | None = None) -> Outputs:
+    """The output folder of ``pipeline`` (a TOML file) as ``metasheet run`` writes it:
+    ``<out>/<name>`` with ``out`` the ``--out`` root, default ``outputs/`` of the project."""
+    from .. import paper
+    from ..pipeline.config import load_pipeline
+
+    p = load_pipeline(pipeline)
+    root = Path(out) if out is not None else p.root / "outputs"
+    command = f"metasheet run {pipeline}" + (f" --out {out}" if out is not None else "")
+    rp = p.params.get("robot")
+    silicone = ((rp.silicone_E, rp.silicone_nu, rp.silicone_density) if rp is not None
+                else (paper.SILICONE.E, paper.SILICONE.nu, paper.SILICONE_DENSITY))
+    return Outputs(root / p.name, command, tuple(float(v) for v in silicone), tuple(p.order))
+
+
+def check_outputs(outputs: Outputs) -> None:
+    """Raise a one-line :class:`ConfigError` naming the first missing artefact and the
+    command that writes it (or the stage the pipeline lacks)."""
+    for stage, files in REQUIRED.items():
+        if outputs.stages and stage not in outputs.stages:
+            raise ConfigError(f"the pipeline has no {stage!r} stage, whose outputs the page needs: "
+                              f"add {stage!r} to [pipeline] stages and run `{outputs.run_command}`")
+        for name in files:
+            path = outputs.directory / stage / name
+            if not path.is_file():
+                raise ConfigError(f"{path}: missing (the {stage} stage's output): run `{outputs.run_command}` first")
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    """What the page draws of a robot, in the world frame at rest.
+
+    Attributes
+    ----------
+    rest : (n, 3) float, node positions [mm] (the robot's ``coupling.rest``).
+    tets : (m, 4) or (m, 10) int, the elements (both sheets, sheet A's first).
+    sheet : (m,) int, 0 for sheet A's elements, 1 for sheet B's.
+    fibers : (m, 3) float, unit fibre direction (the soft axis l) of each element at rest.
+    fiber_angle : (m,) float, the fibre's axis angle in its sheet's own frame [deg], in [0, 180).
+    pivots : (na, 3) float, the servo pivots [mm]; horn_nodes : per servo, the (k,) int
+        nodes its horn holds.
+    axis : (3,) the rod's direction at rest; rod_length : [mm].
+    """
+
+    rest: np.ndarray
+    tets: np.ndarray
+    sheet: np.ndarray
+    fibers: np.ndarray
+    fiber_angle: np.ndarray
+    pivots: np.ndarray
+    horn_nodes: tuple
+    axis: np.ndarray
+    rod_length: float
+
+
+@dataclass(frozen=True)
+class RobotInfo:
+    """A loaded robot's description: ``model`` ("full"), ``material`` ("foam" / "silicone"),
+    what it is made of (``description``, for the page), and its :class:`RobotGeometry`."""
+
+    model: str
+    material: str
+    description: str
+    geometry: RobotGeometry
+
+
+def robot_geometry(robot, fibers_local: tuple[np.ndarray, np.ndarray]) -> RobotGeometry:
+    """The :class:`RobotGeometry` of a 6-DOF robot built by :func:`~metasheet.robot.builder.
+    six_dof_robot`; ``fibers_local``: each sheet's (m_s, 3) fibres in its own sheet frame."""
+    from ..robot.robots import Q_A, Q_B
+
+    fa, fb = (np.asarray(f, float) for f in fibers_local)
+    tets = np.asarray(robot.body.tets)
+    if len(fa) + len(fb) != len(tets):
+        raise ConfigError(f"fibers: {len(fa)} + {len(fb)} elements: the robot has {len(tets)}")
+    sheet = np.repeat([0, 1], [len(fa), len(fb)])
+    world = np.vstack([fa @ Q_A.T, fb @ Q_B.T])  # sheet frame -> world, as the robot's stiffness
+    world /= np.linalg.norm(world, axis=1, keepdims=True)
+    local = np.vstack([fa, fb])
+    angle = np.mod(np.degrees(np.arctan2(local[:, 1], local[:, 0])), 180.0)  # an axis: period 180
+    c = robot.coupling
+    centres = np.asarray(robot.info["sheet_centres_mm"], float)
+    return RobotGeometry(np.asarray(c.rest, float), tets, sheet, world, angle,
+                         np.array([s.pivot for s in c.servos], float), tuple(np.asarray(s.nodes) for s in c.servos),
+                         np.asarray(robot.axis, float) / np.linalg.norm(robot.axis),
+                         float(np.linalg.norm(centres[1] - centres[0])))
+
+
+def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
+    """The robot of ``outputs`` as the robot stage built it: ``(robot, RobotInfo)``.
+
+    ``model`` : "full" (the FEM robot) or "reduced" (not yet available: a ConfigError);
+    ``material`` : "foam" (the sheets' own constants) or "silicone" (the robot stage's
+    silicone case). Raises :class:`ConfigError` for a missing artefact (see
+    :func:`check_outputs`), an unknown model or material.
+    """
+    if model not in MODELS:
+        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
+    if material not in MATERIALS:
+        raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
+    check_outputs(outputs)
+    if model == "reduced":
+        reduce_dir = outputs.directory / "reduce"
+        raise ConfigError(f"--model reduced: needs the reduce stage's outputs ({reduce_dir}), which are "
+                          "missing: run a pipeline with the reduce stage, or use --model full")
+    from ..material import Isotropic
+    from ..pipeline.artefacts import read_material, read_orient, read_robot_scene
+    from ..robot.builder import six_dof_robot
+
+    d = outputs.directory
+    orient, mat, sc = read_orient(d / "orient"), read_material(d / "material"), read_robot_scene(d / "robot")
+    scene = {"rod_length": sc.rod_length, "geometry": sc.servo_geometry(), "gravity": sc.gravity}
+    if material == "foam":
+        mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": mat.density}
+        robot = six_dof_robot(orient.sheets(), model=mat.model, **mass, **scene)
+        what = f"foam: the sheets' own constants along their fibres ({mat.source or 'material stage'}, model {mat.model})"
+    else:
+        E, nu, density = outputs.silicone
+        mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": density}
+        robot = six_dof_robot(orient.sheets(need_constants=False), Isotropic(E, nu), **mass, **scene)
+        what = f"silicone: isotropic E = {E:g} MPa, nu = {nu:g}"
+    geometry = robot_geometry(robot, (orient.normal.fibers, orient.mirrored.fibers))
+    description = (f"{what}; scene {sc.scene}, rod {sc.rod_length:g} mm, stroke "
+                   f"[{sc.angle_min:g}, {sc.angle_max:g}] deg; {len(geometry.tets)} {orient.element} elements")
+    return robot, RobotInfo(model, material, description, geometry)

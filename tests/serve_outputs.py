@@ -1,0 +1,40 @@
+"""A small pipeline output tree for the serve tests: coarse orient sheets, the paper's foam,
+and the robot stage's scene, written without running the (slow) robot stage."""
+
+import json
+
+import meshio
+import numpy as np
+
+from metasheet import paper
+from metasheet.conventions import GRAVITY
+from metasheet.pipeline.artefacts import write_jacobian, write_material
+from metasheet.sheet.fibers import spiral_fibers
+from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet
+
+PIPELINE = '[pipeline]\nname = "tiny"\nstages = ["material", "orient", "robot"]\n'
+
+
+def write_outputs(root, mesh_size: float = 15.0, pipeline: str = PIPELINE):
+    """``root/tiny.toml`` and its outputs ``root/out/tiny/{orient,material,robot}``; returns
+    (pipeline file, output root)."""
+    toml = root / "tiny.toml"
+    toml.write_text(pipeline)
+    base = root / "out" / "tiny"
+    orient, material, robot = (base / n for n in ("orient", "material", "robot"))
+    for d in (orient, material, robot):
+        d.mkdir(parents=True)
+    s = tripod_sheet(SheetParams(mesh_size=mesh_size))
+    consts = {k: np.full(len(s.tets), v) for k, v in paper.PAPER_FOAM.to_dict().items()}
+    for name, sh, mir in (("sheet.vtu", s, False), ("sheet_mirrored.vtu", mirror_sheet(s), True)):
+        fib = spiral_fibers(sh.centroids(), mirrored=mir)
+        meshio.write(orient / name, meshio.Mesh(sh.points, [("tetra", sh.tets)], point_data={"attach": sh.attach},
+                                                cell_data={"fiber": [fib], **{k: [v] for k, v in consts.items()}}))
+    (orient / "sheet.json").write_text(json.dumps({"arm_angles_deg": [0.0, 120.0, 240.0], "element": "p1"}))
+    write_material(material / "material.json", paper.PAPER_FOAM, density=paper.FOAM_DENSITY, source="config")
+    write_jacobian(robot / "jacobian.json", {"geometry": {
+        "rod_length_mm": paper.ROD_LENGTH, "scene": "metasheet", "sheet_mass_g": None,
+        "gravity_mm_s2": [0.0, 0.0, -GRAVITY],
+        "servo_geometry": {"rest_angle_deg": paper.REST_ANGLE, "horn_length_mm": paper.HORN_LENGTH,
+                           "angle_min_deg": paper.ANGLE_MIN, "angle_max_deg": paper.ANGLE_MAX}}})
+    return toml, root / "out"
