@@ -13,7 +13,7 @@ import pytest
 
 from metasheet.errors import ConfigError
 from metasheet.robot.equilibrium import solve_equilibrium
-from metasheet.robot.inverse import InverseController, InverseSettings
+from metasheet.robot.inverse import InverseController
 from metasheet.serve import scene
 from metasheet.serve.app import SCALE, check_port
 from metasheet.serve.loading import find_outputs, load_robot
