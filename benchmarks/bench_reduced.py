@@ -1,0 +1,86 @@
+"""Reduced vs full robot (issue 16): training cost, equilibrium from rest, inverse control step.
+
+Trains a reduced model in process (the ``reduce`` stage's functions) on the paper robot built
+in memory, then times, on the same held-out motor angles and goals, in the same process:
+
+* equilibrium from rest (:func:`metasheet.robot.equilibrium.solve_equilibrium`), median;
+* the inverse control step (:meth:`~metasheet.robot.inverse.InverseController.step`),
+  median, mean and p99 over a goal sequence, with the fresh tangents taken.
+
+    python benchmarks/bench_reduced.py --mesh-size 14 --element p1 --box 12 --snapshots 24
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from metasheet.robot.equilibrium import solve_equilibrium
+from metasheet.robot.inverse import InverseController
+from metasheet.robot.reduced import ReducedRobot
+from metasheet.robot.rom_training import motor_design, train
+from metasheet.rotations import rotation_matrix
+from metasheet.studies.adapter import paper_robot_spec
+
+
+def _control(robot, goals, steps: int):
+    ctrl = InverseController(robot)
+    times, fresh = [], 0
+    for g in goals:
+        R = rotation_matrix(np.radians(g[3:]))
+        for _ in range(steps):
+            info = ctrl.step(g[:3], R)
+            times.append(info.time)
+            fresh += info.fresh
+    t = np.array(times) * 1e3
+    return float(np.median(t)), float(t.mean()), float(np.percentile(t, 99)), fresh, len(t)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mesh-size", type=float, default=14.0)
+    ap.add_argument("--element", default="p1", choices=("p1", "p2"))
+    ap.add_argument("--box", type=float, default=12.0, help="training box: rest +- this [deg]")
+    ap.add_argument("--snapshots", type=int, default=24)
+    ap.add_argument("--repeats", type=int, default=8)
+    a = ap.parse_args()
+    fem = paper_robot_spec(mesh_size=a.mesh_size, element=a.element).build()
+    rob, lz, rest = fem.robot, fem.lz, fem.rest
+    c = rob.coupling
+    lo, hi = c.rest_angles - np.radians(a.box), c.rest_angles + np.radians(a.box)
+    t0 = time.perf_counter()
+    snaps = [solve_equilibrium(rob, q, state=rest, linearizer=lz).state for q in motor_design(lo, hi, a.snapshots, 0)]
+    t_snap = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    basis = train(rob, snaps, rest, box=(lo, hi))
+    t_train = time.perf_counter() - t0
+    red = ReducedRobot(rob, basis)
+    angles = motor_design(lo, hi, a.repeats, 5, corners=False) * 0.8 + 0.2 * c.rest_angles
+    rows = []
+    for name, robot in (("full", rob), ("reduced", red)):
+        lzr = robot.linearizer()
+        ts = []
+        for q in angles:
+            t = time.perf_counter()
+            solve_equilibrium(robot, q, linearizer=lzr)
+            ts.append(time.perf_counter() - t)
+        rows.append((name, 1e3 * float(np.median(ts))))
+    poses = [solve_equilibrium(rob, q, state=rest, linearizer=lz).state.pose for q in angles[:4]]
+    goals = [np.concatenate([p[:3], np.degrees(p[3:])]) for p in poses]
+    ctl = {name: _control(robot, goals, 10) for name, robot in (("full", rob), ("reduced", red))}
+    print(f"robot: {a.element} {a.mesh_size:g} mm, {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
+          f"reduced: k = {basis.k}, {len(basis.elements)} elements; box rest +- {a.box:g} deg")
+    print(f"training: {len(snaps)} full equilibria {t_snap:.1f} s, basis + sample + fit {t_train:.1f} s")
+    print(f"{'model':10s} {'equilibrium from rest [ms]':>28s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
+          f"{'fresh':>6s} {'steps':>6s}")
+    for name, eq in rows:
+        m, mean, p99, fresh, n = ctl[name]
+        print(f"{name:10s} {eq:28.1f} {m:12.2f} {mean:8.2f} {p99:8.2f} {fresh:6d} {n:6d}")
+    print(f"ratio full / reduced: equilibrium {rows[0][1] / rows[1][1]:.2f}, "
+          f"step median {ctl['full'][0] / ctl['reduced'][0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
