@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
+from ..rotations import skew
 from .ecsw import ecsw_path
 from .equilibrium import solve_equilibrium
 from .reduced import ReducedBasis, ReducedRobot, ReducedState, robot_key
@@ -67,19 +68,15 @@ def element_contributions(robot, V: np.ndarray, st: ReducedState) -> np.ndarray:
     from .quadrature import corotational_quadrature_numpy
 
     c, body = robot.coupling, robot.body
-    full = ReducedRobot.__new__(ReducedRobot)  # positions only: no sample needed
     x_f = c.rest[c.free] + (V @ st.a).reshape(-1, 3)
     x = c.positions(st.p, st.R, st.angles, x_f)
     nq = 6 + c.n_act + V.shape[1]
-    T = np.zeros((len(x), 3, nq))
+    T = np.zeros((len(x), 3, nq))  # dx / dq of every node (the sampled model's T, on all nodes)
     T[c.effector_nodes, :, :3] = np.eye(3)
-    from ..rotations import skew
-
     T[c.effector_nodes, :, 3:6] = -skew(x[c.effector_nodes] - st.p)
     for k, s in enumerate(c.servos):
         T[s.nodes, :, 6 + k] = np.cross(s.axis, x[s.nodes] - s.pivot)
     T[c.free, :, 6 + c.n_act:] = V.reshape(len(c.free), 3, -1)
-    del full
     out = np.empty((nq, body.n_elements))
     for start in range(0, body.n_elements, 4096):  # chunks bound the memory of the batched kernel
         sl = slice(start, min(start + 4096, body.n_elements))
