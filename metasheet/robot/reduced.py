@@ -224,15 +224,8 @@ class ReducedRobot:
 
     def jacobian(self, x: np.ndarray, st: ReducedState) -> np.ndarray:
         """(3 n_s, nq) T = dx_s / dq at sub-node positions ``x`` (n_s, 3) [mm]."""
-        T = np.zeros((len(x), 3, self.nq))
-        T[self._eff, :, 0:3] = np.eye(3)
-        T[self._eff, :, 3:6] = -skew(x[self._eff] - st.p)
-        for k, (s, idx) in enumerate(zip(self.coupling.servos, self._servo)):
-            T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
-        T = T.reshape(-1, self.nq)
-        rows = (3 * self._free[:, None] + np.arange(3)).ravel()
-        T[rows, 6 + self.na:] = self._V
-        return T
+        T = coordinate_jacobian(self.coupling, x, st.p, self._eff, self._servo, self._free, self._V)
+        return T.reshape(-1, self.nq)
 
     # -- generalised forces ---------------------------------------------------------------
     def _gravity(self, st: ReducedState) -> np.ndarray:
@@ -280,6 +273,20 @@ class ReducedRobot:
         nr = 6 + self.na
         A[:nr, :nr] += self._internal_geometric(x, st, r) - self._gravity_geometric(st)
         return g_int, g_ext, A
+
+
+def coordinate_jacobian(coupling, x, p, eff, servo, free, V) -> np.ndarray:
+    """(len(x), 3, 6 + na + k) dx / dq of the nodes at positions ``x`` [mm]: rows ``eff`` move
+    with the effector (reference point ``p`` [mm]), ``servo[k]`` with horn k, ``free`` with the
+    basis rows ``V`` (3 len(free), k) (any other row is zero)."""
+    na = coupling.n_act
+    T = np.zeros((len(x), 3, 6 + na + V.shape[1]))
+    T[eff, :, 0:3] = np.eye(3)
+    T[eff, :, 3:6] = -skew(x[eff] - p)
+    for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
+        T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
+    T[free, :, 6 + na:] = V.reshape(len(free), 3, -1)
+    return T
 
 
 class ReducedLinearizer:

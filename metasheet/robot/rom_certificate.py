@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConvergenceError
+from ..rotations import rotation_vector
 from .equilibrium import solve_equilibrium
 from .inverse import InverseController, InverseSettings
 from .kinematics import kinematics
@@ -56,7 +57,7 @@ def compare(full_robot, full_state, reduced, reduced_lz, full_lz) -> Comparison:
     except ConvergenceError:
         return Comparison(deg, nan, nan, nan, nan, strain)
     pos = float(np.linalg.norm(r.p - full_state.p))
-    rot = float(np.degrees(np.linalg.norm(_log(r.R @ full_state.R.T))))
+    rot = float(np.degrees(np.linalg.norm(rotation_vector(r.R @ full_state.R.T))))
     Jf = kinematics(full_lz.linearize(full_state)).J
     Jr = kinematics(reduced_lz.linearize(r)).J
     jrel = float(np.linalg.norm(Jr - Jf) / np.linalg.norm(Jf))
@@ -65,12 +66,6 @@ def compare(full_robot, full_state, reduced, reduced_lz, full_lz) -> Comparison:
     inv = InverseController(reduced, settings=settings).goto(goal)
     motors = float(np.abs(inv.angles_deg - np.degrees(full_state.angles)).max()) if inv.reached else nan
     return Comparison(deg, pos, rot, jrel, motors, strain)
-
-
-def _log(R):
-    from ..rotations import rotation_vector
-
-    return rotation_vector(R)
 
 
 def summarize(rows: list[Comparison]) -> dict:

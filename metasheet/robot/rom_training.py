@@ -22,10 +22,9 @@ import time
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
-from ..rotations import skew
 from .ecsw import ecsw_path
 from .equilibrium import solve_equilibrium
-from .reduced import ReducedBasis, ReducedRobot, ReducedState, robot_key
+from .reduced import ReducedBasis, ReducedRobot, ReducedState, coordinate_jacobian, robot_key
 from .rom_basis import pod_basis
 
 
@@ -70,13 +69,8 @@ def element_contributions(robot, V: np.ndarray, st: ReducedState) -> np.ndarray:
     c, body = robot.coupling, robot.body
     x_f = c.rest[c.free] + (V @ st.a).reshape(-1, 3)
     x = c.positions(st.p, st.R, st.angles, x_f)
-    nq = 6 + c.n_act + V.shape[1]
-    T = np.zeros((len(x), 3, nq))  # dx / dq of every node (the sampled model's T, on all nodes)
-    T[c.effector_nodes, :, :3] = np.eye(3)
-    T[c.effector_nodes, :, 3:6] = -skew(x[c.effector_nodes] - st.p)
-    for k, s in enumerate(c.servos):
-        T[s.nodes, :, 6 + k] = np.cross(s.axis, x[s.nodes] - s.pivot)
-    T[c.free, :, 6 + c.n_act:] = V.reshape(len(c.free), 3, -1)
+    T = coordinate_jacobian(c, x, st.p, c.effector_nodes, [s.nodes for s in c.servos], c.free, V)
+    nq = T.shape[2]
     out = np.empty((nq, body.n_elements))
     for start in range(0, body.n_elements, 4096):  # chunks bound the memory of the batched kernel
         sl = slice(start, min(start + 4096, body.n_elements))
