@@ -17,8 +17,8 @@ from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
 from metasheet.robot.kinematics import kinematics
 from metasheet.robot.reduced import ReducedBasis, ReducedRobot, robot_key
-from metasheet.robot.rom_basis import nodal_error, pod_basis
-from metasheet.robot.rom_training import motor_design, static_modes, train
+from metasheet.robot.rom_basis import add_sensitivities, nodal_error, pod_basis
+from metasheet.robot.rom_training import motor_design, sensitivity, static_modes, train
 from metasheet.studies.adapter import paper_robot_spec
 
 
@@ -110,13 +110,41 @@ def test_pod_basis_meets_its_projection_target(full):
     assert rec["pod_modes"] <= 5
 
 
+def test_sensitivities_make_the_jacobian_exact_where_they_were_taken(full):
+    """A basis spanning a state's displacement and static responses reproduces that state's
+    equilibrium and Jacobian exactly (Galerkin with the solution in the span; exact static
+    condensation), with every element; without the responses the Jacobian there is off."""
+    rob, lz, rest = full
+    c = rob.coupling
+    s = solve_equilibrium(rob, c.rest_angles + np.radians([12, -9, 6, 10, -8, 11]), state=rest, linearizer=lz,
+                          tol=1e-10).state
+    U = (s.x[c.free] - c.rest[c.free]).reshape(-1, 1)
+    V0, _ = pod_basis(static_modes(rob, rest), U, 1e-9)
+    V, rec = add_sensitivities(V0, sensitivity(lz, s).astype(float), 1e-9)
+    assert rec["sensitivity_modes"] > 0 and np.allclose(V.T @ V, np.eye(V.shape[1]), atol=1e-9)
+    Jf = kinematics(lz.linearize(s)).J
+    errors = []
+    for basis in (V0, V):
+        red = ReducedRobot(rob, _basis(rob, basis))
+        r = solve_equilibrium(red, s.angles, tol=1e-10).state
+        assert np.abs(r.pose - s.pose).max() < 1e-6
+        Jr = kinematics(red.linearizer().linearize(r)).J
+        errors.append(np.linalg.norm(Jr - Jf) / np.linalg.norm(Jf))
+    # float32 responses: exact to their rounding, ~1e-7 relative
+    assert errors[1] < 1e-5 < 1e-3 < errors[0], errors
+    with pytest.raises(ConfigError, match="tangent_tol"):
+        add_sensitivities(V0, U, 0.0)
+
+
 @pytest.fixture(scope="module")
 def trained(full):
     rob, lz, rest = full
     c = rob.coupling
     lo, hi = c.rest_angles - np.radians(8), c.rest_angles + np.radians(8)
     snaps = [solve_equilibrium(rob, a, state=rest, linearizer=lz).state for a in motor_design(lo, hi, 10, 1)]
-    basis = train(rob, snaps, rest, box=(lo, hi), basis_tol_mm=0.005, fit_tol_mm=0.01)
+    sens = np.hstack([sensitivity(lz, s) for s in snaps])
+    basis = train(rob, snaps, rest, sensitivities=sens, box=(lo, hi), basis_tol_mm=0.005, fit_tol_mm=0.01)
+    assert basis.info["sensitivity_modes"] > 0
     return ReducedRobot(rob, basis), snaps
 
 

@@ -228,6 +228,19 @@ class ReducedRobot:
         return T.reshape(-1, self.nq)
 
     # -- generalised forces ---------------------------------------------------------------
+    def _project(self, x: np.ndarray, st: ReducedState, f: np.ndarray) -> np.ndarray:
+        """(nq,) ``T^T f`` for nodal forces ``f`` (n_s, 3) [N] at sub-node positions ``x``
+        [mm], without forming T: effector force and moment [N, N mm], servo torques [N mm],
+        ``V^T f`` [N]."""
+        g = np.empty(self.nq)
+        fe = f[self._eff]
+        g[:3] = fe.sum(axis=0)
+        g[3:6] = np.cross(x[self._eff] - st.p, fe).sum(axis=0)
+        for k, (s, idx) in enumerate(zip(self.coupling.servos, self._servo)):
+            g[6 + k] = s.axis @ np.cross(x[idx] - s.pivot, f[idx]).sum(axis=0)
+        g[6 + self.na:] = f[self._free].ravel() @ self._V
+        return g
+
     def _gravity(self, st: ReducedState) -> np.ndarray:
         """(nq,) generalised external forces: effector force [N], moment [N mm], servo torques [N mm], V^T f_ext [N]."""
         g = np.zeros(self.nq)
@@ -262,11 +275,11 @@ class ReducedRobot:
         the tangent dG/dq (nq, nq) (None unless ``tangent``) at ``st``."""
         x = self.sub_positions(st)
         f, data = self.sub.evaluate(x, tangent)
-        T = self.jacobian(x, st)
-        g_int = T.T @ f
         g_ext = self._gravity(st)
         if not tangent:
-            return g_int, g_ext, None
+            return self._project(x, st, f.reshape(-1, 3)), g_ext, None
+        T = self.jacobian(x, st)
+        g_int = T.T @ f
         K = self.sub.pattern.matrix(data)
         A = T.T @ (K @ T)
         r = f.reshape(-1, 3)

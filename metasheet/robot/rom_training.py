@@ -4,7 +4,9 @@
    spread over the motor box (:func:`motor_design`: a scrambled Sobol sequence plus the rest
    angles and the box's all-low / all-high corners, which bend the sheets most).
 2. Basis (:func:`.rom_basis.pod_basis`): the rest equilibrium's static modes plus POD modes
-   until every snapshot's worst nodal projection error is below ``basis_tol_mm``.
+   until every snapshot's worst nodal projection error is below ``basis_tol_mm``, then the
+   snapshots' own static responses (:func:`sensitivity`, :func:`.rom_basis.add_sensitivities`)
+   until each is captured within ``tangent_tol``: the Jacobian's accuracy.
 3. Elements (:func:`.ecsw.ecsw`): per training state, every element's contribution to the
    generalised forces (force rows [N]; moment and torque rows over the effector's length
    scale). Training states are the projected snapshots and, so the sample also fits the
@@ -25,7 +27,7 @@ from ..errors import ConfigError, ConvergenceError
 from .ecsw import ecsw_path
 from .equilibrium import solve_equilibrium
 from .reduced import ReducedBasis, ReducedRobot, ReducedState, coordinate_jacobian, robot_key
-from .rom_basis import pod_basis
+from .rom_basis import add_sensitivities, pod_basis
 
 
 def motor_design(lo, hi, n: int, seed: int, *, corners: bool = True) -> np.ndarray:
@@ -51,6 +53,13 @@ def static_modes(robot, rest) -> np.ndarray:
     lin = lz.linearize(rest)
     c = robot.coupling
     return np.column_stack([lin.Y, lz.factor.solve(robot.f_ext[c.free].ravel())])
+
+
+def sensitivity(lz, state) -> np.ndarray:
+    """(3 n_f, 6 + na) float32: the free nodes' static response to each rigid coordinate at
+    the full equilibrium ``state`` (eq. 6's ``K_ff^-1 K_fr J_r``; one fresh linearisation of
+    the :class:`~.statics.Linearizer` ``lz``). float32: POD keeps it to ~1e-3 anyway."""
+    return lz.linearize(state).Y.astype(np.float32)
 
 
 def projected_state(robot, V: np.ndarray, state) -> ReducedState:
@@ -95,11 +104,15 @@ def fit_error(reduced: ReducedRobot, snaps) -> float:
     return worst
 
 
-def train(robot, snaps, rest, *, basis_tol_mm: float = 0.01, ecsw_tol: float = 1e-3,
-          fit_tol_mm: float = 0.02, box=None, max_rounds: int = 5, fit_count: int = 8) -> ReducedBasis:
+def train(robot, snaps, rest, *, sensitivities=None, basis_tol_mm: float = 0.01, tangent_tol: float = 0.01,
+          ecsw_tol: float = 1e-3, fit_tol_mm: float = 0.02, box=None, max_rounds: int = 5,
+          fit_count: int = 8) -> ReducedBasis:
     """A :class:`ReducedBasis` for the full ``robot`` from snapshot equilibria ``snaps`` (full
     :class:`~.statics.RobotState` s) and the rest equilibrium ``rest``.
 
+    ``sensitivities`` : (3 n_f, c) the snapshots' static responses (:func:`sensitivity`),
+    added by :func:`.rom_basis.add_sensitivities` to relative nodal error ``tangent_tol``
+    (None: none; the Jacobian away from rest is then only as good as the POD modes make it);
     ``basis_tol_mm`` : POD target (worst nodal projection error) [mm]; ``ecsw_tol`` : the
     first ECSW tolerance, divided by 4 until ``fit_count`` training equilibria (the box corners
     first) are reproduced within ``fit_tol_mm`` [mm] by the reduced model, at most
@@ -111,6 +124,9 @@ def train(robot, snaps, rest, *, basis_tol_mm: float = 0.01, ecsw_tol: float = 1
     U = np.column_stack([(s.x[c.free] - c.rest[c.free]).ravel() for s in [rest, *snaps]])
     statics = static_modes(robot, rest)
     V, record = pod_basis(statics, U, basis_tol_mm)
+    if sensitivities is not None:
+        V, more = add_sensitivities(V, np.asarray(sensitivities, float), tangent_tol)
+        record.update(more)
     t_basis = time.perf_counter() - t0
     states = [projected_state(robot, V, s) for s in [rest, *snaps]]
     # off-equilibrium states: each snapshot pushed along the static response (the tangent's data)

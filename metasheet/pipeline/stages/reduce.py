@@ -35,6 +35,8 @@ class ReduceParams(StudyRobotParams):
                                   "cut to the motor range; None: the whole motor range")
     basis_tol_mm: float = Field(0.01, gt=0, le=10, description="POD target: worst nodal projection error of the "
                                 "training snapshots [mm]")
+    tangent_tol: float = Field(0.01, gt=0, lt=1, description="the snapshots' static responses (the Jacobian's "
+                               "data) are captured within this relative nodal error [-]")
     ecsw_tol: float = Field(1e-3, gt=0, lt=1, description="first ECSW relative force tolerance (tightened by 4 "
                             "until fit_tol_mm is met)")
     fit_tol_mm: float = Field(0.02, gt=0, le=10, description="the reduced model must reproduce the training "
@@ -45,17 +47,20 @@ class ReduceParams(StudyRobotParams):
 
 
 def _snapshot(unit):
-    """Work unit: the full model's equilibrium at motor angles [rad] from rest, compactly, or None."""
+    """Work unit: the full model's equilibrium at motor angles [rad] from rest, compactly
+    (p, R, angles, free displacements, and with ``sens`` its static responses), or None."""
+    from ...robot.rom_training import sensitivity
     from ...studies.model import MODELS
 
-    spec, angles = unit
+    spec, angles, sens = unit
     fem = MODELS.get(spec)
     try:
         st = solve_from_rest(fem, np.asarray(angles))
     except ConvergenceError:
         return None
     c = fem.robot.coupling
-    return st.p, st.R, st.angles, (st.x[c.free] - c.rest[c.free]).ravel()
+    Y = sensitivity(fem.lz, st) if sens else None
+    return st.p, st.R, st.angles, (st.x[c.free] - c.rest[c.free]).ravel(), Y
 
 
 def solve_from_rest(fem, angles):
@@ -72,7 +77,7 @@ def _states(fem, rows):
     out = []
     for r in rows:
         if r is not None:
-            p, R, ang, u = r
+            p, R, ang, u, _ = r
             out.append(RobotState(p, R, ang, c.positions(p, R, ang, c.rest[c.free] + u.reshape(-1, 3))))
     return out
 
@@ -101,7 +106,7 @@ def run(ctx: StageContext) -> dict:
     t0 = time.perf_counter()
     angles = motor_design(lo, hi, p.snapshots, p.seed)
     ctx.progress("training equilibria (full model)", 0, 3)
-    rows = cache.map(ctx.executor, _snapshot, [(spec, a) for a in angles],
+    rows = cache.map(ctx.executor, _snapshot, [(spec, a, True) for a in angles],
                      progress=lambda d, n: ctx.progress("training equilibria (full model)", d, n))
     snaps = _states(fem, rows)
     if len(snaps) < max(4, len(angles) // 2):
@@ -109,13 +114,15 @@ def run(ctx: StageContext) -> dict:
     ctx.timings["snapshots"] = time.perf_counter() - t0
     ctx.progress("basis and element sample", 1, 3)
     t1 = time.perf_counter()
-    basis = train(rob, snaps, fem.rest, basis_tol_mm=p.basis_tol_mm, ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm,
-                  box=(lo, hi))
+    sens = np.hstack([r[4] for r in rows if r is not None])
+    basis = train(rob, snaps, fem.rest, sensitivities=sens, basis_tol_mm=p.basis_tol_mm, tangent_tol=p.tangent_tol,
+                  ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm, box=(lo, hi))
     ctx.timings["training"] = time.perf_counter() - t1
     red = ReducedRobot(rob, basis)
     ctx.progress("certificate (held-out poses)", 2, 3)
     t2 = time.perf_counter()
-    held_rows = cache.map(ctx.executor, _snapshot, [(spec, a) for a in held_out_angles(lo, hi, p.held_out, p.seed + 1)],
+    held_angles = held_out_angles(lo, hi, p.held_out, p.seed + 1)
+    held_rows = cache.map(ctx.executor, _snapshot, [(spec, a, False) for a in held_angles],
                           progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
     held = _states(fem, held_rows)
     rl, fl = red.linearizer(), rob.linearizer()
