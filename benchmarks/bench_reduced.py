@@ -4,8 +4,11 @@ Trains a reduced model in process (the ``reduce`` stage's functions) on the pape
 in memory, then times, on the same held-out motor angles and goals, in the same process:
 
 * equilibrium from rest (:func:`metasheet.robot.equilibrium.solve_equilibrium`), median;
+  the reduced model twice: exact tangents, and its tangent library (``exact_tangent=False``,
+  :mod:`metasheet.robot.rom_tangents`) after one warm-up pass over the same angles;
 * the inverse control step (:meth:`~metasheet.robot.inverse.InverseController.step`),
-  median, mean and p99 over a goal sequence, with the fresh tangents taken.
+  median, mean and p99 over a goal sequence, with the fresh tangents taken; the reduced
+  model with its library computing missing tangents in the background.
 
     python benchmarks/bench_reduced.py --mesh-size 14 --element p1 --box 12 --snapshots 24
 """
@@ -20,7 +23,7 @@ import numpy as np
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
 from metasheet.robot.reduced import ReducedRobot
-from metasheet.robot.rom_training import motor_design, train
+from metasheet.robot.rom_training import motor_design, sensitivity, train
 from metasheet.rotations import rotation_matrix
 from metasheet.studies.adapter import paper_robot_spec
 
@@ -35,6 +38,11 @@ def _control(robot, goals, steps: int):
             times.append(info.time)
             fresh += info.fresh
     t = np.array(times) * 1e3
+    lib = getattr(ctrl.linearizer, "library", None)
+    if lib is not None:
+        lib.close()
+        print(f"  {robot.name}: tangent library {lib.stats}, exact tangents in a step: "
+              f"{ctrl.linearizer.stats['tangents']}")
     return float(np.median(t)), float(t.mean()), float(np.percentile(t, 99)), fresh, len(t)
 
 
@@ -54,32 +62,35 @@ def main() -> None:
     snaps = [solve_equilibrium(rob, q, state=rest, linearizer=lz).state for q in motor_design(lo, hi, a.snapshots, 0)]
     t_snap = time.perf_counter() - t0
     t0 = time.perf_counter()
-    basis = train(rob, snaps, rest, box=(lo, hi))
+    basis = train(rob, snaps, rest, sensitivities=np.hstack([sensitivity(lz, s) for s in snaps]), box=(lo, hi))
     t_train = time.perf_counter() - t0
     red = ReducedRobot(rob, basis)
     angles = motor_design(lo, hi, a.repeats, 5, corners=False) * 0.8 + 0.2 * c.rest_angles
     rows = []
-    for name, robot in (("full", rob), ("reduced", red)):
+    for name, robot, exact in (("full", rob, True), ("reduced", red, True), ("reduced+lib", red, False)):
         lzr = robot.linearizer()
-        ts = []
-        for q in angles:
-            t = time.perf_counter()
-            solve_equilibrium(robot, q, linearizer=lzr)
-            ts.append(time.perf_counter() - t)
+        for _ in range(1 if exact else 2):  # the library's warm-up pass, then the timed one
+            ts = []
+            for q in angles:
+                t = time.perf_counter()
+                solve_equilibrium(robot, q, linearizer=lzr, exact_tangent=exact)
+                ts.append(time.perf_counter() - t)
         rows.append((name, 1e3 * float(np.median(ts))))
     poses = [solve_equilibrium(rob, q, state=rest, linearizer=lz).state.pose for q in angles[:4]]
     goals = [np.concatenate([p[:3], np.degrees(p[3:])]) for p in poses]
-    ctl = {name: _control(robot, goals, 10) for name, robot in (("full", rob), ("reduced", red))}
+    live = red.with_limits(red.angle_min, red.angle_max)
+    live.background_tangents = True
+    ctl = {name: _control(robot, goals, 10) for name, robot in (("full", rob), ("reduced", red), ("reduced+lib", live))}
     print(f"robot: {a.element} {a.mesh_size:g} mm, {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
           f"reduced: k = {basis.k}, {len(basis.elements)} elements; box rest +- {a.box:g} deg")
     print(f"training: {len(snaps)} full equilibria {t_snap:.1f} s, basis + sample + fit {t_train:.1f} s")
-    print(f"{'model':10s} {'equilibrium from rest [ms]':>28s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
+    print(f"{'model':12s} {'equilibrium from rest [ms]':>26s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
           f"{'fresh':>6s} {'steps':>6s}")
     for name, eq in rows:
         m, mean, p99, fresh, n = ctl[name]
-        print(f"{name:10s} {eq:28.1f} {m:12.2f} {mean:8.2f} {p99:8.2f} {fresh:6d} {n:6d}")
-    print(f"ratio full / reduced: equilibrium {rows[0][1] / rows[1][1]:.2f}, "
-          f"step median {ctl['full'][0] / ctl['reduced'][0]:.2f}")
+        print(f"{name:12s} {eq:26.2f} {m:12.2f} {mean:8.2f} {p99:8.2f} {fresh:6d} {n:6d}")
+    print(f"ratio full / reduced+lib: equilibrium {rows[0][1] / rows[2][1]:.2f}, "
+          f"step median {ctl['full'][0] / ctl['reduced+lib'][0]:.2f}, p99 {ctl['full'][2] / ctl['reduced+lib'][2]:.2f}")
 
 
 if __name__ == "__main__":

@@ -181,3 +181,51 @@ def test_basis_of_another_robot_is_refused(full):
     V = np.eye(3 * len(rob.coupling.free))[:, :3]
     with pytest.raises(ConfigError, match="another robot"):
         ReducedRobot(other, _basis(rob, V))
+
+
+def test_tangent_library_serves_the_nearest_and_computes_the_missing_in_the_background(full, trained):
+    red, snaps = trained
+    lz = red.linearizer()
+    lib = lz.library
+    assert len(lib) == 0
+    rest = red.rest_state()
+    lin0 = lz.linearize(rest, exact=False)  # empty library: computed here, exact
+    assert lin0.exact and len(lib) == 1 and lib.stats["computed"] == 1
+    st = lz.apply(rest, np.zeros(6), np.zeros(red.k), np.radians(np.full(6, 1.0)))
+    lin1 = lz.linearize(st, exact=False)  # 1 deg away: the rest tangent, not exact here
+    assert not lin1.exact and lin1.S is lin0.S and lib.stats["hits"] == 1
+    # the residual is the true one at st, whatever the tangent
+    g_int, g_ext, _ = red.evaluate(st, tangent=False)
+    assert np.allclose(lin1.res_f, (g_int - g_ext)[12:], rtol=0, atol=1e-12 * np.abs(g_int).max())
+    far = lz.apply(rest, np.zeros(6), np.zeros(red.k), np.radians(np.full(6, 6.0)))
+    lz.library.background = True
+    lin2 = lz.linearize(far, exact=False)  # far: the nearest for now, an exact one queued
+    assert lin2.S is lin0.S and lib.stats["far"] == 1
+    lib.wait()
+    assert len(lib) == 2 and lib.stats["background"] == 1
+    lin3 = lz.linearize(far, exact=False)
+    exact = lz.linearize(far)
+    assert np.allclose(lin3.S, exact.S, rtol=1e-12, atol=1e-12 * np.abs(exact.S).max())
+    lib.close()
+
+
+def test_equilibrium_and_control_on_library_tangents_match_the_exact_ones(full, trained):
+    red, snaps = trained
+    lz = red.linearizer()
+    for s in snaps[:3]:
+        e = solve_equilibrium(red, s.angles, linearizer=red.linearizer(), tol=1e-9)
+        lib = solve_equilibrium(red, s.angles, linearizer=lz, tol=1e-9, exact_tangent=False)
+        assert np.abs(lib.state.pose - e.state.pose).max() < 1e-6
+    assert lz.stats["tangents"] < 3 * 3  # most steps ran on stored tangents
+    live = red.with_limits(red.angle_min, red.angle_max)
+    live.background_tangents = True
+    goal = np.array([0.6, 0.3, -0.3, 0.0, 0.0, 0.0])
+    ctrl = InverseController(live)
+    r = ctrl.goto(goal)
+    ctrl.linearizer.library.close()
+    ref = InverseController(red).goto(goal)
+    assert r.reached and ref.reached
+    assert np.abs(r.angles_deg - ref.angles_deg).max() < 0.2
+    # no control step computed a tangent itself: the controller's rest equilibrium filled
+    # the library, any missing one was computed on the background thread
+    assert ctrl.linearizer.library.stats["computed"] == 0

@@ -117,7 +117,7 @@ def solve_equilibrium(robot, angles, *, state=None, max_angle_step: float = np.r
 
 def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: int = 50,
                      max_angle_step: float = np.radians(10.0), reuse_ratio: float = 0.25,
-                     linearizer=None) -> Equilibrium:
+                     linearizer=None, exact_tangent: bool = True) -> Equilibrium:
     """Static equilibrium (eq. 1) at motor ``angles`` (na,) [rad] by Newton + line search.
 
     Starts from ``state`` (default: the rest state) and moves the motors in increments of at
@@ -138,6 +138,11 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     solve has converged as far as it can and returns with ``at_floor`` set and the achieved
     residual in ``residuals[-1]`` (as :func:`.dirichlet.solve_static` stops at its floor).
 
+    ``exact_tangent=False`` starts each increment, and its predictor, on the linearizer's
+    inexact tangent (``linearize(state, exact=False)``: the reduced model's nearest stored
+    one, :mod:`.rom_tangents`), and takes an exact one only when a chord step cuts the
+    residual by less than ``reuse_ratio`` or the line search fails on it.
+
     Raises :class:`ConvergenceError` (with the residual history) when an increment fails
     above the floor.
     """
@@ -157,7 +162,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     history, iters, ref, floor = [], 0, 0.0, 0.0
     for inc in range(n_inc):
         dq_a = jump / n_inc if np.any(jump) else None
-        lin = lz.linearize(st)
+        lin = lz.linearize(st, exact=exact_tangent)
         at_floor = False
         for it in range(max_iter + 1):
             res = lin.residual_norm
@@ -179,7 +184,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
             if dq_a is not None:  # predictor: move the motors with the linearised response
                 st = lz.apply(st, dq_e, dx_f, dq_a)
                 dq_a = None
-                lin = lz.linearize(st)
+                lin = lz.linearize(st, exact=exact_tangent)
                 continue
             # Below the floor a step counts only when it is plainly more than noise: the full
             # step must halve the residual. Backtracking there would chase round-off: steps of

@@ -145,6 +145,7 @@ class ReducedRobot:
         self.gravity, self.axis, self.name = full.gravity, full.axis, full.name + "_reduced"
         self.info = {**full.info, "reduced": {"k": basis.k, "elements": int(len(basis.elements))}}
         self.k, self.na = basis.k, c.n_act
+        self.background_tangents = False
         self.nq = 6 + self.na + self.k
         tets = full.body.tets[basis.elements]
         nodes, inv = np.unique(tets, return_inverse=True)
@@ -184,8 +185,10 @@ class ReducedRobot:
         return ReducedState(c.origin.copy(), np.eye(3), c.rest_angles.copy(), np.zeros(self.k))
 
     def linearizer(self, solver: str = "superlu") -> "ReducedLinearizer":
-        """A :class:`ReducedLinearizer` (dense: ``solver`` is accepted for the interface)."""
-        return ReducedLinearizer(self)
+        """A :class:`ReducedLinearizer` (dense: ``solver`` is accepted for the interface);
+        its tangent library computes in the background when :attr:`background_tangents`
+        (real-time use; off by default, so the same calls give the same results)."""
+        return ReducedLinearizer(self, background=self.background_tangents)
 
     def with_limits(self, lo, hi) -> "ReducedRobot":
         """The same model with motor limits ``lo``, ``hi`` (na,) [rad] (shares the sample)."""
@@ -308,45 +311,73 @@ class ReducedLinearizer:
     A linearisation's ``S`` is the Schur complement of ``a`` in the reduced tangent, ``Y``
     (k, 6 + na) and ``y_r`` (k,) its solves, ``res_f`` (k,) the projected free residual
     ``V^T r_f`` [N] and ``r`` the generalised internal forces (nq,) (the force scale's input).
+    Every exact tangent goes to :attr:`library` (:mod:`.rom_tangents`), which serves the
+    inexact requests (``exact=False``: the control loop's modified-Newton matrix) with the
+    nearest one; with ``background`` the missing ones are computed off the caller's thread.
     """
 
     solver_name = "dense"
 
-    def __init__(self, robot: ReducedRobot):
+    def __init__(self, robot: ReducedRobot, *, background: bool = False, near_deg: float = 3.0):
+        from .rom_tangents import TangentLibrary
+
         self.robot = robot
         self.factor = None
         self.factorizations = 0
         self.stats = {"tangents": 0, "forces": 0}
+        self.library = TangentLibrary(lambda st: self._exact(st)[0], near_deg=near_deg, background=background)
+        self._current = None
 
     def uses(self, solver: str) -> bool:
         return True  # one dense solver whatever the sparse one asked for
 
-    def _lin(self, st, g_int, g_ext, S, Y, C, fresh, exact) -> Linearization:
+    def _exact(self, state: ReducedState):
+        """(:class:`.rom_tangents.Tangent`, g_int, g_ext) at ``state`` (thread-safe: no state kept)."""
+        from .rom_tangents import Tangent
+
+        rob = self.robot
+        g_int, g_ext, A = rob.evaluate(state, tangent=True)
+        nr = 6 + rob.na
+        factor = sla.lu_factor(A[nr:, nr:], check_finite=False)
+        Y = sla.lu_solve(factor, A[nr:, :nr])
+        C = A[:nr, nr:]
+        return Tangent(np.array(state.angles, float), A[:nr, :nr] - C @ Y, Y, C, factor, state), g_int, g_ext
+
+    def _use(self, t) -> None:
+        if t is not self._current:
+            self._current, self.factor = t, t.factor
+            self.factorizations += 1
+
+    def _lin(self, st, g_int, g_ext, t, fresh, exact) -> Linearization:
         rob = self.robot
         nr = 6 + rob.na
         G = g_int - g_ext
         y_r = sla.lu_solve(self.factor, G[nr:])
-        return Linearization(state=st, r=g_int, S=S, Y=Y, y_r=y_r, C=C, R_rigid=G[:nr] - C @ y_r,
+        return Linearization(state=st, r=g_int, S=t.S, Y=t.Y, y_r=y_r, C=t.C, R_rigid=G[:nr] - t.C @ y_r,
                              res_e=G[:6], res_f=G[nr:], fresh=fresh, moment_scale=rob.coupling.length_scale,
                              exact=exact)
 
     def linearize(self, state: ReducedState, *, exact: bool = True) -> Linearization:
-        """Fresh reduced tangent, its condensation onto the rigid coordinates and the residual at ``state``."""
-        rob = self.robot
-        g_int, g_ext, A = rob.evaluate(state, tangent=True)
-        self.stats["tangents"] += 1
-        nr = 6 + rob.na
-        self.factor = sla.lu_factor(A[nr:, nr:], check_finite=False)
-        self.factorizations += 1
-        Y = sla.lu_solve(self.factor, A[nr:, :nr])
-        C = A[:nr, nr:]
-        return self._lin(state, g_int, g_ext, A[:nr, :nr] - C @ Y, Y, C, True, True)
+        """The condensed reduced tangent and the residual at ``state``: fresh (``exact``), or
+        the library's nearest (``exact=False``; then ``fresh`` and ``exact`` are False unless
+        it was taken at these very angles)."""
+        if exact:
+            t, g_int, g_ext = self._exact(state)
+            self.stats["tangents"] += 1
+            self.library.add(t)
+        else:
+            t = self.library.get(state)
+            g_int, g_ext, _ = self.robot.evaluate(state, tangent=False)
+            self.stats["forces"] += 1
+            exact = t.state is state  # computed here and now (an empty library)
+        self._use(t)
+        return self._lin(state, g_int, g_ext, t, exact, exact)
 
     def update(self, lin: Linearization, state: ReducedState, f=None) -> Linearization:
         """Fresh residual at ``state`` on ``lin``'s tangent (a chord step)."""
         g_int, g_ext, _ = self.robot.evaluate(state, tangent=False)
         self.stats["forces"] += 1
-        return self._lin(state, g_int, g_ext, lin.S, lin.Y, lin.C, False, False)
+        return self._lin(state, g_int, g_ext, lin, False, False)
 
     def apply(self, state: ReducedState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> ReducedState:
         """The state after the increment alpha (dq_e, dq_a, da); ``dx_f`` is da (k,)."""
