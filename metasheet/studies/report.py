@@ -49,8 +49,11 @@ def _reduced(name: str, summary: Mapping) -> tuple[list[str], list[str]]:
     cert = summary.get("certification")
     lines, diffs = [], []
     if info.get("model") == "reduced":
+        lo, hi = info["box_deg"]
+        box = (f"{lo[0]:g} to {hi[0]:g} deg (every motor)" if len(set(lo)) == 1 and len(set(hi)) == 1
+               else f"{_fmt(lo)} to {_fmt(hi)} deg")
         lines.append(f"Reduced-order model: k = {info['k']} modes, {info['elements']} sampled elements, basis "
-                     f"{info['basis_key']}, training box {_fmt(info['box_deg'][0])} to {_fmt(info['box_deg'][1])} deg.")
+                     f"{info['basis_key']}, training box {box}; outside it the full model answers.")
     elif info.get("requested") == "reduced":
         lines.append(f"Full model (reduced requested: {info.get('reason', '')}).")
     if cert:
