@@ -27,7 +27,9 @@ from .workspace import RayTask, WorkspaceSettings, explore_ray
 class RangesResult:
     """ranges : (r, 2) [deg]; goals : (n, 3) [mm]; reached : (r, n) bool; error_mm : (r, n);
     violations : list of (wide range index, narrow range index, points reached by the narrow
-    range only); nested : no violation."""
+    range only); nested : no violation; motors_deg : (r, n, n_motors) the final motor angles
+    of each point's reach [deg] (NaN where untried); rest_pose : (6,) the model's rest pose
+    [mm, rad] (the goals' orientation)."""
 
     ranges: np.ndarray
     goals: np.ndarray
@@ -35,6 +37,8 @@ class RangesResult:
     error_mm: np.ndarray
     violations: list
     nested: bool
+    motors_deg: np.ndarray
+    rest_pose: np.ndarray
 
     def counts(self) -> list[int]:
         return [int(r.sum()) for r in self.reached]
@@ -68,10 +72,12 @@ def motor_range_study(
     n = len(grid)
     reached = np.zeros((len(ranges), n), bool)
     err = np.full((len(ranges), n), np.nan)
+    motors = np.full((len(ranges), n, parts[0].motors_deg.shape[1] if parts else 0), np.nan)
     for t, rec in enumerate(parts):
         r, ray = divmod(t, len(rays))
         reached[r, rays[ray]] = rec.reached
         err[r, rays[ray]] = rec.error_mm
+        motors[r, rays[ray]] = rec.motors_deg
     violations = []
     for a, ra in enumerate(ranges):
         for b, rb in enumerate(ranges):
@@ -79,4 +85,5 @@ def motor_range_study(
                 extra = np.flatnonzero(reached[b] & ~reached[a])
                 if len(extra):
                     violations.append((a, b, extra.tolist()))
-    return RangesResult(np.array(ranges), rest[:3] + grid.points, reached, err, violations, not violations)
+    return RangesResult(np.array(ranges), rest[:3] + grid.points, reached, err, violations, not violations, motors,
+                        rest.copy())

@@ -42,6 +42,36 @@ def _rotation_test(t: Mapping | None) -> str:
             f"{t['tol_rot_deg']:g} deg and {t['tol_mm']:g} mm{jump})")
 
 
+def _reduced(name: str, summary: Mapping) -> tuple[list[str], list[str]]:
+    """Lines on the model a study ran on (``model_info``) and the full model's certification of
+    its reduced results (``certification``), and the differences they show."""
+    info = summary.get("model_info") or {}
+    cert = summary.get("certification")
+    lines, diffs = [], []
+    if info.get("model") == "reduced":
+        lo, hi = info["box_deg"]
+        box = (f"{lo[0]:g} to {hi[0]:g} deg (every motor)" if len(set(lo)) == 1 and len(set(hi)) == 1
+               else f"{_fmt(lo)} to {_fmt(hi)} deg")
+        lines.append(f"Reduced-order model: k = {info['k']} modes, {info['elements']} sampled elements, basis "
+                     f"{info['basis_key']}, training box {box}; outside it the full model answers.")
+    elif info.get("requested") == "reduced":
+        lines.append(f"Full model (reduced requested: {info.get('reason', '')}).")
+    if cert:
+        scope = "all" if cert["requested"] == 0 or cert["certified"] >= cert["reachable"] else \
+            f"a random sample (seed {cert['seed']})"
+        lines.append(f"Full-model certification of the reachable points ({scope}): {cert['certified']} of "
+                     f"{cert['reachable']} re-solved, {cert['disagree']} disagree (rate {cert['rate']:.3g}).")
+        for pt in cert["points"][:10]:
+            lines.append(f"- point {pt['point']}: reduced error {_fmt(pt['reduced_error_mm'])} mm, full error "
+                         f"{_fmt(pt['full_error_mm'])} mm{'' if pt['in_box'] else ' (outside the training box)'}")
+        if len(cert["points"]) > 10:
+            lines.append(f"- ... {len(cert['points']) - 10} more in {name}.json")
+        if cert["disagree"]:
+            diffs.append(f"{name}: {cert['disagree']} of {cert['certified']} points the reduced model reached are "
+                         "missed by the full model at the same motor angles (see the certification).")
+    return ([*lines, ""] if lines else []), diffs
+
+
 def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, str], *,
                  title: str = "metasheet: reproduction of the paper's studies") -> str:
     """Markdown report.
@@ -96,6 +126,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                           ("wall time [s]", w["wall_s"]), ("time per tried point [s]", w["s_per_point"]),
                           ("executor", w["executor"]), ("robot model", w["model"]),
                           ("rotation test", _rotation_test(w.get("rotation_test")))]), ""]
+        section, found = _reduced("workspace", w)
+        lines += section
+        diffs += found
         if abs(w["points"] - 1800) > 200:
             diffs.append(f"Fig. 5: {w['points']} goal points instead of the paper's ~1,800 (a smaller grid).")
         full = w["counts"].get("3 rotations", 0)
@@ -119,6 +152,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                   f"![ranges]({pictures.get('ranges', 'ranges.png')})", "",
                   _table([*[(f"reachable, {k} deg", v) for k, v in r["reachable"].items()],
                           ("workspaces nest", r["nested"])]), ""]
+        section, found = _reduced("ranges", r)
+        lines += section
+        diffs += found
         if not r["nested"]:
             diffs.append(f"Fig. 6: the workspaces do not nest exactly: {r['violations']} (continuation paths "
                          "differ between ranges).")
@@ -136,6 +172,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
             lines.append(f"| {al:.3g} | {val(rot['pull'][i])} | {val(rot['push'][i])} | "
                          f"{val(a['lateral_mm']['pull'][i])} | {val(a['lateral_mm']['push'][i])} |")
         lines.append("")
+        lines += _reduced("anisotropy", a)[0]
         for f in a.get("not_converged", []):
             diffs.append(f"Fig. 7: at alpha {f['alpha_percent']:.3g} % the {f['case']} case did not converge "
                          f"beyond a motor change of {f['reached_deg']:.3g} deg (equilibrium lost: a limit point "
@@ -166,6 +203,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                           ("within motor limits", z["within_motor_limits"]),
                           ("replay tracking error, max [mm]", z["max_track_mm"]),
                           ("replay tracking error, max [deg]", z["max_track_deg"])]), ""]
+        section, found = _reduced("maze", z)
+        lines += section
+        diffs += found
         if z["foam_impossible_segments"]:
             diffs.append(f"Maze: segments {z['foam_impossible_segments']} are infeasible even with the foam "
                          "(the paper solved its maze).")

@@ -2,9 +2,12 @@
 
 Not a stage itself (the leading underscore keeps the stage loader away). It turns the
 upstream artefacts (orient's sheet meshes with their fibre field, material.json, and the
-robot stage's parameters when it ran) into a picklable :class:`RobotSpec`, or the analytic
-stand-in robot when ``model = "standin"``, and gives each stage a resumable unit cache next
-to its output directory.
+robot stage's parameters when it ran) into a picklable :class:`RobotSpec`, the reduced robot
+(:class:`~metasheet.studies.reduced_adapter.ReducedSpec`, on the reduce stage's basis) when
+``model = "reduced"``, or the analytic stand-in robot when ``model = "standin"``, and gives each
+stage a resumable unit cache next to its output directory. For the reduced model it also
+records which model ran (:func:`model_record`) and has the full model re-certify the points a
+study reports reachable (:func:`certification`).
 """
 
 from __future__ import annotations
@@ -31,8 +34,10 @@ DEFAULT_SCENE = RobotScene(paper.ROD_LENGTH, paper.REST_ANGLE, paper.HORN_LENGTH
 class StudyRobotParams(Params):
     """Which robot the study runs on, and its inverse-model settings."""
 
-    model: Literal["robot", "standin"] = Field(
-        "robot", description="'robot': the FEM robot from orient + material; 'standin': the analytic test robot")
+    model: Literal["robot", "reduced", "standin"] = Field(
+        "robot", description="'robot': the FEM robot from orient + material; 'reduced': its reduced-order model "
+        "trained by the reduce stage (which must be in the pipeline, on the same mesh settings); 'standin': the "
+        "analytic test robot")
     rod_length: float | None = Field(None, gt=0, le=1000, description="rod length [mm]; None: the robot stage's "
                                      f"or {paper.ROD_LENGTH:g}")
     rest_angle: float | None = Field(None, ge=-180, le=180, description="motor angle of the rest pose [deg]; "
@@ -57,6 +62,14 @@ class StudyRobotParams(Params):
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
 
 
+class CertifyParams(StudyRobotParams):
+    """A study that may run on the reduced model: how many of its reachable points the full model re-solves."""
+
+    certify: int = Field(100, ge=0, le=1_000_000, description="model 'reduced': reachable points re-solved by the "
+                         "full model (a seeded random sample; 0: all of them) [-]")
+    certify_seed: int = Field(0, ge=0, description="seed of the certified sample [-]")
+
+
 def build_spec(ctx: StageContext):
     """The stage's robot recipe (:class:`RobotSpec` or :class:`StandInSpec`).
 
@@ -78,9 +91,10 @@ def build_spec(ctx: StageContext):
         return StandInSpec(motor_range=(lo, hi), max_step_deg=p.max_step_deg)
     from ...studies.adapter import RobotSpec
 
-    for need in ("orient", "material"):
+    needs = ("reduce", "orient", "material") if p.model == "reduced" else ("orient", "material")
+    for need in needs:
         if need not in ctx.inputs:
-            raise ConfigError(f"{ctx.name}.model: 'robot': the {need!r} stage must be in the pipeline")
+            raise ConfigError(f"{ctx.name}.model: {p.model!r}: the {need!r} stage must be in the pipeline")
     from ...robot.builder import resolve_density
 
     orient = read_orient(ctx.inputs["orient"])
@@ -94,9 +108,48 @@ def build_spec(ctx: StageContext):
     if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
         sheets = replace(sheets, constants=None, constants_mirrored=None)
     density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat.density, sc.sheet_mass_g)
-    return RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=density,
+    spec = RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=density,
                                  gravity=tuple(sc.gravity), rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
                                  model=mat.model, **scene)
+    if p.model == "reduced":
+        from ...studies.reduced_adapter import ReducedSpec
+
+        return ReducedSpec.from_file(spec, ctx.inputs["reduce"] / "basis.npz")
+    return spec
+
+
+def model_record(spec) -> dict:
+    """Which model a study ran on, for its JSON: {"model": "reduced", k, elements (sampled of
+    total), basis_key (basis.npz's hash), robot_key, box_deg (the training box, lo and hi)},
+    or {"model": "robot"} / {"model": "standin"}."""
+    from ...studies.reduced_adapter import ReducedSpec
+
+    if not isinstance(spec, ReducedSpec):
+        return {"model": "standin" if type(spec).__name__ == "StandInSpec" else "robot"}
+    from ...robot.reduced import ReducedBasis
+
+    b = ReducedBasis.load(Path(spec.basis_path))
+    return {"model": "reduced", "k": b.k, "elements": int(len(b.elements)), "basis_key": spec.basis_hash,
+            "robot_key": b.robot_key, "spec_key": spec.key,
+            "box_deg": [np.degrees(b.box_lo).round(4).tolist(), np.degrees(b.box_hi).round(4).tolist()]}
+
+
+def certification(ctx: StageContext, spec, goals, motors_deg, *, tol_mm: float, tol_deg: float | None = None,
+                  labels=None, desc: str = "") -> dict | None:
+    """The full model's verdict on the reduced model's reachable points ``goals`` (n, 6) [mm, rad]
+    with motors ``motors_deg`` (n, na) [deg] (:func:`metasheet.studies.certify.certify_study`,
+    ``ctx.params.certify`` of them, seeded by ``certify_seed``) as a dict; None unless the
+    study ran on the reduced model."""
+    from ...studies.certify import certify_study
+    from ...studies.reduced_adapter import ReducedSpec
+
+    if not isinstance(spec, ReducedSpec):
+        return None
+    p = ctx.params
+    cert = certify_study(spec, goals, motors_deg, tol_mm=tol_mm, tol_deg=tol_deg, size=p.certify,
+                         seed=p.certify_seed, executor=ctx.executor, cache=unit_cache(ctx), labels=labels,
+                         progress=lambda d, i, n: ctx.progress(f"certify {desc}".strip(), i, n))
+    return {**cert.to_dict(), "tol_mm": tol_mm, "tol_deg": tol_deg}
 
 
 def scene_of(ctx: StageContext) -> RobotScene:
@@ -177,7 +230,7 @@ def grid_from(p):
                      thin_below=p.thin_below, thin_every=p.thin_every)
 
 
-class GridParams(StudyRobotParams):
+class GridParams(CertifyParams):
     """The star grid of goal points (see :mod:`metasheet.studies.grid`)."""
 
     n_azimuth: int = Field(12, ge=2, le=720, description="ray directions around the rod [-]")

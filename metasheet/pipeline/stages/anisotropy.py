@@ -8,6 +8,10 @@ the two materials' Fig. 7 end points can be compared. With ``compare_models`` th
 (only it: the sweep is expensive) is also computed under the other material model
 (:mod:`metasheet.material_model`), for the pipeline's constants (``model_end_points[<other>]``)
 and the published ones (``model_end_points["published_<other>"]``).
+
+``model = "reduced"`` runs the sweep on the FULL model: every alpha is another sheet
+material, and the reduce stage's basis was trained for the design material only
+(``model_info`` says so).
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from ...material_model import model_stiffness, other_model
 from ...studies.anisotropy import anisotropy_sweep
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import StudyRobotParams, build_spec, drop_cache, progress, unit_cache, write_csv
+from ._studies import StudyRobotParams, build_spec, drop_cache, model_record, progress, unit_cache, write_csv
 
 
 class AnisotropyParams(StudyRobotParams):
@@ -41,6 +45,11 @@ class AnisotropyParams(StudyRobotParams):
 def run(ctx: StageContext) -> dict:
     p: AnisotropyParams = ctx.params
     spec = build_spec(ctx)
+    info = model_record(spec)
+    if info["model"] == "reduced":  # a material sweep: the basis is the design material's
+        info = {"model": "robot", "requested": "reduced", "reason": "the sweep changes the sheet material at "
+                "every alpha; the reduced basis was trained for the design material only"}
+        spec = spec.full
     alphas = np.linspace(0.0, spec.design_alpha, p.n_alpha)
     res = anisotropy_sweep(spec, alphas, pull_deg=p.pull_deg, push_deg=p.push_deg, ramp_deg=p.ramp_deg,
                            executor=ctx.executor, progress=progress(ctx), cache=unit_cache(ctx))
@@ -72,7 +81,7 @@ def run(ctx: StageContext) -> dict:
         "not_converged": [{"alpha_percent": round(float(res.alpha[i]), 4), "case": ("pull", "push")[j],
                            "reached_deg": round(float(res.applied_deg[i, j]), 4)} for i, j in zip(*np.nonzero(failed))],
         "applied_deg": {"pull": float(applied[0]), "push": float(applied[1])},
-        "requested_deg": {"pull": p.pull_deg, "push": p.push_deg}, "model": p.model,
+        "requested_deg": {"pull": p.pull_deg, "push": p.push_deg}, "model": p.model, "model_info": info,
     }
     published = _published_spec(ctx, spec) if p.compare_published else None
     if published is not None:
@@ -114,7 +123,7 @@ def _listed(values) -> list:
 def _published_spec(ctx: StageContext, spec):
     """The same robot with the paper's published constants, or None (stand-in model, uniform
     published material already, or a graded design whose per-element constants it would erase)."""
-    if ctx.params.model != "robot" or "material" not in ctx.inputs:
+    if ctx.params.model not in ("robot", "reduced") or "material" not in ctx.inputs:
         return None
     from ..artefacts import read_material, read_orient
 
@@ -129,7 +138,7 @@ def _published_spec(ctx: StageContext, spec):
 
 
 register(Stage(
-    name="anisotropy", params=AnisotropyParams, run=run, optional=("orient", "material", "robot"),
+    name="anisotropy", params=AnisotropyParams, run=run, optional=("orient", "material", "robot", "reduce"),
     outputs=("anisotropy.csv", "anisotropy.png", "anisotropy.json"),
     doc="rod rotation and lateral translation vs anisotropy alpha (Fig. 7)",
 ))

@@ -2,7 +2,12 @@
 with the paper's foam and again with silicone sheets (which segments become impossible).
 
 Writes ``maze.csv`` (time [s], six motor angles [deg], then segment, command and errors),
-``maze_silicone.csv`` (the same with silicone sheets), ``maze.png`` and ``maze.json``.
+``maze_silicone.csv`` (the same with silicone sheets), ``maze.png`` and ``maze.json`` (with
+which model ran: ``model_info``). On the reduced model (``model = "reduced"``) the foam run
+is reduced and its reached samples (``certify`` of them, 0: all) are re-solved by the full
+model at their motor angles within ``tol_mm`` and ``tol_deg`` (``certification``); the
+silicone run changes the sheet material, which the basis was not trained for: it runs on the
+full model (``silicone_model``).
 """
 
 from __future__ import annotations
@@ -14,14 +19,15 @@ from ...material import Isotropic
 from ...studies.maze import MazeSettings, solve_maze
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import StudyRobotParams, build_spec, drop_cache, progress, scene_of, unit_cache, write_csv
+from ._studies import (CertifyParams, build_spec, certification, drop_cache, model_record, progress, scene_of,
+                       unit_cache, write_csv)
 
 #: a small maze walked once round and back to the start: along the rod, across it, diagonals
 DEFAULT_PATH = [(0.0, 0.0), (30.0, 0.0), (30.0, 25.0), (-20.0, 25.0), (-20.0, -20.0), (15.0, -20.0),
                 (0.0, 0.0)]
 
 
-class MazeParams(StudyRobotParams):
+class MazeParams(CertifyParams):
     path: list[tuple[float, float]] = Field(DEFAULT_PATH, min_length=2,
                                             description="maze polyline (u along the rod, v across) [mm]")
     tilt_deg: float = Field(8.0, gt=0, le=45, description="maze tilt that rolls the marble [deg]")
@@ -78,14 +84,20 @@ def run(ctx: StageContext) -> dict:
         "within_motor_limits": bool(foam.motors_deg.min() >= lo - 1e-9 and foam.motors_deg.max() <= hi + 1e-9),
         "max_track_mm": float(np.nanmax(foam.track_mm)), "max_track_deg": float(np.nanmax(foam.track_deg)),
         "max_inverse_error_deg": float(np.nanmax(foam.error_deg)), "model": p.model,
+        "model_info": model_record(spec), "silicone_model": model_record(sil_spec)["model"],
     }
+    ids = np.flatnonzero(foam.reached)
+    cert = certification(ctx, spec, foam.commands.poses[ids], foam.motors_deg[ids], tol_mm=p.tol_mm,
+                         tol_deg=p.tol_deg, labels=ids.tolist())
+    if cert is not None:
+        summary["certification"] = cert
     write_json_atomic(ctx.path("maze.json"), summary)
     drop_cache(ctx)
     return summary
 
 
 register(Stage(
-    name="maze", params=MazeParams, run=run, optional=("orient", "material", "robot"),
+    name="maze", params=MazeParams, run=run, optional=("orient", "material", "robot", "reduce"),
     outputs=("maze.csv", "maze_silicone.csv", "maze.png", "maze.json"),
     doc="maze path solved open loop into motor angles, replayed; foam vs silicone",
 ))

@@ -1,18 +1,23 @@
 """Stage ``ranges``: the reach test repeated for several motor ranges (paper Fig. 6).
 
 Writes ``ranges.csv`` (one row per goal point, one reached column per range), ``ranges.png``
-and ``ranges.json`` (counts per range and the nesting check).
+and ``ranges.json`` (counts per range and the nesting check, which model ran: ``model_info``).
+On the reduced model (``model = "reduced"``) the points reached in any range (``certify`` of
+them over all ranges, 0: all) are re-solved by the full model at their motor angles
+(``certification``; a point is labelled "<range>:<point>").
 """
 
 from __future__ import annotations
 
+import numpy as np
 from pydantic import Field
 
 from ...studies.ranges import motor_range_study
 from ...studies.workspace import WorkspaceSettings
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import GridParams, build_spec, drop_cache, grid_from, progress, unit_cache, write_csv
+from ._studies import (GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
+                       unit_cache, write_csv)
 
 class RangesParams(GridParams):
     ranges: list[tuple[float, float]] = Field(
@@ -39,13 +44,19 @@ def run(ctx: StageContext) -> dict:
     summary = {"ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
                "points": len(grid), "nested": res.nested,
                "violations": [{"wide": names[a], "narrow": names[b], "points": len(pts)} for a, b, pts in res.violations],
-               "model": p.model}
+               "model": p.model, "model_info": model_record(spec)}
+    rr, ii = np.nonzero(res.reached)  # (range, point) of every reached point
+    goals = np.column_stack([res.goals[ii], np.tile(res.rest_pose[3:], (len(ii), 1))])
+    cert = certification(ctx, spec, goals, res.motors_deg[rr, ii], tol_mm=p.tol_mm,
+                         labels=[f"{names[a]}:{i}" for a, i in zip(rr, ii)])
+    if cert is not None:
+        summary["certification"] = cert
     write_json_atomic(ctx.path("ranges.json"), summary)
     drop_cache(ctx)
     return summary
 
 register(Stage(
-    name="ranges", params=RangesParams, run=run, optional=("orient", "material", "robot"),
+    name="ranges", params=RangesParams, run=run, optional=("orient", "material", "robot", "reduce"),
     outputs=("ranges.csv", "ranges.png", "ranges.json"),
     doc="reachable workspace for several motor ranges (Fig. 6), nesting checked",
 ))

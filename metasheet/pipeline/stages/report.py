@@ -72,7 +72,7 @@ def _robot_meshes(ctx: StageContext) -> dict:
         if name not in ctx.inputs:
             continue
         params = (read_manifest(ctx.inputs[name]) or {}).get("params", {})
-        if params.get("model", "robot") != "robot":
+        if params.get("model", "robot") not in ("robot", "reduced"):
             continue
         out[name] = {k: (base[k] if params.get(k) is None else params[k]) for k in base}
     return out

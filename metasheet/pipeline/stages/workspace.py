@@ -4,7 +4,11 @@ strain), loss of control (smallest Jacobian singular value) and continuity (comp
 Writes ``workspace.csv`` (one row per goal point), ``workspace.vtp`` (the point cloud with
 the same fields), ``workspace.png`` (front / side / top views) and ``workspace.json``, which
 records the rotation test (``test``: "paper" or "authors_code", see
-:data:`metasheet.studies.workspace.ROTATION_TESTS`) with the values it ran.
+:data:`metasheet.studies.workspace.ROTATION_TESTS`) with the values it ran, and which model ran
+(``model_info``). On the reduced model (``model = "reduced"``) the reachable points (``certify``
+of them, 0: all) are re-solved by the full model at their motor angles, position within
+``tol_mm`` as the point test (``certification`` in ``workspace.json``); the rotation tests
+and continuity paths are not re-certified.
 """
 
 from __future__ import annotations
@@ -15,10 +19,12 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from ...studies.model import MODELS
 from ...studies.workspace import CLASS_NAMES, WorkspaceSettings, explore_workspace
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import GridParams, build_spec, drop_cache, grid_from, progress, unit_cache, write_csv
+from ._studies import (GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
+                       unit_cache, write_csv)
 
 ROT_COLS = ("+x", "-x", "+y", "-y", "+z", "-z")
 
@@ -62,8 +68,12 @@ def run(ctx: StageContext) -> dict:
     settings = settings_from(p)
     res = explore_workspace(spec, grid, settings, executor=ctx.executor, progress=progress(ctx),
                             cache=unit_cache(ctx))
-    wall = time.perf_counter() - t0
     r = res.records
+    ids = np.flatnonzero(r.reached)  # the point goals: the grid position with the rest orientation
+    rest_rot = MODELS.get(spec).rest_pose()[3:]
+    cert = certification(ctx, spec, np.column_stack([res.goals[ids], np.tile(rest_rot, (len(ids), 1))]),
+                         r.motors_deg[ids], tol_mm=settings.tol_mm, labels=ids.tolist())
+    wall = time.perf_counter() - t0
     header = (["point", "ray", "step", "x_mm", "y_mm", "z_mm", "class", "class_name", "tried", "reached",
                "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
               + [f"rot{c}_error_deg" for c in ROT_COLS] + [f"rot{c}_error_mm" for c in ROT_COLS]
@@ -103,14 +113,17 @@ def run(ctx: StageContext) -> dict:
                           "axes": settings.rot_axes, "tol_mm": settings.tol_mm, "jump_mm": settings.jump_mm,
                           "sequential": settings.sequential, "rotations": settings.rotations},
         "n_tets_per_sheet": int(len(spec.tets)) if hasattr(spec, "tets") else None,
+        "model_info": model_record(spec),
     }
+    if cert is not None:
+        summary["certification"] = cert
     write_json_atomic(ctx.path("workspace.json"), summary)
     drop_cache(ctx)
     return summary
 
 
 register(Stage(
-    name="workspace", params=WorkspaceParams, run=run, optional=("orient", "material", "robot"),
+    name="workspace", params=WorkspaceParams, run=run, optional=("orient", "material", "robot", "reduce"),
     outputs=("workspace.csv", "workspace.vtp", "workspace.png", "workspace.json"),
     doc="workspace exploration (Fig. 5) with strain validity, loss of control and continuity",
 ))

@@ -1,0 +1,260 @@
+"""The reduced-order robot (:mod:`metasheet.robot.reduced`) as a :class:`~.model.RobotModel`.
+
+:class:`ReducedSpec` is the picklable recipe: the full robot's :class:`~.adapter.RobotSpec`,
+the path of the ``reduce`` stage's ``basis.npz`` and that file's content hash (both in
+:attr:`ReducedSpec.key`, so another basis is another model). :class:`ReducedFem` is the live
+model built from it in each worker: the full :class:`~.adapter.FemRobot` (kept for the
+fallbacks and the certificate), the :class:`~metasheet.robot.reduced.ReducedRobot` on it and
+the eq. (8) controller on the reduced robot, limited to the spec's motor range.
+
+Outside its training box (``basis.box_lo``, ``basis.box_hi`` [rad]) the reduced model would
+extrapolate: a reach that ends there, or an equilibrium asked there, is redone by the full
+model (a warning is logged once per model; :attr:`ReducedFem.fallbacks` counts them). Its
+result then carries a full :class:`~metasheet.robot.statics.RobotState`; a call given such a
+state continues on the reduced model from its projection (:func:`~metasheet.robot.rom_training.projected_state`).
+
+A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
+for one material): those return the full model's spec, with a logged warning, so a study that
+sweeps materials (the anisotropy sweep, the maze's silicone sheets) runs them on the full model.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, ConvergenceError
+from .adapter import FemRobot, RobotSpec
+from .model import pose_errors
+
+log = logging.getLogger(__name__)
+
+
+def file_hash(path: Path | str) -> str:
+    """sha256 of a file's bytes (hex, 24 characters)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:24]
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedSpec:
+    """Recipe of the reduced robot.
+
+    Attributes
+    ----------
+    full : the full robot's :class:`~.adapter.RobotSpec` (the basis must have been trained on it).
+    basis_path : absolute path of the ``reduce`` stage's ``basis.npz`` (workers read it: on a
+        dask cluster it must be on a shared file system).
+    basis_hash : :func:`file_hash` of that file when the spec was made (checked at build).
+    """
+
+    full: RobotSpec
+    basis_path: str
+    basis_hash: str
+
+    @classmethod
+    def from_file(cls, full: RobotSpec, path: Path | str) -> "ReducedSpec":
+        """The reduced robot of ``full`` on the basis in ``path`` (basis.npz)."""
+        path = Path(path).resolve()
+        if not path.is_file():
+            raise ConfigError(f"model 'reduced': {path} is missing; run the 'reduce' stage")
+        return cls(full, str(path), file_hash(path))
+
+    @property
+    def key(self) -> str:
+        return "rom-" + hashlib.sha256(f"{self.full.key}|{self.basis_hash}".encode()).hexdigest()[:24]
+
+    @property
+    def design_alpha(self) -> float:
+        return self.full.design_alpha
+
+    @property
+    def motor_range(self) -> tuple:
+        return self.full.motor_range
+
+    @property
+    def model(self) -> str:
+        """The material model of the full robot ("ours" or "authors")."""
+        return self.full.model
+
+    @property
+    def tets(self) -> np.ndarray:
+        """(m, 4) the full robot's first sheet's tetrahedra."""
+        return self.full.tets
+
+    def build(self) -> "ReducedFem":
+        return ReducedFem(self)
+
+    def with_motor_range(self, lo_deg: float, hi_deg: float) -> "ReducedSpec":
+        """The same reduced robot with motors limited to [lo_deg, hi_deg] (the basis stays valid:
+        angles outside its training box fall back to the full model)."""
+        return replace(self, full=self.full.with_motor_range(lo_deg, hi_deg))
+
+    def with_alpha(self, alpha: float) -> RobotSpec:
+        """The FULL robot's spec at anisotropy ``alpha`` [%]: the basis is the design material's."""
+        log.warning("model 'reduced': another material (alpha %.4g %%) invalidates the basis: "
+                    "that case runs on the full model", float(alpha))
+        return self.full.with_alpha(alpha)
+
+    def with_material(self, material, density: float | None = None) -> RobotSpec:
+        """The FULL robot's spec with another sheet material: the basis is the design material's."""
+        log.warning("model 'reduced': another sheet material (%s) invalidates the basis: that case runs "
+                    "on the full model", type(material).__name__)
+        return self.full.with_material(material, density)
+
+
+class ReducedFem(FemRobot):
+    """The reduced robot of a :class:`ReducedSpec` behind the study protocol (see the module docstring).
+
+    Attributes
+    ----------
+    full : the full :class:`~.adapter.FemRobot` (fallbacks, strains, certificate).
+    robot : the :class:`~metasheet.robot.reduced.ReducedRobot`, limits = the spec's motor range.
+    basis : its :class:`~metasheet.robot.reduced.ReducedBasis`. fallbacks : calls redone by the full model.
+    """
+
+    def __init__(self, spec: ReducedSpec):
+        from ..robot.inverse import InverseController
+        from ..robot.reduced import ReducedBasis, ReducedRobot, robot_key
+
+        if file_hash(spec.basis_path) != spec.basis_hash:
+            raise ConfigError(f"model 'reduced': {spec.basis_path} changed since the study started; run it again")
+        self.spec = spec
+        self.full = FemRobot(spec.full)
+        basis = ReducedBasis.load(Path(spec.basis_path))
+        if basis.robot_key != robot_key(self.full.robot):
+            raise ConfigError("model 'reduced': reduce/basis.npz was trained on another robot: give [reduce] the "
+                              "same mesh settings (mesh_size, layers, grip_size, element) and scene as this study")
+        full_rob = self.full.robot
+        self.robot = ReducedRobot(full_rob, basis).with_limits(full_rob.angle_min, full_rob.angle_max)
+        self.basis = basis
+        self.settings = self.full.settings
+        self.ctrl = InverseController(self.robot, settings=self.settings)
+        self.lz = self.ctrl.linearizer
+        self.rest = self.ctrl.state
+        self.motor_range = self.full.motor_range
+        self.rod_axis = self.full.rod_axis
+        self.fallbacks = 0
+        self._warned = False
+
+    # -- which model a state belongs to ----------------------------------------------------
+    @staticmethod
+    def _is_full(state) -> bool:
+        return state is not None and hasattr(state, "x")  # a full RobotState carries node positions
+
+    def in_box(self, motors_deg) -> bool:
+        """Whether motor angles (na,) [deg] lie in the basis's training box."""
+        return self.robot.in_box(np.radians(np.asarray(motors_deg, float)))
+
+    def _fallback(self, what: str, motors_deg) -> None:
+        self.fallbacks += 1
+        if not self._warned:
+            self._warned = True
+            lo, hi = np.degrees(self.basis.box_lo), np.degrees(self.basis.box_hi)
+            log.warning("model 'reduced': %s at motors %s deg, outside the training box [%s, %s] deg: redone with "
+                        "the full model (warned once per model)", what, np.round(motors_deg, 2).tolist(),
+                        f"{lo.min():.4g}", f"{hi.max():.4g}")
+
+    def _to_full(self, state):
+        """A full equilibrium to start the full model from (None: its rest)."""
+        from ..robot.equilibrium import solve_equilibrium
+
+        if state is None or self._is_full(state):
+            return state
+        try:
+            return solve_equilibrium(self.full.robot, state.angles, state=self.robot.full_state(state),
+                                     linearizer=self.full.lz).state
+        except ConvergenceError:
+            return None
+
+    def _to_reduced(self, state):
+        """A reduced equilibrium near a full ``state`` (None: the reduced rest)."""
+        from ..robot.equilibrium import solve_equilibrium
+        from ..robot.rom_training import projected_state
+
+        if not self._is_full(state):
+            return state
+        if not self.robot.in_box(state.angles):
+            return None
+        try:
+            start = projected_state(self.full.robot, self.basis.V, state)
+            return solve_equilibrium(self.robot, state.angles, state=start, linearizer=self.lz).state
+        except ConvergenceError:
+            return None
+
+    # -- the protocol ----------------------------------------------------------------------
+    def reach(self, goal, *, state=None, **kw):
+        """:meth:`FemRobot.reach` on the reduced model; redone by the full model when it starts
+        or ends outside the training box."""
+        if state is not None and not self.robot.in_box(state.angles):
+            self._fallback("reach start", np.degrees(state.angles))
+            return self.full.reach(goal, state=self._to_full(state), **kw)
+        r = super().reach(goal, state=self._to_reduced(state), **kw)
+        if self.in_box(r.motors_deg):
+            return r
+        self._fallback("reach", r.motors_deg)
+        return self.full.reach(goal, state=self._to_full(state), **kw)
+
+    def equilibrium(self, motors_deg, *, state=None):
+        """:meth:`FemRobot.equilibrium` on the reduced model, or the full one outside the training box."""
+        q = np.asarray(motors_deg, float)
+        if not self.in_box(q):
+            self._fallback("equilibrium", q)
+            return self.full.equilibrium(q, state=self._to_full(state))
+        return super().equilibrium(q, state=self._to_reduced(state))
+
+    def max_principal_strain(self, state) -> float:
+        """Largest principal Green-Lagrange strain of the full mesh at ``state``'s node positions [-]."""
+        if self._is_full(state):
+            return self.full.max_principal_strain(state)
+        return float(self.full.robot.body.max_principal_strain(self.robot.positions(state)).max())
+
+    def min_singular_value(self, state) -> float:
+        if self._is_full(state):
+            return self.full.min_singular_value(state)
+        return super().min_singular_value(state)
+
+    # -- the certificate -------------------------------------------------------------------
+    def certify(self, goal, motors_deg, *, tol_mm: float, tol_deg: float | None = None) -> "PointCertificate":
+        """Re-solve one reduced result with the full model.
+
+        The reduced equilibrium at ``motors_deg`` (na,) [deg] (from the reduced rest, the
+        solver's motor increments), then the full equilibrium at the same angles started from
+        its reconstruction (``full_state``); both poses' errors against ``goal`` (6,) [mm, rad].
+        """
+        from ..robot.equilibrium import solve_equilibrium
+
+        goal = np.asarray(goal, float)
+        ang = np.radians(np.asarray(motors_deg, float))
+        nan = (np.nan, np.nan)
+        try:
+            st = solve_equilibrium(self.robot, ang, state=self.rest, linearizer=self.lz).state
+            red_err = pose_errors(goal, st.pose)
+            start = self.robot.full_state(st)
+        except ConvergenceError:
+            red_err, start = nan, self.full.rest
+        try:
+            full = solve_equilibrium(self.full.robot, ang, state=start, linearizer=self.full.lz).state
+            full_err, conv = pose_errors(goal, full.pose), True
+        except ConvergenceError:
+            full_err, conv = nan, False
+        ok = conv and full_err[0] <= tol_mm and (tol_deg is None or full_err[1] <= tol_deg)
+        return PointCertificate(*red_err, *full_err, conv, bool(ok), self.robot.in_box(ang))
+
+
+@dataclass(frozen=True)
+class PointCertificate:
+    """One reduced result re-solved by the full model: errors of the reduced and the full
+    equilibrium at the same motor angles against the goal ([mm], [deg]; NaN: not converged);
+    ``full_converged``; ``agree``: the full pose meets the study's tolerances; ``in_box``."""
+
+    reduced_error_mm: float
+    reduced_error_deg: float
+    full_error_mm: float
+    full_error_deg: float
+    full_converged: bool
+    agree: bool
+    in_box: bool

@@ -1,0 +1,224 @@
+"""The studies on the reduced-order robot (issue 16): a coarse robot (16 mm tets), a basis
+trained on rest +-10 deg from 12 full equilibria, tiny grids.
+
+Independent answers: the full model's own study (classes), the full model's equilibrium at the
+reduced result's motor angles (the reduce stage's position target, 0.1 mm, inside the box),
+and the full model itself for every call the reduced model hands over (outside the box).
+"""
+
+import logging
+import pickle
+
+import numpy as np
+import pytest
+
+from metasheet.errors import ConfigError, StageError
+from metasheet.material import Isotropic
+from metasheet.studies.adapter import FemRobot, paper_robot_spec
+from metasheet.studies.certify import certify_study, sample
+from metasheet.studies.grid import star_grid
+from metasheet.studies.reduced_adapter import ReducedFem, ReducedSpec
+from metasheet.studies.workspace import WorkspaceSettings, explore_workspace
+
+POSITION_TARGET_MM = 0.1  # the reduce stage's certificate target for positions inside the box [mm]
+LOG = "metasheet.studies.reduced_adapter"
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    from metasheet.robot.equilibrium import solve_equilibrium
+    from metasheet.robot.rom_training import motor_design, train
+
+    spec = paper_robot_spec(mesh_size=16.0)
+    fem = FemRobot(spec)
+    c = fem.robot.coupling
+    lo, hi = c.rest_angles - np.radians(10), c.rest_angles + np.radians(10)
+    snaps = [solve_equilibrium(fem.robot, a, state=fem.rest, linearizer=fem.lz).state
+             for a in motor_design(lo, hi, 12, 1)]
+    basis = train(fem.robot, snaps, fem.rest, box=(lo, hi), basis_tol_mm=0.005, fit_tol_mm=0.01)
+    path = tmp_path_factory.mktemp("rom") / "basis.npz"
+    basis.save(path)
+    return spec, ReducedSpec.from_file(spec, path), basis
+
+
+def test_workspace_classes_agree_or_differences_are_certified(trained):
+    spec, rspec, _ = trained
+    grid = star_grid(n_azimuth=3, n_elevation=1, n_steps=3, extent_axial=4.0, extent_lateral=7.0, thin_below=0.0)
+    s = WorkspaceSettings(max_steps=30, rotations=False, continuity=False)
+    full = explore_workspace(spec, grid, s)
+    red = explore_workspace(rspec, grid, s)
+    assert full.records.reached.sum() >= 4  # the test says something: points reached on both models
+    differ = np.flatnonzero(full.cls != red.cls)
+    assert len(differ) <= 1, (full.cls, red.cls)
+    # every point the reduced model reached, re-solved by the full model at its motor angles
+    ids = np.flatnonzero(red.records.reached)
+    rest = rspec.build().rest_pose()
+    goals = np.column_stack([red.goals[ids], np.tile(rest[3:], (len(ids), 1))])
+    cert = certify_study(rspec, goals, red.records.motors_deg[ids], tol_mm=s.tol_mm, labels=ids.tolist())
+    assert cert.certified == cert.reachable == len(ids)
+    # a point the models classify differently and the reduced one reached is among those certified
+    assert set(differ[red.records.reached[differ]].tolist()) <= set(ids.tolist())
+    model = rspec.build()
+    for g, q in zip(goals, red.records.motors_deg[ids]):
+        c = model.certify(g, q, tol_mm=s.tol_mm)
+        assert c.full_converged
+        if c.in_box:  # the reduced and full equilibria at the same motors: the reduce stage's target
+            assert abs(c.full_error_mm - c.reduced_error_mm) <= POSITION_TARGET_MM
+    assert all(p["full_error_mm"] is None or p["full_error_mm"] > s.tol_mm for p in cert.points)
+    assert cert.disagree == len(cert.points) and cert.rate == cert.disagree / cert.certified
+
+
+def test_certified_sample_is_seeded_and_sized():
+    a, b = sample(50, 7, 3), sample(50, 7, 3)
+    assert np.array_equal(a, b) and len(a) == 7 and len(set(a.tolist())) == 7 and a.max() < 50
+    assert not np.array_equal(a, sample(50, 7, 4))
+    assert np.array_equal(sample(5, 0, 0), np.arange(5)) and np.array_equal(sample(5, 9, 0), np.arange(5))
+    with pytest.raises(ConfigError, match="certify"):
+        sample(5, -1, 0)
+
+
+def test_outside_the_box_warns_once_and_is_the_full_model(trained, caplog):
+    spec, rspec, basis = trained
+    model, ref = ReducedFem(rspec), FemRobot(spec)
+    q = model.rest_motors() + np.array([15.0, 0, 0, 0, 0, -12.0])  # beyond rest +-10 deg
+    assert not model.in_box(q) and model.in_box(model.rest_motors())
+    with caplog.at_level(logging.WARNING, logger=LOG):
+        pose, st = model.equilibrium(q)
+        pose2, _ = model.equilibrium(q + 1.0)
+    warned = [r for r in caplog.records if r.name == LOG and "training box" in r.getMessage()]
+    assert len(warned) == 1 and model.fallbacks == 2
+    pose_ref, st_ref = ref.equilibrium(q)
+    assert hasattr(st, "x")  # a full RobotState
+    assert np.abs(pose - pose_ref).max() < 1e-9
+    assert np.abs(st.x - st_ref.x).max() < 1e-9
+    # strains of a fallback state are the full model's
+    assert model.max_principal_strain(st) == pytest.approx(ref.max_principal_strain(st_ref), abs=1e-12)
+
+
+def test_reach_ending_outside_the_box_is_redone_by_the_full_model(trained, caplog):
+    spec, rspec, _ = trained
+    model, ref = ReducedFem(rspec), FemRobot(spec)
+    goal = model.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
+    with caplog.at_level(logging.WARNING, logger=LOG):
+        r = model.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert model.fallbacks == 1 and any("training box" in x.getMessage() for x in caplog.records)
+    rf = ref.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert r.reached == rf.reached and hasattr(r.state, "x")
+    assert np.abs(r.motors_deg - rf.motors_deg).max() < 1e-6
+    assert np.abs(r.pose - rf.pose).max() < 1e-6
+    # a reach inside the box stays reduced and lands where the full model does at its motors
+    g2 = model.rest_pose() + np.array([0.0, 2.0, 1.0, 0, 0, 0])
+    r2 = model.reach(g2, tol_mm=0.5, rot_weight=0.0)
+    assert model.fallbacks == 1 and r2.reached and not hasattr(r2.state, "x")
+    pose_full, _ = ref.equilibrium(r2.motors_deg)
+    assert np.linalg.norm(pose_full[:3] - r2.pose[:3]) <= POSITION_TARGET_MM
+
+
+def test_spec_key_follows_the_basis_and_material_changes_use_the_full_model(trained, tmp_path, caplog):
+    from dataclasses import replace
+
+    spec, rspec, basis = trained
+    same = ReducedSpec.from_file(spec, rspec.basis_path)
+    assert same.key == rspec.key and pickle.loads(pickle.dumps(rspec)).key == rspec.key
+    other = tmp_path / "other.npz"
+    replace(basis, box_hi=basis.box_hi + 0.01).save(other)
+    assert ReducedSpec.from_file(spec, other).key != rspec.key
+    assert rspec.key != spec.key and rspec.key.startswith("rom-")
+    narrow = rspec.with_motor_range(20, 70)
+    assert isinstance(narrow, ReducedSpec) and narrow.key != rspec.key and narrow.basis_hash == rspec.basis_hash
+    with caplog.at_level(logging.WARNING, logger=LOG):
+        sil = rspec.with_material(Isotropic(0.25, 0.45))
+        soft = rspec.with_alpha(0.0)
+    assert not isinstance(sil, ReducedSpec) and sil.key == spec.with_material(Isotropic(0.25, 0.45)).key
+    assert soft.key == spec.with_alpha(0.0).key
+    assert any("invalidates the basis" in x.getMessage() for x in caplog.records)
+    # a basis file changed after the spec was made, or trained on another mesh: clear errors
+    moved = ReducedSpec.from_file(spec, other)
+    replace(basis, box_hi=basis.box_hi + 0.02).save(other)
+    with pytest.raises(ConfigError, match="changed since"):
+        moved.build()
+    with pytest.raises(ConfigError, match=r"same mesh settings \(mesh_size"):
+        ReducedSpec.from_file(paper_robot_spec(mesh_size=20.0), rspec.basis_path).build()
+    with pytest.raises(ConfigError, match="run the 'reduce' stage"):
+        ReducedSpec.from_file(spec, tmp_path / "missing.npz")
+
+
+def test_reduced_model_needs_the_reduce_stage(tmp_path):
+    from metasheet.pipeline.config import load_pipeline
+    from metasheet.pipeline.runner import run_pipeline
+
+    (tmp_path / "pipelines").mkdir()
+    p = tmp_path / "pipelines" / "bad.toml"
+    p.write_text('[pipeline]\nname = "bad"\nstages = ["workspace"]\n[workspace]\nmodel = "reduced"\n')
+    with pytest.raises(StageError, match=r"workspace\.model: 'reduced': the 'reduce' stage must be in the pipeline"):
+        run_pipeline(load_pipeline(p))
+
+
+PIPELINE = """[pipeline]
+name = "rq"
+stages = ["material", "orient", "reduce", "ranges", "report"]
+[material]
+source = "config"
+[orient]
+mesh_size = 16
+[reduce]
+snapshots = 6
+box_deg = 10
+held_out = 1
+[ranges]
+model = "reduced"
+certify = 0
+ranges = [[0, 90], [55, 65]]
+n_azimuth = 2
+n_elevation = 1
+n_steps = 2
+extent_axial = 3
+extent_lateral = 4
+thin_below = 0
+max_steps = 30
+"""
+
+
+def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
+    import json
+
+    from metasheet.pipeline.config import load_pipeline
+    from metasheet.pipeline.runner import run_pipeline
+
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "pipelines").mkdir()
+    p = tmp_path / "pipelines" / "rq.toml"
+    p.write_text(PIPELINE)
+    run_pipeline(load_pipeline(p))
+    out = tmp_path / "outputs" / "rq"
+    r = json.loads((out / "ranges" / "ranges.json").read_text())
+    red = json.loads((out / "reduce" / "reduce.json").read_text())
+    info, cert = r["model_info"], r["certification"]
+    assert info["model"] == "reduced" and info["k"] == red["k"] and info["elements"] == red["elements"]
+    assert info["robot_key"] == red["robot_key"] and info["box_deg"] == red["box_deg"]
+    manifest = json.loads((out / "ranges" / "manifest.json").read_text())
+    assert manifest["summary"]["model_info"]["basis_key"] == info["basis_key"]
+    # certify = 0: every point reached in any range re-solved by the full model
+    assert cert["reachable"] == sum(r["reachable"].values()) == cert["certified"] > 0
+    assert cert["disagree"] == len(cert["points"]) and cert["rate"] == cert["disagree"] / cert["certified"]
+    text = (out / "report" / "report.md").read_text()
+    assert f"{cert['certified']} of {cert['reachable']} re-solved, {cert['disagree']} disagree" in text
+    assert f"k = {red['k']} modes" in text
+
+
+def test_report_lists_points_the_full_model_misses():
+    from metasheet.studies.report import build_report
+
+    cert = {"reachable": 40, "requested": 10, "seed": 0, "certified": 10, "disagree": 1, "rate": 0.1,
+            "points": [{"point": 7, "goal": [0] * 6, "motors_deg": [60] * 6, "reduced_error_mm": 0.9,
+                        "reduced_error_deg": 0.0, "full_error_mm": 1.2, "full_error_deg": 0.0,
+                        "full_converged": True, "in_box": True}]}
+    ranges = {"reachable": {"0-90": 40}, "nested": True, "violations": [], "model": "reduced",
+              "model_info": {"model": "reduced", "k": 9, "elements": 50, "basis_key": "abc",
+                             "box_deg": [[50.0] * 6, [70.0] * 6]}, "certification": cert}
+    text = build_report({"ranges": ranges}, {})
+    assert "a random sample (seed 0)): 10 of 40 re-solved, 1 disagree (rate 0.1)" in text
+    assert "point 7: reduced error 0.9 mm, full error 1.2 mm" in text
+    assert "50 to 70 deg (every motor)" in text
+    diffs = text.split("## Differences from the paper")[1]
+    assert "ranges: 1 of 10 points the reduced model reached are missed by the full model" in diffs
