@@ -18,6 +18,7 @@ from metasheet.robot.inverse import InverseController
 from metasheet.robot.kinematics import kinematics
 from metasheet.robot.reduced import ReducedBasis, ReducedRobot, robot_key
 from metasheet.robot.rom_basis import add_sensitivities, nodal_error, pod_basis
+from metasheet.robot.rom_certificate import held_out_angles
 from metasheet.robot.rom_training import motor_design, sensitivity, static_modes, train
 from metasheet.studies.adapter import paper_robot_spec
 
@@ -98,6 +99,13 @@ def test_ecsw_weights_are_nonnegative_and_meet_the_tolerance():
         ecsw(A, 1e-12, max_elements=5)
     with pytest.raises(ConfigError, match="tol"):
         ecsw(A, 0.0)
+
+
+def test_held_out_set_is_the_mixed_corners_without_sobol_points():
+    lo, hi = np.zeros(6), np.ones(6)
+    h = held_out_angles(lo, hi, 0, 1)  # held_out = 0: the two mixed corners only
+    assert np.array_equal(h, [[0, 0, 0, 1, 1, 1], [1, 1, 1, 0, 0, 0]])
+    assert held_out_angles(lo, hi, 3, 1).shape == (5, 6)
 
 
 def test_pod_basis_meets_its_projection_target(full):

@@ -44,7 +44,8 @@ def held_out_angles(lo, hi, n: int, seed: int) -> np.ndarray:
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     half = len(lo) // 2
     mixed = [np.r_[lo[:half], hi[half:]], np.r_[hi[:half], lo[half:]]]
-    return np.vstack([motor_design(lo, hi, n, seed, corners=False), *mixed])
+    sobol = [motor_design(lo, hi, n, seed, corners=False)] if n > 0 else []
+    return np.vstack([*sobol, *mixed])
 
 
 def compare(full_robot, full_state, reduced, reduced_lz, full_lz) -> Comparison:
