@@ -34,7 +34,8 @@ def motor_table(angles_deg, lo_deg, hi_deg) -> str:
 
 def status_markdown(snap, *, strain_max: float, strain_limit: float, rate: float, model: str) -> str:
     """The panel's markdown for snapshot ``snap``; ``strain_max`` [-] of the state drawn,
-    ``rate`` [updates/s] the page measured, ``model`` "full" / "reduced"."""
+    ``rate`` [updates/s] the page measured, ``model`` "full" / "reduced": the one asked for
+    (the snapshot's own model, and its note when the full model stands in, are shown)."""
     status = STATUS_TEXT.get(snap.status, snap.status)
     head = f"**{status.upper()}**" if snap.status in ("unreachable", "error") else f"**{status}**"
     valid = ("n/a" if not np.isfinite(strain_max) else
@@ -43,8 +44,9 @@ def status_markdown(snap, *, strain_max: float, strain_limit: float, rate: float
     lines = [
         f"status: {head}: {snap.message}",
         "",
-        f"material: {snap.material}, model: {model}, mode: {snap.mode}",
+        f"material: {snap.material}, model: {snap.model}, mode: {snap.mode}",
         "",
+        *([f"**{snap.note}**", ""] if snap.note else []),
         motor_table(snap.angles_deg, snap.angle_min_deg, snap.angle_max_deg),
         "",
         f"pose [mm, deg]: {_vec(snap.pose[:3])} | {_vec(snap.pose[3:])}",
