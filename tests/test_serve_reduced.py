@@ -178,3 +178,47 @@ def test_robot_goto_reduced_matches_full(outputs, capsys):
     _, beyond_full = _goto(capsys, outputs, "full", GOAL_OUT)
     assert out_o.startswith(f"model: full ({OUTSIDE_BOX})")
     np.testing.assert_array_equal(beyond, beyond_full)
+
+
+def test_page_draws_reduced_states_and_the_flag(session, outputs):
+    """The page on a real (browserless) viser server draws the full mesh at a reduced state."""
+    import socket
+
+    import viser
+
+    from metasheet.serve.app import SCALE, Page
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
+    page = Page(server, session, outputs, strain_limit=0.3, model="reduced")
+    try:
+        session.set_goal(GOAL_IN)
+        snap = session.wait_idle(60)
+        wait_until(lambda: page.drawn == snap.version)
+        assert snap.model == "reduced" and "model: reduced" in page.status.content
+        np.testing.assert_allclose(page.effector.position, snap.state.p * SCALE, atol=1e-9)
+        np.testing.assert_allclose(page.horns.points, scene_horns(session, snap) * SCALE, atol=1e-9)
+        session.set_motors([50.0, 62.0, 58.0, 61.0, 55.0, 66.0])
+        snap = session.wait_idle(60)
+        wait_until(lambda: page.drawn == snap.version)
+        assert f"**{OUTSIDE_BOX}**" in page.status.content and "model: full" in page.status.content
+    finally:
+        page.close()
+        server.stop()
+
+
+def wait_until(predicate, timeout=20.0):
+    import time
+
+    deadline = time.time() + timeout
+    while not predicate():
+        assert time.time() < deadline, "not within the timeout"
+        time.sleep(0.02)
+
+
+def scene_horns(session, snap):
+    from metasheet.serve import scene
+
+    return scene.horn_segments(session.robot_of(snap.material)[1].geometry, snap.x)
