@@ -12,7 +12,9 @@ the full model's, and solves on the reduced one only where it was trained:
   driven on from the last state in the box by the full model (:meth:`RobotModels.step_left_box`,
   used by the session's goal loop);
 * while the full model drives, :attr:`RobotModels.note` says so (the page's flag); a later
-  command whose start is inside the box goes back to the reduced model.
+  motor command inside the box, or a goal whose start is :data:`RETURN_MARGIN` inside it
+  (a margin: a drag along the box's edge does not switch models at every goal), goes back
+  to the reduced model.
 
 The state changes model through the same full-mesh positions: reduced to full by
 :meth:`~metasheet.robot.reduced.ReducedRobot.full_state`, full to reduced by projection on
@@ -32,6 +34,8 @@ from ..robot.inverse import InverseController, InverseSettings
 
 #: the page's flag while the full model stands in for the reduced one
 OUTSIDE_BOX = "outside the reduced model's training box: the full model solves here"
+#: a goal goes back from the full to the reduced model when its start is this far inside the box [rad]
+RETURN_MARGIN = np.radians(1.0)
 
 
 def is_reduced(robot) -> bool:
@@ -113,6 +117,12 @@ class RobotModels:
         return projected_state(self.full, self.reduced.basis.V, state)
 
     # -- solves -------------------------------------------------------------------------
+    def may_return(self) -> bool:
+        """Whether a goal starting now should go back to the reduced model: the full one is
+        active and the motors are :data:`RETURN_MARGIN` inside the box."""
+        return (self.active == "full" and self.reduced is not None
+                and self.reduced.in_box(self.ctrl.state.angles, tol=-RETURN_MARGIN))
+
     def model_for(self, angles) -> str:
         """The model that solves at motor ``angles`` [rad]: reduced inside its box, else full."""
         return "reduced" if self.in_box(angles) else "full"

@@ -301,8 +301,8 @@ class Session:
     def _drive(self, goal):
         certify = replace(self.settings, drift_tol=InverseSettings.drift_tol)  # see the module docstring
         models = self.current
-        if models.in_box(models.ctrl.state.angles):
-            models.enter("reduced")  # back from the full model where the reduced one may solve
+        if models.may_return():
+            models.enter("reduced")  # back from the full model, well inside the training box
         run = GoalRun(models.ctrl, goal, self.settings, certify)
         born = time.perf_counter()
         while True:
