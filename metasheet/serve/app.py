@@ -29,7 +29,7 @@ from ..errors import ConfigError
 from ..rotations import rotation_matrix, rotation_vector
 from . import scene
 from .maze import maze_file, read_maze
-from .panel import RateMeter, status_markdown
+from .panel import MEASURED_RATE, RateMeter, status_markdown
 
 SCALE = 1e-3  # [m/mm]
 GOAL_NAMES = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
@@ -127,6 +127,7 @@ class Page:
         gui.main_panel.dock_right()  # the controls beside the robot, not over it
         gui.add_markdown("**metasheet**: drive the robot. Drag the gizmo (the goal) or type a goal; "
                          "the inverse model (eq. 8) follows. Motor sliders: the forward model.")
+        gui.add_markdown(f"Update rate {MEASURED_RATE}; this page's own: in the robot state panel.")
         with gui.add_folder("Goal (inverse model)"):
             # one input per component: a vector input loses a component typed quickly after
             # another (each edit sends the whole vector, built from a value not yet echoed)

@@ -195,8 +195,21 @@ def reduced_robot(full, info: RobotInfo, basis_file: Path, run_command: str):
     box = (f"[{lo.min():g}, {hi.max():g}]" if np.ptp(lo) < 1e-9 and np.ptp(hi) < 1e-9
            else f"[{', '.join(f'{a:.4g}' for a in lo)}] to [{', '.join(f'{b:.4g}' for b in hi)}]")
     what = (f"reduced model: {basis.k} modes, {len(basis.elements)} of {full.body.n_elements} elements, "
-            f"trained on motor angles in {box} deg (outside: the full model); ")
+            f"trained on motor angles in {box} deg (outside: the full model){certificate(basis_file.parent)}; ")
     return red, replace(info, model="reduced", description=what + info.description)
+
+
+def certificate(reduce_dir: Path) -> str:
+    """The reduce stage's certificate in a few words (from ``reduce.json``), or ""."""
+    import json
+
+    try:
+        c = json.loads((reduce_dir / "reduce.json").read_text())["certificate"]
+        pos, jac = c["position_mm"]["worst"], c["jacobian_rel"]["worst"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    return (f"; certificate {'met' if c.get('met') else 'NOT met'}: held-out errors up to {pos:.2g} mm, "
+            f"Jacobian {100 * jac:.2g} %")
 
 
 def _full_robot(outputs: Outputs, material: str):

@@ -17,6 +17,11 @@ STATUS_TEXT = {"moving": "moving", "reached": "reached", "unreachable": "unreach
                "playing": "playing the maze", "error": "error"}
 #: a motor this close to a limit is marked "at limit" [deg]
 AT_LIMIT_DEG = 0.5
+#: the update rates benchmarks/bench_serve.py measured (--model both --repeats 3; the README's
+#: serve section has the table), shown on the page next to its own live rate
+MEASURED_RATE = ("measured (benchmarks/bench_serve.py, the quick pipeline's robot, 21k unknowns, 2 cores): "
+                 "full model 3.0-10 updates/s while the goal is dragged; reduced model 32 inside its training "
+                 "box, 6.5-9.6 on drags that leave it (the full model solves there)")
 
 
 def _vec(v, digits: int = 2) -> str:
