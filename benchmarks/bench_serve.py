@@ -3,7 +3,12 @@
 Run (the pipeline's outputs must exist: ``metasheet run pipelines/quick.toml`` first):
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_serve.py [pipelines/quick.toml] [--out ROOT]
-        [--model full|reduced] [--seconds 6] [--browser]
+        [--model full|reduced|both] [--settings live,default] [--repeats 1] [--seconds 6] [--browser]
+
+``--model both`` (the pipeline needs the reduce stage) measures the full and the reduced
+model in the same process, their runs interleaved drag by drag and repeat by repeat (the
+machine's load hits both alike), and prints each row's median over the repeats and the
+ratios reduced / full.
 
 Drives the page's own session (solver thread) and drawing thread on a real viser server on a
 free loopback port with scripted drags: the goal moves at 60 updates per second (a mouse
@@ -19,7 +24,8 @@ at 0.5 Hz. Each runs with the page's live settings and with the inverse loop's d
 
 Prints one table: control steps per second (each one published), median and 90th-percentile
 step time, page updates pushed per second, median draw time, the median tracking error
-while moving [mm, deg] and the kept-tangent refreshes.
+while moving [mm, deg], the kept-tangent refreshes and the share of the published steps the
+reduced model solved (the rest: the full model, outside its training box).
 """
 
 from __future__ import annotations
@@ -77,8 +83,8 @@ def run_drag(session, page, drag, seconds: float) -> dict:
     session.reset()
     session.wait_idle(120)
     rest = session.snapshot().pose
-    ctrl = session.current.ctrl
-    refreshes0 = ctrl.refreshes
+    models = session.current
+    refreshes0 = models.refreshes
     snaps, draws0 = [], page.draws
     page.draw_times.clear()
     t0 = time.perf_counter()
@@ -98,14 +104,21 @@ def run_drag(session, page, drag, seconds: float) -> dict:
             "draw ms median": 1e3 * float(np.median(page.draw_times or [np.nan])),
             "error mm": float(np.median([s.pos_error for s in snaps] or [np.nan])),
             "error deg": float(np.median([s.rot_error for s in snaps] or [np.nan])),
-            "refreshes": ctrl.refreshes - refreshes0}
+            "refreshes": models.refreshes - refreshes0,
+            "reduced %": 100.0 * float(np.mean([s.model == "reduced" for s in snaps] or [np.nan]))}
+
+
+def _cell(key: str, v: float) -> str:
+    return str(int(round(v))) if key in ("refreshes", "reduced %") else f"{v:.2f}" if "error" in key else f"{v:.1f}"
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("pipeline", nargs="?", default=str(ROOT / "pipelines" / "quick.toml"))
     ap.add_argument("--out", default=None, help="output root the pipeline ran with")
-    ap.add_argument("--model", default="full")
+    ap.add_argument("--model", default="full", choices=("full", "reduced", "both"))
+    ap.add_argument("--settings", default="live,default", help="comma-separated: live, default")
+    ap.add_argument("--repeats", type=int, default=1, help="runs of each drag (medians over them)")
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--browser", action="store_true", help="keep the page open in headless chromium")
     args = ap.parse_args()
@@ -115,35 +128,53 @@ def main() -> None:
     from metasheet.serve.app import Page
 
     outputs = find_outputs(args.pipeline, args.out)
-    rows = []
-    for name, settings in (("live", LIVE_SETTINGS), ("default", InverseSettings())):
-        session = Session(lambda m: load_robot(outputs, args.model, m), settings=settings)
-        session.start()
-        port = free_port()
-        server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
-        page = Page(server, session, outputs, strain_limit=0.3, model=args.model)
-        driver = open_browser(f"http://127.0.0.1:{port}") if args.browser else None
-        try:
+    all_settings = {"live": LIVE_SETTINGS, "default": InverseSettings()}
+    models = ("full", "reduced") if args.model == "both" else (args.model,)
+    names = args.settings.split(",")
+    pages, drivers, info = {}, [], {}
+    try:
+        for model in models:  # every page up front: the runs are interleaved below
+            for name in names:
+                session = Session(lambda m, model=model: load_robot(outputs, model, m), settings=all_settings[name])
+                session.start()
+                port = free_port()
+                server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
+                pages[model, name] = (session, Page(server, session, outputs, strain_limit=0.3, model=model), server)
+                if args.browser:
+                    drivers.append(open_browser(f"http://127.0.0.1:{port}"))
+                info[model] = session.robot_of("foam")[1]
+        runs: dict = {}
+        for _ in range(args.repeats):
             for drag in DRAGS:
-                rows.append((drag, name, run_drag(session, page, drag, args.seconds)))
-        finally:
-            if driver is not None:
-                driver.quit()
+                for (model, name), (session, page, _) in pages.items():
+                    runs.setdefault((drag, name, model), []).append(run_drag(session, page, drag, args.seconds))
+    finally:
+        for d in drivers:
+            d.quit()
+        for session, page, server in pages.values():
             page.close()
             session.stop()
             server.stop()
-    info = session.robot_of("foam")[1]
-    print(f"\nmetasheet serve, {outputs.directory} ({args.model} model: {info.description})")
-    print(f"drags of {args.seconds:g} s, goal events at 60 Hz; browser connected: {args.browser}; "
-          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
+    print(f"\nmetasheet serve, {outputs.directory}")
+    for model in models:
+        print(f"  {model}: {info[model].description}")
+    print(f"drags of {args.seconds:g} s, goal events at 60 Hz, medians of {args.repeats} run(s); browser connected: "
+          f"{args.browser}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
           f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
-    keys = list(rows[0][2])
-    print("| drag | settings | " + " | ".join(keys) + " |")
-    print("|---|---|" + "---|" * len(keys))
-    for drag, name, r in rows:
-        print(f"| {drag} | {name} | " + " | ".join(str(r[k]) if k == "refreshes" else f"{r[k]:.2f}" if "error" in k
-                                               else f"{r[k]:.1f}" for k in keys)
-              + " |")
+    med = {k: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for k, rs in runs.items()}
+    keys = list(next(iter(med.values())))
+    print("| drag | settings | model | " + " | ".join(keys) + " |")
+    print("|---|---|---|" + "---|" * len(keys))
+    for (drag, name, model), r in med.items():
+        print(f"| {drag} | {name} | {model} | " + " | ".join(_cell(k, r[k]) for k in keys) + " |")
+    if len(models) == 2:
+        print("\n| drag | settings | updates/s reduced / full | steps/s reduced / full | step ms median full / reduced |")
+        print("|---|---|---|---|---|")
+        for drag in DRAGS:
+            for name in names:
+                f, r = med[drag, name, "full"], med[drag, name, "reduced"]
+                print(f"| {drag} | {name} | {r['updates/s'] / f['updates/s']:.2f} | {r['steps/s'] / f['steps/s']:.2f} "
+                      f"| {f['step ms median'] / r['step ms median']:.1f} |")
 
 
 if __name__ == "__main__":

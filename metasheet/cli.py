@@ -200,13 +200,14 @@ def diff(
         raise typer.Exit(1)
 
 
-def goto_model(orient: Path | None, model: str | None) -> str:
-    """The material model ``robot goto`` uses: ``model`` when given, else the material stage's
-    next to the orient stage (``<orient>/../material/material.json``) when there is one, else "ours"."""
+def goto_model(orient: Path | None, material_model: str | None) -> str:
+    """The material model ``robot goto --orient`` uses: ``material_model`` when given, else
+    the material stage's next to the orient stage (``<orient>/../material/material.json``)
+    when there is one, else "ours"."""
     from .material_model import check_model
 
-    if model is not None:
-        return check_model(model, "--model")
+    if material_model is not None:
+        return check_model(material_model, "--material-model")
     if orient is not None and (Path(orient).parent / "material" / "material.json").is_file():
         from .pipeline.artefacts import read_material
 
@@ -214,23 +215,44 @@ def goto_model(orient: Path | None, model: str | None) -> str:
     return "ours"
 
 
-def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, model: str | None = None):
-    """The 6-DOF robot ``robot goto`` drives: from an orient stage's sheets (their own
-    per-element constants), else freshly meshed sheets (``mesh_size`` [mm]) with the paper's
-    foam along the default spiral; the paper's scene and foam density either way; the
-    material model of :func:`goto_model`."""
+def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, material_model: str | None = None):
+    """The 6-DOF robot ``robot goto`` drives without ``--pipeline``: from an orient stage's
+    sheets (their own per-element constants), else freshly meshed sheets (``mesh_size``
+    [mm]) with the paper's foam along the default spiral; the paper's scene and foam density
+    either way (not a pipeline's: use :func:`pipeline_robot`); the material model of
+    :func:`goto_model`."""
     from . import paper
     from .robot.builder import SheetPair, six_dof_robot
 
-    model = goto_model(orient, model)
+    material_model = goto_model(orient, material_model)
     if orient is not None:
         from .pipeline.artefacts import read_orient
 
-        return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY, model=model)
+        return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY, model=material_model)
     from .sheet.geometry import SheetParams
 
     return six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=mesh_size)), paper.PAPER_FOAM,
-                         density=paper.FOAM_DENSITY, model=model)
+                         density=paper.FOAM_DENSITY, model=material_model)
+
+
+def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full", material_model: str | None = None):
+    """``(robot, RobotInfo)`` of a pipeline's outputs as ``metasheet serve`` drives it
+    (:func:`metasheet.serve.loading.load_robot`: the robot stage's scene, the material
+    stage's density and model); ``model`` "full" / "reduced". ``material_model``, when given,
+    must be the material stage's (the robot, and a reduced basis, are built with that one)."""
+    from .errors import ConfigError
+    from .material_model import check_model
+    from .pipeline.artefacts import read_material
+    from .serve.loading import find_outputs, load_robot
+
+    outputs = find_outputs(pipeline, out)
+    robot, info = load_robot(outputs, model)
+    if material_model is not None:
+        used = read_material(outputs.directory / "material").model
+        if check_model(material_model, "--material-model") != used:
+            raise ConfigError(f"--material-model: {material_model!r}: the pipeline's material stage uses {used!r}; "
+                              "set [material] model in the pipeline and run it again, or drop --material-model")
+    return robot, info
 
 
 def _pose_text(pose) -> str:
@@ -275,22 +297,43 @@ def parse_pose(values: list[str]) -> list[float]:
 def robot_goto(
     pose: Annotated[list[str], typer.Argument(
         metavar="POSE", help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
-    orient: Annotated[Optional[Path], typer.Option("--orient", help="an orient stage's output directory")] = None,
-    mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no --orient")] = 8.0,
-    model: Annotated[Optional[str], typer.Option("--model", help="material model 'ours' or 'authors' (default: the "
-                                                 "material stage's next to --orient, else 'ours')")] = None,
+    pipeline: Annotated[Optional[Path], typer.Option("--pipeline", help="pipeline TOML file whose robot to drive "
+                                                     "(its robot stage's scene, material stage's density and model; "
+                                                     "run it first)")] = None,
+    out: Annotated[Optional[Path], typer.Option("--out", help="output root the pipeline ran with (default: "
+                                                "outputs/ of the project)")] = None,
+    model: Annotated[str, typer.Option("--model", help="robot model with --pipeline: 'full' (FEM) or 'reduced' (the "
+                                       "reduce stage's; outside its training box the full model solves)")] = "full",
+    orient: Annotated[Optional[Path], typer.Option("--orient", help="without --pipeline: an orient stage's output "
+                                                   "directory (the paper's scene and foam density)")] = None,
+    mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no "
+                                             "--pipeline or --orient")] = 8.0,
+    material_model: Annotated[Optional[str], typer.Option("--material-model", help="material model 'ours' or "
+                                                          "'authors' (default: the material stage's, else 'ours')")] = None,
 ) -> None:
     """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles.
 
     Exits with status 4 when the goal is not reached, after printing the closest pose
     and the remaining error.
     """
-    from .errors import UnreachableError
-    from .robot.inverse import InverseController
+    from .errors import ConfigError, UnreachableError
+    from .serve.loading import MODELS
+    from .serve.models import goto
 
     goal = parse_pose(pose)
-    robot = goto_robot(orient, mesh_size, model)
-    res = InverseController(robot).goto(goal)
+    if model not in MODELS:
+        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
+    if pipeline is not None:
+        if orient is not None:
+            raise ConfigError("--orient: give either --pipeline (the pipeline's robot) or --orient, not both")
+        robot, info = pipeline_robot(pipeline, out, model, material_model)
+    elif model != "full":
+        raise ConfigError(f"--model {model}: needs --pipeline (a pipeline with the reduce stage, run first)")
+    else:
+        robot, info = goto_robot(orient, mesh_size, material_model), None
+    res, note = goto(robot, goal)
+    used = "full" if info is None or note else info.model
+    say(f"model: {used}" + (f" ({note})" if note else ""), err=False)
     say(format_result(res), err=False)
     if not res.reached:
         raise UnreachableError(

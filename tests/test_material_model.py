@@ -163,5 +163,5 @@ def test_goto_takes_the_material_stage_model(tmp_path):
                    model="authors")
     assert goto_model(Path(tmp_path / "orient"), None) == "authors"
     assert goto_model(tmp_path / "orient", "ours") == "ours"
-    with pytest.raises(ConfigError, match="--model: 'x': allowed values"):
+    with pytest.raises(ConfigError, match="--material-model: 'x': allowed values"):
         goto_model(None, "x")

@@ -82,7 +82,7 @@ def test_a_pipeline_without_a_robot_stage_is_a_clear_error(tmp_path):
         load_robot(find_outputs(toml, out))
 
 
-def test_reduced_model_and_bad_names_are_clear_errors(outputs):
+def test_missing_reduce_outputs_and_bad_names_are_clear_errors(outputs):
     with pytest.raises(ConfigError, match=r"--model reduced: needs the reduce stage's outputs .*reduce"):
         load_robot(outputs, "reduced")
     with pytest.raises(ConfigError, match="--model: 'fast'"):
@@ -183,12 +183,12 @@ def test_an_unreachable_goal_shows_the_closest_pose(session):
 
 def test_a_solver_error_is_shown_and_the_worker_goes_on(session, monkeypatch):
     from metasheet.errors import ConvergenceError
-    from metasheet.serve import session as session_module
+    from metasheet.serve import models as models_module
 
     def fail(*a, **k):
         raise ConvergenceError("statics: no convergence (test)")
 
-    monkeypatch.setattr(session_module, "solve_equilibrium", fail)
+    monkeypatch.setattr(models_module, "solve_equilibrium", fail)
     before = session.snapshot()
     session.set_motors([40.0] * 6)
     snap = session.wait_idle(30)

@@ -6,7 +6,7 @@ Builds a small pipeline's robot outputs (material, orient at 12 mm, robot; ~15 s
 * the robot renders: the canvas is not blank (pixel statistics of a screenshot);
 * a goal typed into the page's own goal fields and sent with its "Go to goal" button moves
   the motors and the drawn robot (the canvas changes), and the motor angles and pose the
-  page reports match ``metasheet robot goto`` for the same goal;
+  page reports match ``metasheet robot goto --pipeline`` (the same robot) for the same goal;
 * dragging the goal gizmo with the mouse drives the robot (the goal and the pose change);
 * a second tab sees the same robot, and closing the first leaves the server serving.
 
@@ -224,7 +224,7 @@ def test_drive_the_robot_from_the_page(server, browser, outputs, tmp_path):
         Image.open(tmp_path / "serve.png").convert("RGB").quantize(128).save(os.environ["METASHEET_SERVE_SCREENSHOT"])
 
     # the same goal through the command line: the same motors and pose, within the loops' tolerances
-    r = metasheet("robot", "goto", "--orient", str(outputs / "out" / "small" / "orient"), "--",
+    r = metasheet("robot", "goto", "--pipeline", str(outputs / "small.toml"), "--out", str(outputs / "out"), "--",
                   *[f"{v:g}" for v in GOAL])
     assert r.returncode == 0, r.stdout + r.stderr
     cli_angles = np.array(re.search(r"motor angles \[deg\]: (.*)", r.stdout).group(1).split(), float)

@@ -29,7 +29,7 @@ from ..errors import ConfigError
 from ..rotations import rotation_matrix, rotation_vector
 from . import scene
 from .maze import maze_file, read_maze
-from .panel import RateMeter, status_markdown
+from .panel import MEASURED_RATE, RateMeter, status_markdown
 
 SCALE = 1e-3  # [m/mm]
 GOAL_NAMES = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
@@ -108,14 +108,14 @@ class Page:
         tri = np.zeros((3, 3)), np.array([[0, 1, 2]])
         self.bands = [sc.add_mesh_simple(f"/robot/band{k}", *tri, side="double", visible=False)
                       for k in range(scene.BANDS + 1)]
-        self.horns = sc.add_line_segments("/robot/horns", scene.horn_segments(geo, snap.state.x) * SCALE,
+        self.horns = sc.add_line_segments("/robot/horns", scene.horn_segments(geo, snap.x) * SCALE,
                                           (255, 140, 0), thickness=0.003)
         for k, p in enumerate(geo.pivots):
             sc.add_icosphere(f"/robot/pivot{k}", radius=0.004, color=(200, 90, 0), position=p * SCALE)
         self.rod = sc.add_line_segments("/robot/rod", scene.rod_segment(geo, snap.state.p, snap.state.R) * SCALE,
                                         (30, 30, 30), thickness=0.004)
         self.effector = sc.add_frame("/effector", axes_length=0.03, axes_radius=0.0012)
-        self.fibers = sc.add_line_segments("/robot/fibers", scene.fiber_segments(geo, snap.state.x) * SCALE,
+        self.fibers = sc.add_line_segments("/robot/fibers", scene.fiber_segments(geo, snap.x) * SCALE,
                                            (10, 10, 10), thickness=0.0007, visible=False)
         self.goal = sc.add_transform_controls("/goal", scale=0.05, depth_test=False, line_width=3.0)
         self.goal.on_update(self._on_gizmo)
@@ -127,6 +127,7 @@ class Page:
         gui.main_panel.dock_right()  # the controls beside the robot, not over it
         gui.add_markdown("**metasheet**: drive the robot. Drag the gizmo (the goal) or type a goal; "
                          "the inverse model (eq. 8) follows. Motor sliders: the forward model.")
+        gui.add_markdown(f"Update rate {MEASURED_RATE}; this page's own: in the robot state panel.")
         with gui.add_folder("Goal (inverse model)"):
             # one input per component: a vector input loses a component typed quickly after
             # another (each edit sends the whole vector, built from a value not yet echoed)
@@ -237,7 +238,7 @@ class Page:
             return strain
         body = self.session.robot_of(snap.material)[0].body
         fn = getattr(body, "max_principal_strain", None)
-        strain = None if fn is None else np.asarray(fn(snap.state.x))
+        strain = None if fn is None else np.asarray(fn(snap.x))
         self._strain = (snap.version, strain, now)
         return strain
 
@@ -245,7 +246,7 @@ class Page:
         """Send ``snap`` to every tab."""
         t0 = time.perf_counter()
         robot, info = self.session.robot_of(snap.material)
-        geo, x = info.geometry, snap.state.x
+        geo, x = info.geometry, snap.x
         if snap.material != self._material:
             self.surface, self._material = scene.surface(geo.tets, geo.rest), snap.material
             self._maze_button(snap.material)

@@ -14,15 +14,22 @@ The "silicone" robot is the robot stage's silicone case: the same sheets, isotro
 (the pipeline's ``[robot]`` silicone constants, else :data:`metasheet.paper.SILICONE`), the
 silicone density or the scene's sheet mass.
 
-Every robot is built by :func:`load_robot`, the one place a robot model is chosen: ``"full"``
-is the FEM robot; ``"reduced"`` (the reduce stage's reduced-order robot) is not available yet
-and is a clear error. Missing outputs are a :class:`~metasheet.errors.ConfigError` naming
-the file and the command that writes it; nothing falls back to a default robot.
+Every robot is built by :func:`load_robot`, the one place a robot model is chosen (the page
+and ``metasheet robot goto --pipeline``): ``"full"`` is the FEM robot; ``"reduced"`` the
+reduce stage's reduced-order robot (:class:`~metasheet.robot.reduced.ReducedRobot`) on that
+same FEM robot. The reduce stage trains on the robot of
+:func:`metasheet.pipeline.stages._studies.build_spec` (orient's sheets, the robot stage's
+scene, the material stage's constants and density): without ``[reduce]`` overrides of the
+mesh or the scene that is the robot built here, and the basis's robot key proves it (a
+basis trained on another robot is a clear error, never a silent misfit). The basis is
+trained on the foam: ``"reduced"`` with silicone gives the full silicone robot, with a note
+saying so. Missing outputs are a :class:`~metasheet.errors.ConfigError` naming the file and
+the command that writes it; nothing falls back to a default robot.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -110,13 +117,16 @@ class RobotGeometry:
 
 @dataclass(frozen=True)
 class RobotInfo:
-    """A loaded robot's description: ``model`` ("full"), ``material`` ("foam" / "silicone"),
-    what it is made of (``description``, for the page), and its :class:`RobotGeometry`."""
+    """A loaded robot's description: ``model`` ("full" / "reduced": the robot returned),
+    ``material`` ("foam" / "silicone"), what it is made of (``description``, for the page),
+    its :class:`RobotGeometry`, and ``note``: why the model differs from the one asked for
+    ("" when it does not)."""
 
     model: str
     material: str
     description: str
     geometry: RobotGeometry
+    note: str = ""
 
 
 def robot_geometry(robot, fibers_local: tuple[np.ndarray, np.ndarray]) -> RobotGeometry:
@@ -144,20 +154,66 @@ def robot_geometry(robot, fibers_local: tuple[np.ndarray, np.ndarray]) -> RobotG
 def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     """The robot of ``outputs`` as the robot stage built it: ``(robot, RobotInfo)``.
 
-    ``model`` : "full" (the FEM robot) or "reduced" (not yet available: a ConfigError);
-    ``material`` : "foam" (the sheets' own constants) or "silicone" (the robot stage's
-    silicone case). Raises :class:`ConfigError` for a missing artefact (see
-    :func:`check_outputs`), an unknown model or material.
+    ``model`` : "full" (the FEM robot) or "reduced" (the reduce stage's
+    :class:`~metasheet.robot.reduced.ReducedRobot` on it; silicone: the full robot, with
+    ``info.note`` saying why); ``material`` : "foam" (the sheets' own constants) or
+    "silicone" (the robot stage's silicone case). Raises :class:`ConfigError` for a missing
+    artefact (see :func:`check_outputs`), an unknown model or material, a basis trained on
+    another robot.
     """
     if model not in MODELS:
         raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
     if material not in MATERIALS:
         raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
     check_outputs(outputs)
-    if model == "reduced":
-        reduce_dir = outputs.directory / "reduce"
-        raise ConfigError(f"--model reduced: needs the reduce stage's outputs ({reduce_dir}), which are "
+    basis_file = outputs.directory / "reduce" / "basis.npz"
+    if model == "reduced" and not basis_file.is_file():
+        raise ConfigError(f"--model reduced: needs the reduce stage's outputs ({basis_file}), which are "
                           "missing: run a pipeline with the reduce stage, or use --model full")
+    robot, info = _full_robot(outputs, material)
+    if model == "full":
+        return robot, info
+    if material != "foam":
+        note = ("the reduced model was trained on the foam and does not fit silicone: "
+                "silicone runs on the full model")
+        return robot, replace(info, note=note)
+    return reduced_robot(robot, info, basis_file, outputs.run_command)
+
+
+def reduced_robot(full, info: RobotInfo, basis_file: Path, run_command: str):
+    """``(ReducedRobot, RobotInfo)`` of the basis in ``basis_file`` on the full robot ``full``;
+    ConfigError naming the file when it was trained on another robot."""
+    from ..robot.reduced import ReducedBasis, ReducedRobot, robot_key
+
+    basis = ReducedBasis.load(basis_file)
+    if basis.robot_key != robot_key(full):
+        raise ConfigError(f"--model reduced: {basis_file} was trained on another robot than the robot stage's "
+                          "(its [reduce] mesh or scene overrides, or outputs of another run): run "
+                          f"`{run_command}` again without them, or use --model full")
+    red = ReducedRobot(full, basis)
+    lo, hi = np.degrees(basis.box_lo), np.degrees(basis.box_hi)
+    box = (f"[{lo.min():g}, {hi.max():g}]" if np.ptp(lo) < 1e-9 and np.ptp(hi) < 1e-9
+           else f"[{', '.join(f'{a:.4g}' for a in lo)}] to [{', '.join(f'{b:.4g}' for b in hi)}]")
+    what = (f"reduced model: {basis.k} modes, {len(basis.elements)} of {full.body.n_elements} elements, "
+            f"trained on motor angles in {box} deg (outside: the full model){certificate(basis_file.parent)}; ")
+    return red, replace(info, model="reduced", description=what + info.description)
+
+
+def certificate(reduce_dir: Path) -> str:
+    """The reduce stage's certificate in a few words (from ``reduce.json``), or ""."""
+    import json
+
+    try:
+        c = json.loads((reduce_dir / "reduce.json").read_text())["certificate"]
+        pos, jac = c["position_mm"]["worst"], c["jacobian_rel"]["worst"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    return (f"; certificate {'met' if c.get('met') else 'NOT met'}: held-out errors up to {pos:.2g} mm, "
+            f"Jacobian {100 * jac:.2g} %")
+
+
+def _full_robot(outputs: Outputs, material: str):
+    """The FEM robot of ``outputs`` for ``material`` and its :class:`RobotInfo`."""
     from ..material import Isotropic
     from ..pipeline.artefacts import read_material, read_orient, read_robot_scene
     from ..robot.builder import six_dof_robot
@@ -177,4 +233,4 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     geometry = robot_geometry(robot, (orient.normal.fibers, orient.mirrored.fibers))
     description = (f"{what}; scene {sc.scene}, rod {sc.rod_length:g} mm, stroke "
                    f"[{sc.angle_min:g}, {sc.angle_max:g}] deg; {len(geometry.tets)} {orient.element} elements")
-    return robot, RobotInfo(model, material, description, geometry)
+    return robot, RobotInfo("full", material, description, geometry)

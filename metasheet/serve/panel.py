@@ -17,6 +17,11 @@ STATUS_TEXT = {"moving": "moving", "reached": "reached", "unreachable": "unreach
                "playing": "playing the maze", "error": "error"}
 #: a motor this close to a limit is marked "at limit" [deg]
 AT_LIMIT_DEG = 0.5
+#: the update rates benchmarks/bench_serve.py measured (--model both --repeats 3; the README's
+#: serve section has the table), shown on the page next to its own live rate
+MEASURED_RATE = ("measured (benchmarks/bench_serve.py, the quick pipeline's robot, 21k unknowns, 2 cores): "
+                 "full model 3.0-10 updates/s while the goal is dragged; reduced model 32 inside its training "
+                 "box, 6.5-9.6 on drags that leave it (the full model solves there)")
 
 
 def _vec(v, digits: int = 2) -> str:
@@ -34,7 +39,8 @@ def motor_table(angles_deg, lo_deg, hi_deg) -> str:
 
 def status_markdown(snap, *, strain_max: float, strain_limit: float, rate: float, model: str) -> str:
     """The panel's markdown for snapshot ``snap``; ``strain_max`` [-] of the state drawn,
-    ``rate`` [updates/s] the page measured, ``model`` "full" / "reduced"."""
+    ``rate`` [updates/s] the page measured, ``model`` "full" / "reduced": the one asked for
+    (the snapshot's own model, and its note when the full model stands in, are shown)."""
     status = STATUS_TEXT.get(snap.status, snap.status)
     head = f"**{status.upper()}**" if snap.status in ("unreachable", "error") else f"**{status}**"
     valid = ("n/a" if not np.isfinite(strain_max) else
@@ -43,8 +49,9 @@ def status_markdown(snap, *, strain_max: float, strain_limit: float, rate: float
     lines = [
         f"status: {head}: {snap.message}",
         "",
-        f"material: {snap.material}, model: {model}, mode: {snap.mode}",
+        f"material: {snap.material}, model: {snap.model}, mode: {snap.mode}",
         "",
+        *([f"**{snap.note}**", ""] if snap.note else []),
         motor_table(snap.angles_deg, snap.angle_min_deg, snap.angle_max_deg),
         "",
         f"pose [mm, deg]: {_vec(snap.pose[:3])} | {_vec(snap.pose[3:])}",

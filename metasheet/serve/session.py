@@ -20,6 +20,10 @@ the :class:`Snapshot` s the session publishes; every tab of the page sees the sa
   the Jacobian's singular values.
 * A solver error (no equilibrium at these motor angles) is published as status "error" with
   its message; the robot keeps its last good state and the worker keeps running.
+* On the reduced model (``--model reduced``) every solve stays in its training box: outside
+  it the full model solves and the snapshot says so (:mod:`.models`: a control step leaving
+  the box is undone and the goal driven on by the full model; a forward solve outside it
+  runs on the full model); silicone runs on the full model (the basis is the foam's).
 
 Live settings (:data:`LIVE_SETTINGS`): ``drift_tol`` 10 instead of 0.5. While a goal moves,
 every control step leaves a pending equilibrium correction of a few tenths of a mm, and at
@@ -37,15 +41,15 @@ from __future__ import annotations
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import ConfigError, MetasheetError
-from ..robot.equilibrium import solve_equilibrium
-from ..robot.inverse import InverseController, InverseSettings
+from ..robot.inverse import InverseSettings
 from ..robot.qp import pose_error
 from ..rotations import rotation_matrix
+from .models import RobotModels
 from .tracking import GoalRun, check_pose, pose_of
 
 #: the inverse loop's settings on the page (see the module docstring for drift_tol)
@@ -70,7 +74,11 @@ class Snapshot:
     status : "moving", "reached", "unreachable", "holding" (forward: at
         equilibrium at the commanded angles), "playing", "error".
     message : a sentence for the page (what happened, the error's message).
-    state : the :class:`~metasheet.robot.statics.RobotState` drawn.
+    state : the state drawn: a :class:`~metasheet.robot.statics.RobotState`, or a
+        :class:`~metasheet.robot.reduced.ReducedState` on the reduced model.
+    x : (n, 3) [mm] the full mesh's nodes at ``state`` (what the page draws).
+    model : "full" / "reduced": the model ``state`` is on. note : why it is not the model
+        asked for (outside the reduced model's training box, silicone), else "".
     goal : (6,) the goal (x, y, z [mm], rotation vector [deg]).
     goal_version : increases when the session moved the goal itself (forward, material,
         playback, reset): the page then moves its goal gizmo there.
@@ -101,16 +109,9 @@ class Snapshot:
     singular_values: np.ndarray
     step_ms: float
     maze: tuple | None = None
-
-
-@dataclass
-class _Robot:
-    """One material's robot, its controller (kept: its tangent survives switching back)."""
-
-    robot: object
-    info: object
-    ctrl: InverseController
-    rest: object = field(default=None)
+    x: np.ndarray | None = None
+    model: str = "full"
+    note: str = ""
 
 
 def singular_values(J, length_scale: float = LENGTH_SCALE) -> np.ndarray:
@@ -134,7 +135,7 @@ class Session:
     def __init__(self, build, *, material: str = "foam", settings: InverseSettings = LIVE_SETTINGS):
         self._build = build
         self.settings = settings
-        self._robots: dict[str, _Robot] = {}
+        self._robots: dict[str, RobotModels] = {}
         self._material = material
         self._cond = threading.Condition()
         self._pending: dict[str, tuple] = {}  # "motion" / "material" -> the latest command
@@ -166,13 +167,13 @@ class Session:
             self._thread.join(timeout)
 
     @property
-    def current(self) -> _Robot:
+    def current(self) -> RobotModels:
         return self._robots[self._material]
 
     def robot_of(self, material: str):
         """(robot, info) of a material built so far (any thread: built robots are never replaced)."""
         r = self._robots[material]
-        return r.robot, r.info
+        return (r.reduced if r.reduced is not None else r.full), r.info
 
     # -- commands (any thread) ----------------------------------------------------------
     def _post(self, key: str, command: tuple) -> None:
@@ -262,7 +263,7 @@ class Session:
         self._job = None
         good = self._snap.state if self._snap is not None and self._snap.material == self._material else None
         if good is not None:
-            self.current.ctrl.state = good
+            self.current.restore(good)
         self._publish(self._snap.mode if self._snap else "inverse", "error", message)
 
     def _advance(self) -> None:
@@ -291,18 +292,18 @@ class Session:
         elif kind == "maze":
             self._job = self._maze(arg)
 
-    def _entry(self, material: str) -> _Robot:
+    def _entry(self, material: str) -> RobotModels:
         if material not in self._robots:
-            robot, info = self._build(material)
-            ctrl = InverseController(robot, settings=self.settings)  # solves the rest equilibrium
-            ctrl.refresh()  # the Jacobian at rest: singular values from the start
-            self._robots[material] = _Robot(robot, info, ctrl, ctrl.state)
+            self._robots[material] = RobotModels(*self._build(material), self.settings)  # the rest equilibrium
         return self._robots[material]
 
     # -- the motions (generators: one solver step per next()) -----------------------------
     def _drive(self, goal):
         certify = replace(self.settings, drift_tol=InverseSettings.drift_tol)  # see the module docstring
-        run = GoalRun(self.current.ctrl, goal, self.settings, certify)
+        models = self.current
+        if models.may_return():
+            models.enter("reduced")  # back from the full model, well inside the training box
+        run = GoalRun(models.ctrl, goal, self.settings, certify)
         born = time.perf_counter()
         while True:
             wait = SETTLE - (time.perf_counter() - born)
@@ -311,7 +312,14 @@ class Session:
                     self._cond.wait_for(lambda: self._pending or self._stopping, wait)
                 if self._pending or self._stopping:
                     return  # a newer goal: this one is dropped uncertified
+            before = models.ctrl.state
             p = run.advance()
+            if not p.done and models.step_left_box(before):  # undone: the full model drives on
+                run = GoalRun(models.ctrl, goal, self.settings, certify)
+                self._publish("inverse", "moving", "the goal leaves the reduced model's training box: "
+                              "the full model drives on")
+                yield
+                continue
             if not p.done:
                 self._publish("inverse", "moving", f"control step {run.steps}", step_ms=1e3 * p.step_time)
                 yield
@@ -325,14 +333,7 @@ class Session:
 
     def _solve(self, angles) -> float:
         """Forward model: the equilibrium at ``angles`` (na,) [rad] from the current state; [ms]."""
-        r = self.current
-        lo, hi = r.robot.angle_min, r.robot.angle_max
-        angles = np.clip(np.asarray(angles, float), lo, hi)
-        s = self.settings
-        eq = solve_equilibrium(r.robot, angles, state=r.ctrl.state, linearizer=r.ctrl.linearizer,
-                               tol=s.eq_tol, reuse_ratio=s.polish_rate)
-        r.ctrl.state = eq.state  # from outside the loop: its next step takes a fresh tangent
-        return 1e3 * eq.time
+        return self.current.solve(angles)
 
     def _set_goal_here(self) -> None:
         self._goal = pose_of(self.current.ctrl.state)
@@ -376,10 +377,11 @@ class Session:
             version=(prev.version + 1) if prev else 0, material=self._material, description=r.info.description,
             mode=mode, status=status, message=message, state=st, goal=np.array(goal, float),
             goal_version=self._goal_version, pose=pose, angles_deg=np.degrees(st.angles),
-            angle_min_deg=np.degrees(r.robot.angle_min), angle_max_deg=np.degrees(r.robot.angle_max),
+            angle_min_deg=np.degrees(r.full.angle_min), angle_max_deg=np.degrees(r.full.angle_max),
             pos_error=float(np.linalg.norm(e[:3])), rot_error=float(np.degrees(np.linalg.norm(e[3:]))),
             singular_values=singular_values(r.ctrl.tangent.J),
-            step_ms=(prev.step_ms if prev and step_ms is None else (step_ms or 0.0)), maze=maze)
+            step_ms=(prev.step_ms if prev and step_ms is None else (step_ms or 0.0)), maze=maze,
+            x=r.positions(st), model=r.active, note=r.note or r.info.note)
         with self._cond:
             self._snap = snap
             self._cond.notify_all()
