@@ -1,6 +1,7 @@
 """A small pipeline output tree for the serve tests: coarse orient sheets, the paper's foam,
 and the robot stage's scene, written without running the (slow) robot stage."""
 
+import contextlib
 import json
 
 import meshio
@@ -55,3 +56,25 @@ def write_reduce(root, out, *, snapshots: int = 8, box_deg: float = 8.0, held_ou
     params = stage.ReduceParams(snapshots=snapshots, box_deg=box_deg, held_out=held_out, resume=False)
     inputs = {name: base / name for name in ("orient", "material", "robot")}
     return stage.run(StageContext("reduce", params, work, inputs, root))
+
+
+@contextlib.contextmanager
+def live_page(session, outputs, model: str):
+    """A :class:`metasheet.serve.app.Page` on a real (browserless) viser server on a free
+    loopback port, closed and stopped afterwards."""
+    import socket
+
+    import viser
+
+    from metasheet.serve.app import Page
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
+    page = Page(server, session, outputs, strain_limit=0.3, model=model)
+    try:
+        yield page
+    finally:
+        page.close()
+        server.stop()

@@ -22,7 +22,7 @@ from metasheet.serve.panel import RateMeter, status_markdown
 from metasheet.serve.session import Session
 from metasheet.serve.tracking import GoalRun
 
-from serve_outputs import write_outputs
+from serve_outputs import live_page, write_outputs
 
 GOAL = [1.0, 1.0, -1.0, 0.0, 3.0, 0.0]  # reachable on the coarse robot: x, y, z [mm], rx, ry, rz [deg]
 FAR = [0.0, 0.0, -3.0, 40.0, 0.0, 0.0]  # 40 deg about the rod: beyond the stroke
@@ -320,16 +320,7 @@ def wait_until(predicate, timeout=20.0):
 
 def test_page_draws_a_snapshot_for_every_tab(session, outputs):
     """The page on a real (browserless) viser server: what it sends is the snapshot."""
-    import viser
-
-    from metasheet.serve.app import Page
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
-    page = Page(server, session, outputs, strain_limit=0.3, model="full")
-    try:
+    with live_page(session, outputs, "full") as page:
         session.set_goal(GOAL)
         snap = session.wait_idle(60)
         wait_until(lambda: page.drawn == snap.version)  # the page's drawing thread
@@ -340,6 +331,3 @@ def test_page_draws_a_snapshot_for_every_tab(session, outputs):
         assert "reached" in page.status.content and "pose [mm, deg]" in page.status.content
         page.color_by.value = "strain"  # as a tab would: the page redraws
         wait_until(lambda: "max principal strain" in page.legend.content)
-    finally:
-        page.close()
-        server.stop()

@@ -23,7 +23,7 @@ from metasheet.serve.models import OUTSIDE_BOX
 from metasheet.serve.panel import status_markdown
 from metasheet.serve.session import Session
 
-from serve_outputs import REDUCE_PIPELINE, write_outputs, write_reduce
+from serve_outputs import REDUCE_PIPELINE, live_page, write_outputs, write_reduce
 
 GOAL_IN = [0.0, 1.5, 0.0, 2.0, 0.0, 0.0]  # motors 53-62 deg: inside the box 52-68 deg
 GOAL_OUT = [1.0, 1.0, -1.0, 0.0, 3.0, 0.0]  # needs motor 4 at ~48.5 deg: outside it
@@ -183,18 +183,9 @@ def test_robot_goto_reduced_matches_full(outputs, capsys):
 
 def test_page_draws_reduced_states_and_the_flag(session, outputs):
     """The page on a real (browserless) viser server draws the full mesh at a reduced state."""
-    import socket
+    from metasheet.serve.app import SCALE
 
-    import viser
-
-    from metasheet.serve.app import SCALE, Page
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
-    page = Page(server, session, outputs, strain_limit=0.3, model="reduced")
-    try:
+    with live_page(session, outputs, "reduced") as page:
         session.set_goal(GOAL_IN)
         snap = session.wait_idle(60)
         wait_until(lambda: page.drawn == snap.version)
@@ -205,9 +196,6 @@ def test_page_draws_reduced_states_and_the_flag(session, outputs):
         snap = session.wait_idle(60)
         wait_until(lambda: page.drawn == snap.version)
         assert f"**{OUTSIDE_BOX}**" in page.status.content and "model: full" in page.status.content
-    finally:
-        page.close()
-        server.stop()
 
 
 def wait_until(predicate, timeout=20.0):
