@@ -195,6 +195,7 @@ def test_tangent_library_serves_the_nearest_and_computes_the_missing_in_the_back
     red, snaps = trained
     lz = red.linearizer()
     lib = lz.library
+    lib.background = True
     assert len(lib) == 0
     rest = red.rest_state()
     lin0 = lz.linearize(rest, exact=False)  # empty library: computed here, exact
@@ -206,7 +207,6 @@ def test_tangent_library_serves_the_nearest_and_computes_the_missing_in_the_back
     g_int, g_ext, _ = red.evaluate(st, tangent=False)
     assert np.allclose(lin1.res_f, (g_int - g_ext)[12:], rtol=0, atol=1e-12 * np.abs(g_int).max())
     far = lz.apply(rest, np.zeros(6), np.zeros(red.k), np.radians(np.full(6, 6.0)))
-    lz.library.background = True
     lin2 = lz.linearize(far, exact=False)  # far: the nearest for now, an exact one queued
     assert lin2.S is lin0.S and lib.stats["far"] == 1
     lib.wait()
@@ -220,6 +220,7 @@ def test_tangent_library_serves_the_nearest_and_computes_the_missing_in_the_back
 def test_equilibrium_and_control_on_library_tangents_match_the_exact_ones(full, trained):
     red, snaps = trained
     lz = red.linearizer()
+    lz.library.background = True
     for s in snaps[:3]:
         e = solve_equilibrium(red, s.angles, linearizer=red.linearizer(), tol=1e-9)
         lib = solve_equilibrium(red, s.angles, linearizer=lz, tol=1e-9, exact_tangent=False)

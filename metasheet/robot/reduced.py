@@ -358,10 +358,12 @@ class ReducedLinearizer:
                              exact=exact)
 
     def linearize(self, state: ReducedState, *, exact: bool = True) -> Linearization:
-        """The condensed reduced tangent and the residual at ``state``: fresh (``exact``), or
-        the library's nearest (``exact=False``; then ``fresh`` and ``exact`` are False unless
-        it was taken at these very angles)."""
-        if exact:
+        """The condensed reduced tangent and the residual at ``state``: fresh (``exact``, or
+        without a background library), or the library's nearest (``exact=False``; then
+        ``fresh`` and ``exact`` are False unless it was taken at this very state)."""
+        # the library only in real-time use: studies and certificates keep exact tangents
+        # (the inverse loop on stored ones can wander off on a large move: not yet robust)
+        if exact or not self.library.background:
             t, g_int, g_ext = self._exact(state)
             self.stats["tangents"] += 1
             self.library.add(t)
