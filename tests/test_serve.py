@@ -304,6 +304,11 @@ def test_panel_text_and_rate(session):
     snap = session.snapshot()
     text = status_markdown(snap, strain_max=0.5, strain_limit=0.3, rate=12.3, model="full")
     assert "| 0 | 60.00 | 0 to 90 |" in text and "NOT VALID" in text and "updates: 12.3 per s" in text
+    from dataclasses import replace
+
+    tiny = replace(snap, goal=np.array([-1e-17, 0.0, 0.5, -0.004, 0.0, -0.006]))
+    assert "goal [mm, deg]: 0.00 0.00 0.50 | 0.00 0.00 -0.01" in status_markdown(
+        tiny, strain_max=0.0, strain_limit=0.3, rate=1.0, model="full")  # no "-0.00"
     t = iter(np.arange(0.0, 10.0, 0.1))
     meter = RateMeter(window=2.0, gap=1.0, clock=lambda: next(t))
     for _ in range(30):

@@ -158,7 +158,9 @@ def type_goal(driver, goal):
         box.click()
         box.send_keys(Keys.CONTROL, "a")
         box.send_keys(f"{v:g}", Keys.TAB)
-    time.sleep(0.3)  # the inputs reach the server
+        # one field at a time: typed back to back, an edit was seen lost on the server (the
+        # field showed 0, the goal kept 2.00; viser's websocket under the software renderer)
+        time.sleep(0.3)
     driver.find_element(By.XPATH, "//button[normalize-space(.)='Go to goal']").click()
 
 

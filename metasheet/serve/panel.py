@@ -25,7 +25,8 @@ MEASURED_RATE = ("measured (benchmarks/bench_serve.py, the quick pipeline's robo
 
 
 def _vec(v, digits: int = 2) -> str:
-    return " ".join(f"{x:.{digits}f}" for x in v)
+    # + 0.0: a value that rounds to zero reads 0.00, not -0.00 (a pose round trip leaves -1e-17)
+    return " ".join(f"{round(float(x), digits) + 0.0:.{digits}f}" for x in v)
 
 
 def motor_table(angles_deg, lo_deg, hi_deg) -> str:
