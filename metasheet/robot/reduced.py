@@ -215,6 +215,13 @@ class ReducedRobot:
 
         return RobotState(st.p, st.R, st.angles, self.positions(st))
 
+    def project(self, state) -> ReducedState:
+        """The reduced state closest to a full :class:`~.statics.RobotState` (rigid coordinates
+        as they are, ``a = V^T (x_f - X_f)``): a Newton start when a solve changes model."""
+        from .rom_training import projected_state
+
+        return projected_state(self.full, self.basis.V, state)
+
     def sub_positions(self, st: ReducedState) -> np.ndarray:
         """(n_s, 3) [mm] the sampled elements' nodes at ``st``."""
         x = np.empty_like(self._X)

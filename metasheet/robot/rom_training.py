@@ -63,8 +63,8 @@ def sensitivity(lz, state) -> np.ndarray:
 
 
 def projected_state(robot, V: np.ndarray, state) -> ReducedState:
-    """The reduced state closest to a full :class:`~.statics.RobotState`: rigid coordinates as
-    they are, ``a = V^T (x_f - X_f)``."""
+    """The reduced state closest to a full :class:`~.statics.RobotState` on the basis ``V``
+    (before a :class:`ReducedRobot` exists: :meth:`ReducedRobot.project` afterwards)."""
     c = robot.coupling
     u = (state.x[c.free] - c.rest[c.free]).ravel()
     return ReducedState(state.p, state.R, state.angles, V.T @ u)

@@ -18,7 +18,7 @@ the full model's, and solves on the reduced one only where it was trained:
 
 The state changes model through the same full-mesh positions: reduced to full by
 :meth:`~metasheet.robot.reduced.ReducedRobot.full_state`, full to reduced by projection on
-the basis (:func:`~metasheet.robot.rom_training.projected_state`), each followed by an
+the basis (:meth:`~metasheet.robot.reduced.ReducedRobot.project`), each followed by an
 equilibrium solve on the model it enters. A full robot alone (``--model full``, silicone)
 is the trivial case: one controller, never a switch.
 """
@@ -112,9 +112,7 @@ class RobotModels:
             return state
         if model == "full":
             return self.reduced.full_state(state)
-        from ..robot.rom_training import projected_state
-
-        return projected_state(self.full, self.reduced.basis.V, state)
+        return self.reduced.project(state)
 
     # -- solves -------------------------------------------------------------------------
     def may_return(self) -> bool:

@@ -11,7 +11,7 @@ Outside its training box (``basis.box_lo``, ``basis.box_hi`` [rad]) the reduced 
 extrapolate: a reach that ends there, or an equilibrium asked there, is redone by the full
 model (a warning is logged once per model; :attr:`ReducedFem.fallbacks` counts them). Its
 result then carries a full :class:`~metasheet.robot.statics.RobotState`; a call given such a
-state continues on the reduced model from its projection (:func:`~metasheet.robot.rom_training.projected_state`).
+state continues on the reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.project`).
 
 A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
 for one material): those return the full model's spec, with a logged warning, so a study that
@@ -129,7 +129,7 @@ class ReducedFem(FemRobot):
             raise ConfigError("model 'reduced': reduce/basis.npz was trained on another robot: give [reduce] the "
                               "same mesh settings (mesh_size, layers, grip_size, element) and scene as this study")
         full_rob = self.full.robot
-        self.robot = ReducedRobot(full_rob, basis).with_limits(full_rob.angle_min, full_rob.angle_max)
+        self.robot = ReducedRobot(full_rob, basis, check_key=False).with_limits(full_rob.angle_min, full_rob.angle_max)
         self.basis = basis
         self.settings = self.full.settings
         self.ctrl = InverseController(self.robot, settings=self.settings)
@@ -173,14 +173,13 @@ class ReducedFem(FemRobot):
     def _to_reduced(self, state):
         """A reduced equilibrium near a full ``state`` (None: the reduced rest)."""
         from ..robot.equilibrium import solve_equilibrium
-        from ..robot.rom_training import projected_state
 
         if not self._is_full(state):
             return state
         if not self.robot.in_box(state.angles):
             return None
         try:
-            start = projected_state(self.full.robot, self.basis.V, state)
+            start = self.robot.project(state)
             return solve_equilibrium(self.robot, state.angles, state=start, linearizer=self.lz).state
         except ConvergenceError:
             return None
