@@ -11,6 +11,11 @@ in memory, then times, on the same held-out motor angles and goals, in the same 
   model with its library computing missing tangents in the background.
 
     python benchmarks/bench_reduced.py --mesh-size 14 --element p1 --box 12 --snapshots 24
+
+or, without training, on a pipeline's robot and its reduce stage's basis (the robot and
+reduce stages must have run; the held-out angles are drawn inside the basis's box):
+
+    python benchmarks/bench_reduced.py --pipeline pipelines/paper.toml [--out outputs]
 """
 
 from __future__ import annotations
@@ -46,6 +51,24 @@ def _control(robot, goals, steps: int):
     return float(np.median(t)), float(t.mean()), float(np.percentile(t, 99)), fresh, len(t)
 
 
+def _from_pipeline(pipeline: str, out: str | None):
+    """(full robot, reduced robot, full linearizer, full rest equilibrium, description) of a
+    pipeline's outputs, as ``metasheet serve`` loads them."""
+    import json
+
+    from metasheet.serve.loading import find_outputs, load_robot
+
+    outputs = find_outputs(pipeline, out)
+    rob, _ = load_robot(outputs, "full")
+    red, _ = load_robot(outputs, "reduced")
+    lz = rob.linearizer()
+    rest = solve_equilibrium(rob, rob.coupling.rest_angles, linearizer=lz).state
+    box = np.degrees(red.basis.box_hi - red.basis.box_lo).max() / 2
+    timings = json.loads((outputs.directory / "reduce" / "manifest.json").read_text()).get("timings_s", {})
+    return rob, red, lz, rest, (f"{pipeline}'s reduce stage, box rest +- {box:.3g} deg; "
+                                f"training (manifest timings_s): {timings}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh-size", type=float, default=14.0)
@@ -53,18 +76,28 @@ def main() -> None:
     ap.add_argument("--box", type=float, default=12.0, help="training box: rest +- this [deg]")
     ap.add_argument("--snapshots", type=int, default=24)
     ap.add_argument("--repeats", type=int, default=8)
+    ap.add_argument("--pipeline", default=None, help="a pipeline whose robot and reduce stages have run")
+    ap.add_argument("--out", default=None, help="its outputs folder (default: the pipeline's)")
     a = ap.parse_args()
-    fem = paper_robot_spec(mesh_size=a.mesh_size, element=a.element).build()
-    rob, lz, rest = fem.robot, fem.lz, fem.rest
-    c = rob.coupling
-    lo, hi = c.rest_angles - np.radians(a.box), c.rest_angles + np.radians(a.box)
-    t0 = time.perf_counter()
-    snaps = [solve_equilibrium(rob, q, state=rest, linearizer=lz).state for q in motor_design(lo, hi, a.snapshots, 0)]
-    t_snap = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    basis = train(rob, snaps, rest, sensitivities=np.hstack([sensitivity(lz, s) for s in snaps]), box=(lo, hi))
-    t_train = time.perf_counter() - t0
-    red = ReducedRobot(rob, basis)
+    if a.pipeline:
+        rob, red, lz, rest, what = _from_pipeline(a.pipeline, a.out)
+        basis, c = red.basis, rob.coupling
+        lo, hi = basis.box_lo, basis.box_hi
+    else:
+        fem = paper_robot_spec(mesh_size=a.mesh_size, element=a.element).build()
+        rob, lz, rest = fem.robot, fem.lz, fem.rest
+        c = rob.coupling
+        lo, hi = c.rest_angles - np.radians(a.box), c.rest_angles + np.radians(a.box)
+        t0 = time.perf_counter()
+        snaps = [solve_equilibrium(rob, q, state=rest, linearizer=lz).state
+                 for q in motor_design(lo, hi, a.snapshots, 0)]
+        t_snap = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        basis = train(rob, snaps, rest, sensitivities=np.hstack([sensitivity(lz, s) for s in snaps]), box=(lo, hi))
+        t_train = time.perf_counter() - t0
+        red = ReducedRobot(rob, basis)
+        what = (f"{a.element} {a.mesh_size:g} mm; box rest +- {a.box:g} deg\n"
+                f"training: {len(snaps)} full equilibria {t_snap:.1f} s, basis + sample + fit {t_train:.1f} s")
     angles = motor_design(lo, hi, a.repeats, 5, corners=False) * 0.8 + 0.2 * c.rest_angles
     rows = []
     for name, robot, exact in (("full", rob, True), ("reduced", red, True), ("reduced+lib", red, False)):
@@ -81,9 +114,8 @@ def main() -> None:
     live = red.with_limits(red.angle_min, red.angle_max)
     live.background_tangents = True
     ctl = {name: _control(robot, goals, 10) for name, robot in (("full", rob), ("reduced", red), ("reduced+lib", live))}
-    print(f"robot: {a.element} {a.mesh_size:g} mm, {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
-          f"reduced: k = {basis.k}, {len(basis.elements)} elements; box rest +- {a.box:g} deg")
-    print(f"training: {len(snaps)} full equilibria {t_snap:.1f} s, basis + sample + fit {t_train:.1f} s")
+    print(f"robot: {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
+          f"reduced: k = {basis.k}, {len(basis.elements)} elements; {what}")
     print(f"{'model':12s} {'equilibrium from rest [ms]':>26s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
           f"{'fresh':>6s} {'steps':>6s}")
     for name, eq in rows:

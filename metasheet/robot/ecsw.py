@@ -33,119 +33,151 @@ class Sample:
     history: tuple
 
 
-def ecsw(A: np.ndarray, tol: float, *, b: np.ndarray | None = None, max_elements: int | None = None) -> Sample:
+def ecsw(A: np.ndarray, tol: float, *, b: np.ndarray | None = None, max_elements: int | None = None,
+         batch: float = 0.0) -> Sample:
     """Sparse non-negative weights with ``|A w - b| <= tol |b|`` (see the module docstring);
     :func:`ecsw_path` at the single tolerance ``tol``."""
-    return ecsw_path(A, [tol], b=b, max_elements=max_elements)[0]
+    return ecsw_path(A, [tol], b=b, max_elements=max_elements, batch=batch)[0]
 
 
-def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements: int | None = None) -> list:
+def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements: int | None = None,
+              batch: float = 0.0) -> list:
     """One :class:`Sample` per tolerance of the decreasing ``tols``, from one greedy run.
 
     Lawson and Hanson's active-set NNLS, stopped as soon as the residual meets the last
     tolerance: its outer step adds the element with the largest gradient ``A^T (b - A w)``,
     which is ECSW's greedy choice; the inner loop keeps the weights non-negative. The passive
-    set's Gram matrix is kept as a Cholesky factor grown one row at a time (rebuilt only when
-    the inner loop drops an element), so an iteration costs one ``A^T r`` and O(s^2).
+    set's columns and the Cholesky factor of their Gram matrix live in buffers grown one
+    column at a time (shifted only when the inner loop drops an element), so entering an
+    element costs one ``A_P^T a`` and O(s^2).
 
     Parameters
     ----------
     A : (rows, m) element contributions (scaled rows), b : (rows,) target (default ``A 1``).
     tols : relative residual targets, each in (0, 1), decreasing.
     max_elements : give up beyond this many selected elements (default m).
+    batch : enter the ``max(1, batch * s)`` largest-gradient elements per outer step (s: the
+        current sample size) before the gradient ``A^T r`` (rows x m, the cost on a large
+        mesh) is formed again; 0 is the one-at-a-time greedy. The inner loop drops an entered
+        element whose weight would go negative, so a batch only trades a slightly larger
+        sample for fewer gradients.
 
     Raises :class:`ConvergenceError` when the last tolerance is not met with ``max_elements``.
     """
     tols = [float(t) for t in tols]
     if not tols or any(not 0 < t < 1 for t in tols) or sorted(tols, reverse=True) != tols:
         raise ConfigError(f"tol: {tols!r}: each in the allowed range (0, 1), decreasing")
-    A = np.asfortranarray(A, dtype=float)  # columns contiguous: the selected set is gathered often
+    if not 0 <= batch < 1:
+        raise ConfigError(f"batch: {batch!r}: allowed range [0, 1)")
+    A = np.asfortranarray(A, dtype=float)  # columns contiguous: entering elements gathers columns
     m = A.shape[1]
     b = A.sum(axis=1) if b is None else np.asarray(b, float)
     nb = float(np.linalg.norm(b))
     if nb == 0:
         raise ConfigError("ecsw: the target b is zero: training states carry no force")
-    Atb = A.T @ b
     limit = m if max_elements is None else min(int(max_elements), m)
-    P = np.zeros(0, dtype=np.int64)  # passive set (weights > 0), in insertion order
-    w = np.zeros(0)
-    L = np.zeros((0, 0))  # Cholesky factor of A_P^T A_P
+    act = _Active(A, b)
     r = b.copy()
     history: list[float] = []
     out: list[Sample] = []
     err = 1.0
     while True:
-        while out.__len__() < len(tols) and err <= tols[len(out)]:
+        while len(out) < len(tols) and err <= tols[len(out)]:
+            P, w = act.selection()
             order = np.argsort(P)
             out.append(Sample(P[order], w[order], err, tuple(history)))
         if len(out) == len(tols):
             return out
-        if len(P) >= limit:
+        if act.n >= limit:
             raise ConvergenceError(f"ecsw: relative force error {err:.2e} > tol {tols[-1]:g} with "
-                                   f"{len(P)} elements (max_elements {limit})", history)
+                                   f"{act.n} elements (max_elements {limit})", history)
         grad = A.T @ r
-        grad[P] = -np.inf
-        e = int(np.argmax(grad))
-        if not grad[e] > 1e-14 * nb * np.linalg.norm(A[:, e]):
+        grad[act.P[:act.n]] = -np.inf
+        nb_enter = min(max(1, int(batch * act.n)), limit - act.n)
+        cand = np.argpartition(-grad, nb_enter - 1)[:nb_enter] if nb_enter > 1 else [int(np.argmax(grad))]
+        cand = [int(e) for e in cand if grad[e] > 1e-14 * nb * np.linalg.norm(A[:, e])]
+        if not cand:
             raise ConvergenceError(f"ecsw: stalled at relative force error {err:.2e} > tol {tols[-1]:g}", history)
-        P, w, L = _enter(A, Atb, P, w, L, e)
-        r = b - A[:, P] @ w
+        for e in sorted(cand, key=lambda e: -grad[e]):
+            act.enter(e)
+        r = b - act.columns() @ act.w[:act.n]
         err = float(np.linalg.norm(r)) / nb
         history.append(err)
 
 
-def _chol_append(L: np.ndarray, g: np.ndarray, d: float) -> np.ndarray:
-    """The Cholesky factor of [[G, g], [g^T, d]] from that of G (``L``)."""
-    from scipy.linalg import solve_triangular
+class _Active:
+    """The passive set of Lawson-Hanson's NNLS: element indices ``P``, weights ``w``, their
+    columns of A (``cols``, rows x capacity) and the lower Cholesky factor ``L`` of the
+    columns' Gram matrix, all in buffers of doubling capacity; ``n`` of them in use."""
 
-    n = len(L)
-    l = solve_triangular(L, g, lower=True) if n else np.zeros(0)
-    out = np.zeros((n + 1, n + 1))
-    out[:n, :n] = L
-    out[n, :n] = l
-    out[n, n] = np.sqrt(max(d - l @ l, 1e-300))
-    return out
+    def __init__(self, A: np.ndarray, b: np.ndarray):
+        self.A, self.Atb, self.n = A, A.T @ b, 0
+        self._grow(64)
 
+    def _grow(self, cap: int) -> None:
+        n, old = self.n, getattr(self, "L", None)
+        L, cols = np.zeros((cap, cap)), np.zeros((self.A.shape[0], cap), order="F")
+        P, w = np.zeros(cap, dtype=np.int64), np.zeros(cap)
+        if old is not None:
+            L[:n, :n], cols[:, :n], P[:n], w[:n] = old[:n, :n], self.cols[:, :n], self.P[:n], self.w[:n]
+        self.L, self.cols, self.P, self.w = L, cols, P, w
 
-def _lsq(L: np.ndarray, h: np.ndarray) -> np.ndarray:
-    from scipy.linalg import cho_solve
+    def columns(self) -> np.ndarray:
+        return self.cols[:, :self.n]
 
-    return cho_solve((L, True), h)
+    def selection(self):
+        return self.P[:self.n].copy(), self.w[:self.n].copy()
 
+    def enter(self, e: int) -> None:
+        """Lawson-Hanson's inner loop after element ``e`` enters: least-squares weights on the
+        passive set, stepping back to the boundary (and dropping the element that reaches
+        zero) while any would go negative."""
+        from scipy.linalg import solve_triangular
 
-def _enter(A, Atb, P, w, L, e):
-    """Lawson-Hanson's inner loop after element ``e`` enters: least-squares weights on the
-    passive set, stepping back to the boundary (and dropping the element that reaches zero)
-    while any would go negative. ``Atb`` (m,) = A^T b. Returns the new (P, w, L)."""
-    a = A[:, e]
-    L = _chol_append(L, A[:, P].T @ a, float(a @ a))
-    P = np.append(P, e)
-    w = np.append(w, 0.0)
-    while True:
-        z = _lsq(L, Atb[P])
-        if np.all(z > 0):
-            return P, z, L
-        neg = np.flatnonzero(z <= 0)
-        ratios = w[neg] / np.maximum(w[neg] - z[neg], 1e-300)
-        alpha = float(np.min(ratios))
-        w = w + alpha * (z - w)
-        out = neg[np.argmin(ratios)]
-        L = _chol_delete(L, out)
-        P, w = np.delete(P, out), np.delete(w, out)
-        w[w < 0] = 0.0
+        if self.n == len(self.P):
+            self._grow(2 * len(self.P))
+        n, a = self.n, self.A[:, e]
+        g = self.columns().T @ a
+        l = solve_triangular(self.L[:n, :n], g, lower=True) if n else np.zeros(0)
+        self.L[n, :n] = l
+        self.L[n, n] = np.sqrt(max(float(a @ a) - l @ l, 1e-300))
+        self.cols[:, n], self.P[n], self.w[n] = a, e, 0.0
+        self.n = n + 1
+        while True:
+            z = self._lsq()
+            w = self.w[:self.n]
+            if np.all(z > 0):
+                w[:] = z
+                return
+            neg = np.flatnonzero(z <= 0)
+            ratios = w[neg] / np.maximum(w[neg] - z[neg], 1e-300)
+            w += float(np.min(ratios)) * (z - w)
+            self._delete(int(neg[np.argmin(ratios)]))
+            w = self.w[:self.n]
+            w[w < 0] = 0.0
 
+    def _lsq(self) -> np.ndarray:
+        from scipy.linalg import cho_solve
 
-def _chol_delete(L: np.ndarray, i: int) -> np.ndarray:
-    """The Cholesky factor of G without row and column ``i`` from that of G (``L``, lower):
-    the trailing block absorbs the removed column by a rank-one update, O(s^2)."""
-    n = len(L)
-    out = np.delete(np.delete(L, i, axis=0), i, axis=1)
-    x = L[i + 1:, i].copy()
-    T = out[i:, i:]  # a view: updated in place
-    for k in range(n - 1 - i):  # rank-one update of T T^T + x x^T (Givens form)
-        r = np.hypot(T[k, k], x[k])
-        c, s = r / T[k, k], x[k] / T[k, k]
-        T[k, k] = r
-        T[k + 1:, k] = (T[k + 1:, k] + s * x[k + 1:]) / c
-        x[k + 1:] = c * x[k + 1:] - s * T[k + 1:, k]
-    return out
+        return cho_solve((self.L[:self.n, :self.n], True), self.Atb[self.P[:self.n]])
+
+    def _delete(self, i: int) -> None:
+        """Drop entry ``i``: the factor of the Gram matrix without row and column ``i`` from
+        the current one; the trailing block absorbs the removed column by a rank-one update
+        (Givens form), O(s^2)."""
+        n, L = self.n, self.L
+        x = L[i + 1:n, i].copy()
+        L[i:n - 1, :i] = L[i + 1:n, :i]
+        L[i:n - 1, i:n - 1] = L[i + 1:n, i + 1:n]
+        L[n - 1, :n] = 0.0
+        L[:n, n - 1] = 0.0
+        T = L[i:n - 1, i:n - 1]
+        for k in range(n - 1 - i):
+            r = np.hypot(T[k, k], x[k])
+            c, s = r / T[k, k], x[k] / T[k, k]
+            T[k, k] = r
+            T[k + 1:, k] = (T[k + 1:, k] + s * x[k + 1:]) / c
+            x[k + 1:] = c * x[k + 1:] - s * T[k + 1:, k]
+        self.cols[:, i:n - 1] = self.cols[:, i + 1:n]
+        self.P[i:n - 1], self.w[i:n - 1] = self.P[i + 1:n], self.w[i + 1:n]
+        self.n = n - 1
