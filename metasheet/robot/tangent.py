@@ -103,9 +103,10 @@ class TangentCache:
             return "age"
         if np.max(np.abs(state.angles - self.angles), initial=0.0) > np.radians(s.refresh_angle_deg):
             return "angle"
-        if lin.residual_norm > s.chord_tol * max(self.linearizer.force_scale(lin), 1e-300):
+        # written as "not <=" so a NaN residual or step (a chord update gone wrong) is stale too
+        if not lin.residual_norm <= s.chord_tol * max(self.linearizer.force_scale(lin), 1e-300):
             return "residual"
-        if weighted_norm(lin.newton_step(None)[0], s.rot_weight) > s.drift_tol * s.pos_tol:
+        if not weighted_norm(lin.newton_step(None)[0], s.rot_weight) <= s.drift_tol * s.pos_tol:
             return "drift"
         return None
 
