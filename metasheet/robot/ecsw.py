@@ -37,12 +37,13 @@ def ecsw(A: np.ndarray, tol: float, *, b: np.ndarray | None = None, max_elements
          batch: float = 0.0) -> Sample:
     """Sparse non-negative weights with ``|A w - b| <= tol |b|`` (see the module docstring);
     :func:`ecsw_path` at the single tolerance ``tol``."""
-    return ecsw_path(A, [tol], b=b, max_elements=max_elements, batch=batch)[0]
+    return next(ecsw_path(A, [tol], b=b, max_elements=max_elements, batch=batch))
 
 
 def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements: int | None = None,
-              batch: float = 0.0) -> list:
-    """One :class:`Sample` per tolerance of the decreasing ``tols``, from one greedy run.
+              batch: float = 0.0):
+    """Yields one :class:`Sample` per tolerance of the decreasing ``tols``, from one greedy
+    run, each as soon as it is met (a caller content with a loose one stops there).
 
     Lawson and Hanson's active-set NNLS, stopped as soon as the residual meets the last
     tolerance: its outer step adds the element with the largest gradient ``A^T (b - A w)``,
@@ -79,15 +80,16 @@ def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements:
     act = _Active(A, b)
     r = b.copy()
     history: list[float] = []
-    out: list[Sample] = []
+    met = 0
     err = 1.0
     while True:
-        while len(out) < len(tols) and err <= tols[len(out)]:
+        while met < len(tols) and err <= tols[met]:
             P, w = act.selection()
             order = np.argsort(P)
-            out.append(Sample(P[order], w[order], err, tuple(history)))
-        if len(out) == len(tols):
-            return out
+            met += 1
+            yield Sample(P[order], w[order], err, tuple(history))
+        if met == len(tols):
+            return
         if act.n >= limit:
             raise ConvergenceError(f"ecsw: relative force error {err:.2e} > tol {tols[-1]:g} with "
                                    f"{act.n} elements (max_elements {limit})", history)
@@ -159,7 +161,7 @@ class _Active:
     def _lsq(self) -> np.ndarray:
         from scipy.linalg import cho_solve
 
-        return cho_solve((self.L[:self.n, :self.n], True), self.Atb[self.P[:self.n]])
+        return cho_solve((self.L[:self.n, :self.n], True), self.Atb[self.P[:self.n]], check_finite=False)
 
     def _delete(self, i: int) -> None:
         """Drop entry ``i``: the factor of the Gram matrix without row and column ``i`` from
