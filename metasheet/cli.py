@@ -21,7 +21,6 @@ Anything else is a bug and keeps its traceback.
 
 from __future__ import annotations
 
-import math
 import signal
 import sys
 import traceback
@@ -30,11 +29,18 @@ from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+)
 from rich.table import Table
 from rich.text import Text
 
 from .errors import MetasheetError
+from .goto import format_result, goto_robot, parse_pose, pipeline_robot, pose_text
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
 # panels that wrap long messages); pretty_exceptions off: a bug prints a plain traceback.
@@ -200,99 +206,6 @@ def diff(
         raise typer.Exit(1)
 
 
-def goto_model(orient: Path | None, material_model: str | None) -> str:
-    """The material model ``robot goto --orient`` uses: ``material_model`` when given, else
-    the material stage's next to the orient stage (``<orient>/../material/material.json``)
-    when there is one, else "ours"."""
-    from .material_model import check_model
-
-    if material_model is not None:
-        return check_model(material_model, "--material-model")
-    if orient is not None and (Path(orient).parent / "material" / "material.json").is_file():
-        from .pipeline.artefacts import read_material
-
-        return read_material(Path(orient).parent / "material").model
-    return "ours"
-
-
-def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, material_model: str | None = None):
-    """The 6-DOF robot ``robot goto`` drives without ``--pipeline``: from an orient stage's
-    sheets (their own per-element constants), else freshly meshed sheets (``mesh_size``
-    [mm]) with the paper's foam along the default spiral; the paper's scene and foam density
-    either way (not a pipeline's: use :func:`pipeline_robot`); the material model of
-    :func:`goto_model`."""
-    from . import paper
-    from .robot.builder import SheetPair, six_dof_robot
-
-    material_model = goto_model(orient, material_model)
-    if orient is not None:
-        from .pipeline.artefacts import read_orient
-
-        return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY, model=material_model)
-    from .sheet.geometry import SheetParams
-
-    return six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=mesh_size)), paper.PAPER_FOAM,
-                         density=paper.FOAM_DENSITY, model=material_model)
-
-
-def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full", material_model: str | None = None):
-    """``(robot, RobotInfo)`` of a pipeline's outputs as ``metasheet serve`` drives it
-    (:func:`metasheet.serve.loading.load_robot`: the robot stage's scene, the material
-    stage's density and model); ``model`` "full" / "reduced". ``material_model``, when given,
-    must be the material stage's (the robot, and a reduced basis, are built with that one)."""
-    from .errors import ConfigError
-    from .material_model import check_model
-    from .pipeline.artefacts import read_material
-    from .serve.loading import find_outputs, load_robot
-
-    outputs = find_outputs(pipeline, out)
-    robot, info = load_robot(outputs, model)
-    if material_model is not None:
-        used = read_material(outputs.directory / "material").model
-        if check_model(material_model, "--material-model") != used:
-            raise ConfigError(f"--material-model: {material_model!r}: the pipeline's material stage uses {used!r}; "
-                              "set [material] model in the pipeline and run it again, or drop --material-model")
-    return robot, info
-
-
-def _pose_text(pose) -> str:
-    return ("X Y Z [mm] " + " ".join(f"{v:.3f}" for v in pose[:3])
-            + " | RX RY RZ [deg] " + " ".join(f"{v:.3f}" for v in pose[3:]))
-
-
-def format_result(res) -> str:
-    """Human-readable lines of an :class:`~metasheet.robot.inverse.InverseResult`."""
-    lines = [f"status: {res.status} after {res.steps} control steps",
-             "motor angles [deg]: " + " ".join(f"{a:.2f}" for a in res.angles_deg),
-             "pose reached: " + _pose_text(res.pose),
-             f"remaining error: {res.pos_error:.3f} mm, {res.rot_error:.3f} deg",
-             f"equilibrium: residual {res.residual:.2e} N = {res.residual / max(res.reference, 1e-300):.1e} x "
-             f"force scale (certified by {res.certified or '-'})"]
-    return "\n".join(lines)
-
-
-#: The six pose components ``robot goto`` takes, in order, with their units.
-POSE_COMPONENTS = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
-
-
-def parse_pose(values: list[str]) -> list[float]:
-    """Six finite numbers from the command line; a bad one is named with its position and unit."""
-    from .errors import ConfigError
-
-    if len(values) != 6:
-        raise ConfigError(f"pose: {len(values)} numbers given: expected 6 (X Y Z [mm] RX RY RZ [deg])")
-    pose = []
-    for i, (text, name) in enumerate(zip(values, POSE_COMPONENTS), 1):
-        try:
-            v = float(text)
-        except ValueError:
-            raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: expected a number") from None
-        if not math.isfinite(v):
-            raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: expected a finite number")
-        pose.append(v)
-    return pose
-
-
 @robot_app.command("goto")
 def robot_goto(
     pose: Annotated[list[str], typer.Argument(
@@ -338,7 +251,7 @@ def robot_goto(
     if not res.reached:
         raise UnreachableError(
             f"goal not reached ({res.status}): remaining error {res.pos_error:.3f} mm, {res.rot_error:.3f} deg; "
-            f"closest pose {_pose_text(res.pose)}"
+            f"closest pose {pose_text(res.pose)}"
         )
 
 

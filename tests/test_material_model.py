@@ -153,7 +153,7 @@ def test_material_stage_records_the_model_and_config_names_the_key(tmp_path):
 
 
 def test_goto_takes_the_material_stage_model(tmp_path):
-    from metasheet.cli import goto_model
+    from metasheet.goto import goto_model
     from metasheet.pipeline.artefacts import write_material
 
     (tmp_path / "orient").mkdir()

@@ -6,8 +6,8 @@ import meshio
 import numpy as np
 import pytest
 
-from metasheet.cli import format_result, goto_robot
 from metasheet.errors import ConfigError
+from metasheet.goto import format_result, goto_robot
 from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.pipeline.artefacts import write_material
 from metasheet.pipeline.registry import StageContext

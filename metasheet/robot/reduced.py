@@ -301,15 +301,17 @@ class ReducedRobot:
 def coordinate_jacobian(coupling, x, p, eff, servo, free, V) -> np.ndarray:
     """(len(x), 3, 6 + na + k) dx / dq of the nodes at positions ``x`` [mm]: rows ``eff`` move
     with the effector (reference point ``p`` [mm]), ``servo[k]`` with horn k, ``free`` with the
-    basis rows ``V`` (3 len(free), k) (any other row is zero)."""
+    basis rows ``V`` (3 len(free), k) (any other row is zero). Stored coordinate-major, so
+    ``T.reshape(-1, nq)`` is a Fortran-ordered view: a sparse stiffness times it runs about
+    twice as fast as on a C-ordered copy (the reduced tangent's ``K T``)."""
     na = coupling.n_act
-    T = np.zeros((len(x), 3, 6 + na + V.shape[1]))
-    T[eff, :, 0:3] = np.eye(3)
-    T[eff, :, 3:6] = -skew(x[eff] - p)
+    Tt = np.zeros((6 + na + V.shape[1], len(x), 3))
+    Tt[0:3, eff, :] = np.eye(3)[:, None, :]
+    Tt[3:6, eff, :] = -skew(x[eff] - p).transpose(2, 0, 1)
     for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
-        T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
-    T[free, :, 6 + na:] = V.reshape(len(free), 3, -1)
-    return T
+        Tt[6 + k, idx, :] = np.cross(s.axis, x[idx] - s.pivot)
+    Tt[6 + na:, free, :] = V.reshape(len(free), 3, -1).transpose(2, 0, 1)
+    return Tt.transpose(1, 2, 0)
 
 
 class ReducedLinearizer:
