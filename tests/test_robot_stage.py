@@ -113,3 +113,19 @@ def test_anisotropy_end_point_with_the_published_constants(orient_dir, tmp_path)
     assert end["alpha_percent"] == pytest.approx(PAPER_FOAM.alpha, abs=1e-3)
     assert s["alpha_percent"][-1] == pytest.approx(soft.alpha, abs=1e-3)
     assert end["rod_rotation_deg"]["pull"] != pytest.approx(s["rod_rotation_deg"]["pull"][-1], rel=1e-3)
+
+
+def test_pipeline_runs_the_robot_stage_without_its_picture(tmp_path):
+    """``[robot] picture = false`` runs through the runner (it once failed the stage's
+    declared-outputs check on the missing robot.png)."""
+    from metasheet.cli import main
+
+    toml = tmp_path / "nopic.toml"
+    toml.write_text('[pipeline]\nname = "nopic"\nstages = ["material", "orient", "robot"]\n'
+                    '[material]\nsource = "config"\n[orient]\nelement = "p1"\nmesh_size = 16.0\n'
+                    '[robot]\npicture = false\n')
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", str(toml), "--out", str(tmp_path / "out")])
+    assert exit_info.value.code in (0, None)
+    robot = tmp_path / "out" / "nopic" / "robot"
+    assert (robot / "jacobian.json").is_file() and not (robot / "robot.png").exists()

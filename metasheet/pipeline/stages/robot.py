@@ -179,6 +179,6 @@ def _convergence(ctx: StageContext, orient, build_foam, robot_kw: dict) -> None:
 
 register(Stage(
     name="robot", params=RobotParams, run=run, requires=("orient", "material"),
-    outputs=("jacobian.json", "rest.vtu", "robot.png"),
+    outputs=("jacobian.json", "rest.vtu"),  # robot.png only with picture = true
     doc="6-DOF robot: rest equilibrium, Jacobian, silicone vs foam (jacobian.json, rest.vtu, robot.png)",
 ))
