@@ -100,8 +100,7 @@ def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements:
         cand = [int(e) for e in cand if grad[e] > 1e-14 * nb * np.linalg.norm(A[:, e])]
         if not cand:
             raise ConvergenceError(f"ecsw: stalled at relative force error {err:.2e} > tol {tols[-1]:g}", history)
-        for e in sorted(cand, key=lambda e: -grad[e]):
-            act.enter(e)
+        act.enter(sorted(cand, key=lambda e: -grad[e]))
         r = b - act.columns() @ act.w[:act.n]
         err = float(np.linalg.norm(r)) / nb
         history.append(err)
@@ -130,21 +129,23 @@ class _Active:
     def selection(self):
         return self.P[:self.n].copy(), self.w[:self.n].copy()
 
-    def enter(self, e: int) -> None:
-        """Lawson-Hanson's inner loop after element ``e`` enters: least-squares weights on the
-        passive set, stepping back to the boundary (and dropping the element that reaches
-        zero) while any would go negative."""
+    def enter(self, elements) -> None:
+        """Lawson-Hanson's inner loop after ``elements`` (a list) enter together at weight 0:
+        least-squares weights on the passive set, stepping back to the boundary (and
+        dropping the element that reaches zero) while any would go negative. One solve for
+        the batch, not one per element: the factor grows first, column by column."""
         from scipy.linalg import solve_triangular
 
-        if self.n == len(self.P):
-            self._grow(2 * len(self.P))
-        n, a = self.n, self.A[:, e]
-        g = self.columns().T @ a
-        l = solve_triangular(self.L[:n, :n], g, lower=True) if n else np.zeros(0)
-        self.L[n, :n] = l
-        self.L[n, n] = np.sqrt(max(float(a @ a) - l @ l, 1e-300))
-        self.cols[:, n], self.P[n], self.w[n] = a, e, 0.0
-        self.n = n + 1
+        for e in elements:
+            if self.n == len(self.P):
+                self._grow(2 * len(self.P))
+            n, a = self.n, self.A[:, e]
+            g = self.columns().T @ a
+            l = solve_triangular(self.L[:n, :n], g, lower=True, check_finite=False) if n else np.zeros(0)
+            self.L[n, :n] = l
+            self.L[n, n] = np.sqrt(max(float(a @ a) - l @ l, 1e-300))
+            self.cols[:, n], self.P[n], self.w[n] = a, e, 0.0
+            self.n = n + 1
         while True:
             z = self._lsq()
             w = self.w[:self.n]
