@@ -32,11 +32,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..errors import ConfigError
-from ..rotations import axis_rotation, rotation_matrix, rotation_vector, skew
-from .statics import Linearization
+from ..rotations import axis_rotation, rotation_vector, skew
 
 
 @dataclass(frozen=True)
@@ -184,10 +182,12 @@ class ReducedRobot:
         c = self.coupling
         return ReducedState(c.origin.copy(), np.eye(3), c.rest_angles.copy(), np.zeros(self.k))
 
-    def linearizer(self, solver: str = "superlu") -> "ReducedLinearizer":
-        """A :class:`ReducedLinearizer` (dense: ``solver`` is accepted for the interface);
+    def linearizer(self, solver: str = "superlu"):
+        """A :class:`.rom_linearizer.ReducedLinearizer` (dense: ``solver`` is accepted for the interface);
         its tangent library computes in the background when :attr:`background_tangents`
         (real-time use; off by default, so the same calls give the same results)."""
+        from .rom_linearizer import ReducedLinearizer
+
         return ReducedLinearizer(self, background=self.background_tangents)
 
     def with_limits(self, lo, hi) -> "ReducedRobot":
@@ -312,105 +312,3 @@ def coordinate_jacobian(coupling, x, p, eff, servo, free, V) -> np.ndarray:
         Tt[6 + k, idx, :] = np.cross(s.axis, x[idx] - s.pivot)
     Tt[6 + na:, free, :] = V.reshape(len(free), 3, -1).transpose(2, 0, 1)
     return Tt.transpose(1, 2, 0)
-
-
-class ReducedLinearizer:
-    """The reduced model's :class:`.statics.Linearizer`: same methods, dense algebra.
-
-    A linearisation's ``S`` is the Schur complement of ``a`` in the reduced tangent, ``Y``
-    (k, 6 + na) and ``y_r`` (k,) its solves, ``res_f`` (k,) the projected free residual
-    ``V^T r_f`` [N] and ``r`` the generalised internal forces (nq,) (the force scale's input).
-    Every exact tangent goes to :attr:`library` (:mod:`.rom_tangents`), which serves the
-    inexact requests (``exact=False``: the control loop's modified-Newton matrix) with the
-    nearest one; with ``background`` the missing ones are computed off the caller's thread.
-    """
-
-    solver_name = "dense"
-
-    def __init__(self, robot: ReducedRobot, *, background: bool = False, near_deg: float = 3.0):
-        from .rom_tangents import TangentLibrary
-
-        self.robot = robot
-        self.factor = None
-        self.factorizations = 0
-        self.stats = {"tangents": 0, "forces": 0}
-        self.library = TangentLibrary(lambda st: self._exact(st)[0], near_deg=near_deg, background=background)
-        self._current = None
-
-    def uses(self, solver: str) -> bool:
-        return True  # one dense solver whatever the sparse one asked for
-
-    def _exact(self, state: ReducedState):
-        """(:class:`.rom_tangents.Tangent`, g_int, g_ext) at ``state`` (thread-safe: no state kept)."""
-        from .rom_tangents import Tangent
-
-        rob = self.robot
-        g_int, g_ext, A = rob.evaluate(state, tangent=True)
-        nr = 6 + rob.na
-        factor = sla.lu_factor(A[nr:, nr:], check_finite=False)
-        Y = sla.lu_solve(factor, A[nr:, :nr])
-        C = A[:nr, nr:]
-        return Tangent(np.array(state.angles, float), A[:nr, :nr] - C @ Y, Y, C, factor, state), g_int, g_ext
-
-    def _use(self, t) -> None:
-        if t is not self._current:
-            self._current, self.factor = t, t.factor
-            self.factorizations += 1
-
-    def _lin(self, st, g_int, g_ext, t, fresh, exact) -> Linearization:
-        rob = self.robot
-        nr = 6 + rob.na
-        G = g_int - g_ext
-        y_r = sla.lu_solve(self.factor, G[nr:])
-        return Linearization(state=st, r=g_int, S=t.S, Y=t.Y, y_r=y_r, C=t.C, R_rigid=G[:nr] - t.C @ y_r,
-                             res_e=G[:6], res_f=G[nr:], fresh=fresh, moment_scale=rob.coupling.length_scale,
-                             exact=exact)
-
-    def linearize(self, state: ReducedState, *, exact: bool = True) -> Linearization:
-        """The condensed reduced tangent and the residual at ``state``: fresh (``exact``, or
-        without a background library), or the library's nearest (``exact=False``; then
-        ``fresh`` and ``exact`` are False unless it was taken at this very state)."""
-        # the library only in real-time use: studies and certificates keep exact tangents
-        # (the inverse loop on stored ones can wander off on a large move: not yet robust)
-        if exact or not self.library.background:
-            t, g_int, g_ext = self._exact(state)
-            self.stats["tangents"] += 1
-            self.library.add(t)
-        else:
-            t = self.library.get(state)
-            g_int, g_ext, _ = self.robot.evaluate(state, tangent=False)
-            self.stats["forces"] += 1
-            exact = t.state is state  # computed here and now (an empty library)
-        self._use(t)
-        return self._lin(state, g_int, g_ext, t, exact, exact)
-
-    def update(self, lin: Linearization, state: ReducedState, f=None) -> Linearization:
-        """Fresh residual at ``state`` on ``lin``'s tangent (a chord step)."""
-        g_int, g_ext, _ = self.robot.evaluate(state, tangent=False)
-        self.stats["forces"] += 1
-        return self._lin(state, g_int, g_ext, lin, False, False)
-
-    def apply(self, state: ReducedState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> ReducedState:
-        """The state after the increment alpha (dq_e, dq_a, da); ``dx_f`` is da (k,)."""
-        p = state.p + alpha * dq_e[:3]
-        R = rotation_matrix(alpha * dq_e[3:]) @ state.R
-        angles = state.angles if dq_a is None else state.angles + dq_a
-        return ReducedState(p, R, angles, state.a + alpha * np.asarray(dx_f))
-
-    def force_scale(self, lin: Linearization) -> float:
-        """Force scale [N]: the rigid bodies' generalised internal forces (moments and torques
-        over the effector's ``length_scale``) plus the norm of the nodal weights."""
-        rob = self.robot
-        L = rob.coupling.length_scale
-        g = lin.r[:6 + rob.na].copy()
-        g[3:] /= L
-        return float(np.linalg.norm(g) + rob.f_ext_norm)
-
-    def residual_floor(self, lin: Linearization) -> float:
-        """Round-off floor [N] of the reduced residual: the sampled body's force round-off
-        (:func:`.equilibrium.residual_floor`'s per-entry bound) over its dofs."""
-        sub = self.robot.sub
-        eps = np.finfo(float).eps
-        x = self.robot.sub_positions(lin.state)
-        delta = 10 * eps * sub.stiffness_scale * float(np.abs(x).max())
-        return float(delta * np.sqrt(3 * sub.n_nodes) + eps * self.force_scale(lin))

@@ -29,7 +29,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Tangent:
-    """An exact reduced tangent, condensed (see :class:`.reduced.ReducedLinearizer`).
+    """An exact reduced tangent, condensed (see :class:`.rom_linearizer.ReducedLinearizer`).
 
     angles : (na,) motor angles it was taken at [rad]; S : (6 + na, 6 + na) Schur complement
     of ``a``; Y : (k, 6 + na) its solves; C : (6 + na, k) coupling block; factor : LU of the
