@@ -150,18 +150,13 @@ def test_silicone_runs_on_the_full_model_with_a_note(session):
 
 
 def _goto(capsys, outputs, model, goal):
-    import sys
 
     from metasheet.cli import main
 
-    saved = sys.argv
-    sys.argv = ["metasheet", "robot", "goto", "--pipeline", str(outputs.directory.parent.parent / "tiny.toml"),
-                "--out", str(outputs.directory.parent), "--model", model, "--", *[f"{v:g}" for v in goal]]
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main()
-    finally:
-        sys.argv = saved
+    args = ["robot", "goto", "--pipeline", str(outputs.directory.parent.parent / "tiny.toml"),
+            "--out", str(outputs.directory.parent), "--model", model, "--", *[f"{v:g}" for v in goal]]
+    with pytest.raises(SystemExit) as exc:
+        main(args)
     out, err = capsys.readouterr()
     assert exc.value.code in (0, None), out + err
     angles = np.array(next(line for line in out.splitlines() if line.startswith("motor angles")).split(":")[1].split(),
