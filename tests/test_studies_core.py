@@ -239,3 +239,22 @@ def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria():
     assert np.all(np.isnan(out[1, :6])) and out[1, 6] == pytest.approx(20.0)  # push: lost beyond 20 deg
     with pytest.raises(ConvergenceError):
         an._reach(MODELS.get(Picky(max_jump=0.1)), np.full(6, 60.0), np.full(6, 65.0), None)
+
+
+def test_rays_stop_beyond_the_strain_limit():
+    """With stop_beyond_strain a ray's last tried point is its only one beyond the limit; the
+    points inside the limit are the same as without the stop."""
+    spec, grid = StandInSpec(), star_grid(**SMALL)
+    limit = 0.5 * StandInSpec().strain_per_deg * 20.0  # half of a 20 deg motor move
+    free = explore_workspace(spec, grid, WorkspaceSettings(strain_limit=limit, continuity=False, rotations=False))
+    stop = explore_workspace(spec, grid, WorkspaceSettings(strain_limit=limit, continuity=False, rotations=False,
+                                                           stop_beyond_strain=True))
+    assert stop.records.tried.sum() < free.records.tried.sum()
+    for r in range(len(grid.directions)):
+        ids = grid.ray_points(r)
+        tried = ids[stop.records.tried[ids]]
+        over = stop.records.reached[tried] & ~(stop.records.strain[tried] <= limit)
+        assert over.sum() <= 1 and (over.sum() == 0 or over[-1])  # only the last tried one is beyond
+        inside = tried[~over]
+        assert np.array_equal(stop.records.reached[inside], free.records.reached[inside])
+        np.testing.assert_array_equal(stop.records.motors_deg[inside], free.records.motors_deg[inside])

@@ -48,11 +48,15 @@ def held_out_angles(lo, hi, n: int, seed: int) -> np.ndarray:
     return np.vstack([*sobol, *mixed])
 
 
-def compare(full_robot, full_state, reduced, reduced_lz, full_lz) -> Comparison:
-    """Reduced vs full at the full model's equilibrium ``full_state``."""
+def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_elements=None) -> Comparison:
+    """Reduced vs full at the full model's equilibrium ``full_state``; its strain over
+    ``strain_elements`` (m,) bool (:mod:`.validity`; None: every element)."""
+    from .validity import validity_strain
+
     nan = float("nan")
     deg = tuple(np.degrees(full_state.angles).round(4).tolist())
-    strain = float(full_robot.body.max_principal_strain(full_state.x).max())
+    every = np.ones(len(full_robot.body.tets), bool)
+    strain = validity_strain(full_robot.body, full_state.x, every if strain_elements is None else strain_elements)
     try:
         r = solve_equilibrium(reduced, full_state.angles, linearizer=reduced_lz).state
     except ConvergenceError:

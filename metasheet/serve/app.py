@@ -83,6 +83,7 @@ class Page:
         self._stop = threading.Event()
         self._goal_version = -1
         self._strain = (None, None, 0.0)  # (snapshot version, strain (m,), time)
+        self._validity: dict[str, np.ndarray] = {}  # material -> the elements the strain flag counts
         snap = session.snapshot()
         self._material = snap.material
         self.surface = scene.surface(*self._mesh_of(snap.material))
@@ -242,6 +243,14 @@ class Page:
         self._strain = (snap.version, strain, now)
         return strain
 
+    def _checked(self, material: str) -> np.ndarray:
+        """(m,) bool: the elements the validity flag counts (away from the grips, :mod:`metasheet.robot.validity`)."""
+        if material not in self._validity:
+            from ..robot.validity import validity_elements
+
+            self._validity[material] = validity_elements(self.session.robot_of(material)[0])
+        return self._validity[material]
+
     def draw(self, snap) -> None:
         """Send ``snap`` to every tab."""
         t0 = time.perf_counter()
@@ -256,7 +265,8 @@ class Page:
         limit = self.strain_limit if self.field == "strain" else None
         meshes = scene.band_meshes(self.surface, x, values, lo, hi, limit=limit)
         colors = [tuple(int(c) for c in rgb) for rgb in scene.band_colors(self.field)] + [scene.OVER_LIMIT]
-        strain_max, _ = scene.strain_flag(strain, self.strain_limit)
+        strain_max, _ = scene.strain_flag(None if strain is None else strain[self._checked(snap.material)],
+                                          self.strain_limit)
         with self.server.atomic():
             fibers = bool(self.show_fibers.value)
             for k, h in enumerate(self.bands):

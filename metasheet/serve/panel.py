@@ -12,6 +12,8 @@ from collections import deque
 
 import numpy as np
 
+from ..robot.validity import GRIP_BAND_MM
+
 #: how a status reads on the page
 STATUS_TEXT = {"moving": "moving", "reached": "reached", "unreachable": "unreachable", "holding": "holding",
                "playing": "playing the maze", "error": "error"}
@@ -61,7 +63,7 @@ def status_markdown(snap, *, strain_max: float, strain_limit: float, rate: float
         "",
         f"error: {snap.pos_error:.3f} mm, {snap.rot_error:.3f} deg",
         "",
-        f"strain: max {strain_max:.3f}, limit {strain_limit:g}: {valid}",
+        f"strain: max {strain_max:.3f} (beyond {GRIP_BAND_MM:g} mm of the grips), limit {strain_limit:g}: {valid}",
         "",
         (f"smallest singular value: {sv.min():.3f} mm/rad (of {len(sv)}: {_vec(sv, 1)})" if len(sv)
          else "smallest singular value: n/a"),

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, replace
+from functools import cached_property
+
 import numpy as np
 
 from .. import paper
@@ -18,6 +20,7 @@ from ..errors import ConfigError, ConvergenceError
 from ..material import Isotropic, TransverseIsotropic, interpolate
 from ..material_model import check_model
 from ..robot.builder import SheetPair
+from ..robot.validity import GRIP_BAND_MM
 from ..sheet.geometry import SheetMesh
 from .model import ReachResult, check_motor_range, pose_errors
 
@@ -40,6 +43,8 @@ class RobotSpec:
     consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
     stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
     model : the material model, "ours" or "authors" (:mod:`metasheet.material_model`).
+    strain_band_mm : the band along the grips the strain-validity check leaves out [mm]
+    (:mod:`metasheet.robot.validity`; 0: every element).
     rot_weight [mm/rad], max_step_deg [deg], stall_steps, refresh_angle_deg [deg]: inverse-loop
     settings. A goal counts as unreachable after ``stall_steps`` steps without progress (the
     controller's default 15 makes every unreachable workspace point cost 15+ FEM steps). The
@@ -83,6 +88,7 @@ class RobotSpec:
     consts_m: np.ndarray | None = None
     element: str = "p1"
     model: str = "ours"
+    strain_band_mm: float = GRIP_BAND_MM
 
     def __post_init__(self):
         check_motor_range("motor_range", *self.motor_range)
@@ -103,7 +109,7 @@ class RobotSpec:
         h.update(repr((self.material, self.design, self.rod_length, self.rest_angle, self.horn_length,
                        self.servo_radius, self.servo_depth, tuple(self.gravity), self.motor_range, self.density,
                        self.rot_weight, self.max_step_deg, self.stall_steps, self.refresh_angle_deg, self.chord_tol,
-                       self.element, self.model)).encode())
+                       self.element, self.model, self.strain_band_mm)).encode())
         return "fem-" + h.hexdigest()[:24]
 
     @property
@@ -221,9 +227,19 @@ class FemRobot:
                                state=self.rest if state is None else state, linearizer=self.lz)
         return eq.state.pose, eq.state
 
+    @cached_property
+    def strain_elements(self) -> np.ndarray:
+        """(m,) bool: the elements the strain-validity check counts (:mod:`metasheet.robot.validity`)."""
+        from ..robot.validity import validity_elements
+
+        return validity_elements(self.robot, self.spec.strain_band_mm)
+
     def max_principal_strain(self, state) -> float:
-        """Largest principal Green-Lagrange strain over the sheets' quadrature points [-]."""
-        return float(self.robot.body.max_principal_strain(state.x).max())
+        """Largest principal Green-Lagrange strain over the sheets' quadrature points [-], away
+        from the grips' clamped edges (``spec.strain_band_mm``, :mod:`metasheet.robot.validity`)."""
+        from ..robot.validity import validity_strain
+
+        return validity_strain(self.robot.body, state.x, self.strain_elements)
 
     def min_singular_value(self, state) -> float:
         """Smallest singular value of the Jacobian scaled by diag(1, 1, 1, 50 mm) [mm/rad].

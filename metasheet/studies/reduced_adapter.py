@@ -85,6 +85,11 @@ class ReducedSpec:
         """(m, 4) the full robot's first sheet's tetrahedra."""
         return self.full.tets
 
+    @property
+    def strain_band_mm(self) -> float:
+        """The full robot's band along the grips left out of the strain check [mm]."""
+        return self.full.strain_band_mm
+
     def build(self) -> "ReducedFem":
         return ReducedFem(self)
 
@@ -206,10 +211,12 @@ class ReducedFem(FemRobot):
         return super().equilibrium(q, state=self._to_reduced(state))
 
     def max_principal_strain(self, state) -> float:
-        """Largest principal Green-Lagrange strain of the full mesh at ``state``'s node positions [-]."""
+        """:meth:`FemRobot.max_principal_strain` of the full mesh at ``state``'s node positions [-]."""
+        from ..robot.validity import validity_strain
+
         if self._is_full(state):
             return self.full.max_principal_strain(state)
-        return float(self.full.robot.body.max_principal_strain(self.robot.positions(state)).max())
+        return validity_strain(self.full.robot.body, self.robot.positions(state), self.full.strain_elements)
 
     def min_singular_value(self, state) -> float:
         if self._is_full(state):

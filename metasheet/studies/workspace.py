@@ -22,7 +22,9 @@ goal's local y is perpendicular to the rod, like our y (rod along x). Their cont
 draws a point that passes as "3T + 3R" (line 272); here it counts one axis (class 1).
 
 Beyond the paper: the largest principal strain at each reached point against a limit
-(the homogenisation's domain of validity), the smallest Jacobian singular value (loss of
+(the homogenisation's domain of validity; with ``stop_beyond_strain`` a ray ends at its first
+point beyond it, so the study stays where the material model holds and a reduced model trained
+there suffices; its outer points count as not tried), the smallest Jacobian singular value (loss of
 control), and continuity: a graph whose nodes are the reached points (and the rest pose),
 with an edge along each ray where continuation went, and an edge between points at the same
 step of neighbouring rays when the inverse model walks from one to the other through
@@ -72,6 +74,7 @@ class WorkspaceSettings:
     rotations: bool = True
     stop_after: int = 2  # consecutive failures on a ray before its outer points are left untried (0: try all)
     strain_limit: float = 0.3
+    stop_beyond_strain: bool = False  # a ray ends at its first reached point beyond strain_limit
     continuity: bool = True
     substeps: int = 3
     hold_orientation: bool = False  # point goals also ask for the rest orientation (else position only)
@@ -203,6 +206,8 @@ def explore_ray(task: RayTask) -> PointRecords:
         rec["sigma_min"][i] = model.min_singular_value(res.state)
         if s.rotations:
             _rotation_test(model, s, rec, i, p, rest[3:] if s.hold_orientation else res.pose[3:], res)
+        if s.stop_beyond_strain and not rec["strain"][i] <= s.strain_limit:
+            break  # outside the material model's domain: the outer points are not tried
         state, parent = res.state, i
     return PointRecords(**rec)
 

@@ -23,6 +23,7 @@ from pydantic import Field
 
 from ... import paper
 from ...errors import ConfigError
+from ...robot.validity import GRIP_BAND_MM
 from ...studies.resume import UnitCache
 from ..artefacts import OrientFile, RobotScene, read_material, read_orient, read_robot_scene
 from ..registry import Params, StageContext
@@ -57,6 +58,10 @@ class StudyRobotParams(Params):
     grip_size: float | None = Field(None, ge=0, le=50, description="element size at the grip borders of the "
                                     "re-meshed sheet [mm] (0: uniform); None: orient's")
     element: Literal["p1", "p2"] | None = Field(None, description="the study robot's element; None: orient's")
+    strain_band_mm: float = Field(GRIP_BAND_MM, ge=0, le=100, description="the strain-validity check leaves out "
+                                  "the elements within this distance of a grip's held nodes, where the clamped "
+                                  "edge makes the strain singular (metasheet/robot/validity.py; 0: every element) "
+                                  "[mm]")
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
@@ -110,7 +115,7 @@ def build_spec(ctx: StageContext):
     density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat.density, sc.sheet_mass_g)
     spec = RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=density,
                                  gravity=tuple(sc.gravity), rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
-                                 model=mat.model, **scene)
+                                 model=mat.model, strain_band_mm=p.strain_band_mm, **scene)
     if p.model == "reduced":
         from ...studies.reduced_adapter import ReducedSpec
 

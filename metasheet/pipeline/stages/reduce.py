@@ -126,7 +126,7 @@ def run(ctx: StageContext) -> dict:
                           progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
     held = _states(fem, held_rows)
     rl, fl = red.linearizer(), rob.linearizer()
-    comps = [compare(rob, s, red, rl, fl) for s in held]
+    comps = [compare(rob, s, red, rl, fl, fem.strain_elements) for s in held]
     cert = summarize(comps)
     cert["held_out_failed_full"] = int(sum(r is None for r in held_rows))
     ctx.timings["certificate"] = time.perf_counter() - t2
@@ -136,7 +136,7 @@ def run(ctx: StageContext) -> dict:
            "k": basis.k, "elements": int(len(basis.elements)), "elements_total": int(rob.body.n_elements),
            "free_dofs": int(basis.V.shape[0]), "training": info,
            "snapshots_failed": int(sum(r is None for r in rows)), "targets": TARGETS, "certificate": cert,
-           "held_out": [c.__dict__ for c in comps], "robot_key": basis.robot_key}
+           "held_out": [c.__dict__ for c in comps], "strain_band_mm": p.strain_band_mm, "robot_key": basis.robot_key}
     write_json_atomic(ctx.path("reduce.json"), out)
     drop_cache(ctx)
     ctx.progress("done", 3, 3)

@@ -39,6 +39,8 @@ class WorkspaceParams(GridParams):
                                       "(2 or 3)")
     rotations: bool = Field(True, description="try the test's +-rot_deg rotations")
     strain_limit: float = Field(0.3, gt=0, description="max principal strain of the homogenisation's validity [-]")
+    stop_beyond_strain: bool = Field(False, description="a ray ends at its first reached point beyond "
+                                     "strain_limit (its outer points are not tried: outside the material model)")
     continuity: bool = Field(True, description="test paths between neighbouring reached points")
     substeps: int = Field(3, ge=1, le=1000, description="intermediate goals on a continuity path [-]")
     hold_orientation: bool = Field(False, description="point goals also ask for the rest orientation (paper: position only)")
@@ -47,7 +49,8 @@ class WorkspaceParams(GridParams):
 def settings_from(p) -> WorkspaceSettings:
     return WorkspaceSettings.for_test(
         p.test, tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_rot_deg, max_steps=p.max_steps,
-        rotations=p.rotations, stop_after=p.stop_after, strain_limit=p.strain_limit, continuity=p.continuity,
+        rotations=p.rotations, stop_after=p.stop_after, strain_limit=p.strain_limit,
+        stop_beyond_strain=p.stop_beyond_strain, continuity=p.continuity,
         substeps=p.substeps, hold_orientation=p.hold_orientation)
 
 
@@ -102,6 +105,7 @@ def run(ctx: StageContext) -> dict:
         "reachable": int(reached.sum()), "tried": int(r.tried.sum()),
         "solver_failures": int((r.tried & ~r.converged).sum()),
         "invalid_strain": int((reached & ~res.valid).sum()), "strain_limit": p.strain_limit,
+        "stop_beyond_strain": p.stop_beyond_strain, "strain_band_mm": getattr(spec, "strain_band_mm", None),
         "max_strain": float(np.nanmax(r.strain)) if reached.any() else None,
         "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
         "components": res.n_components, "edges_tested": res.edges_tested, "edges_passed": res.edges_passed,
