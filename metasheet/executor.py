@@ -54,10 +54,12 @@ class Executor:
         items: Iterable[Any],
         *,
         progress: Callable[[int, int], None] = _noop,
+        on_result: Callable[[int, Any], None] = _noop,
     ) -> list[Any]:
         """``[fn(x) for x in items]``, possibly in parallel, results in input order.
 
-        ``progress(done, total)`` is called as results arrive.
+        As each result arrives (in any order): ``on_result(index, value)`` (a resumable map
+        stores it there), then ``progress(done, total)``.
         """
         items = list(items)
         total = len(items)
@@ -67,14 +69,15 @@ class Executor:
             out = []
             for i, x in enumerate(items):
                 out.append(fn(x))
+                on_result(i, out[-1])
                 progress(i + 1, total)
             return out
         if self.kind == "processes":
-            return _map_pool(fn, items, self.workers, progress)
-        return _map_dask(fn, items, self.scheduler, progress)
+            return _map_pool(fn, items, self.workers, progress, on_result)
+        return _map_dask(fn, items, self.scheduler, progress, on_result)
 
 
-def _map_pool(fn, items: Sequence, workers: int, progress) -> list:
+def _map_pool(fn, items: Sequence, workers: int, progress, on_result) -> list:
     results: list = [None] * len(items)
     # "spawn", not fork: a forked child inherits the locks of BLAS, numba and gmsh threads
     # held at fork time and can hang forever (seen with the design chart).
@@ -82,12 +85,14 @@ def _map_pool(fn, items: Sequence, workers: int, progress) -> list:
     with ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=ctx) as pool:
         futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
         for done, fut in enumerate(as_completed(futures), 1):
-            results[futures[fut]] = fut.result()
+            i = futures[fut]
+            results[i] = fut.result()
+            on_result(i, results[i])
             progress(done, len(items))
     return results
 
 
-def _map_dask(fn, items: Sequence, address: str, progress) -> list:
+def _map_dask(fn, items: Sequence, address: str, progress, on_result) -> list:
     try:
         from distributed import Client, as_completed as dask_completed
     except ImportError as exc:  # optional dependency
@@ -99,6 +104,8 @@ def _map_dask(fn, items: Sequence, address: str, progress) -> list:
         futures = client.map(fn, items, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for done, fut in enumerate(dask_completed(futures), 1):
-            results[index[fut.key]] = fut.result()
+            i = index[fut.key]
+            results[i] = fut.result()
+            on_result(i, results[i])
             progress(done, len(items))
     return results

@@ -11,7 +11,7 @@ from metasheet.studies.grid import star_grid
 from metasheet.studies.maze import MazeSettings, maze_commands, solve_maze
 from metasheet.studies.model import MODELS, ModelCache, RobotModel, pose_errors
 from metasheet.studies.ranges import motor_range_study
-from metasheet.studies.resume import UnitCache
+from metasheet.studies.resume import UnitCache, unit_key
 from metasheet.studies.standin import StandInSpec
 from metasheet.studies.workspace import WorkspaceSettings, classify, explore_workspace
 
@@ -258,3 +258,32 @@ def test_rays_stop_beyond_the_strain_limit():
         inside = tried[~over]
         assert np.array_equal(stop.records.reached[inside], free.records.reached[inside])
         np.testing.assert_array_equal(stop.records.motors_deg[inside], free.records.motors_deg[inside])
+
+
+def _square_slow_first(x):
+    import time
+
+    time.sleep(1.0 if x == 0 else 0.0)
+    return x * x
+
+
+def test_resumable_map_stores_each_unit_as_it_arrives_on_a_pool(tmp_path):
+    """One pool for every missing unit: the fast ones finish (and are stored) while the slow
+    first one runs; an interruption keeps them."""
+    items = list(range(6))
+
+    class Stop(Exception):
+        pass
+
+    def interrupt(done, total):
+        if done > total - len(items) + 2:
+            raise Stop
+
+    cache = UnitCache(tmp_path / "u")
+    with pytest.raises(Stop):
+        cache.map(Executor(workers=2), _square_slow_first, items, progress=interrupt)
+    stored = len(list((tmp_path / "u").glob("*.pkl")))
+    assert stored == 3  # stored before progress is told, in arrival order: not the slow first one
+    assert not cache.load(unit_key(0))[0]
+    assert cache.map(Executor(workers=2), _square_slow_first, items) == [x * x for x in items]
+    assert len(list((tmp_path / "u").glob("*.pkl"))) == len(items)

@@ -50,7 +50,8 @@ def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements:
     which is ECSW's greedy choice; the inner loop keeps the weights non-negative. The passive
     set's columns and the Cholesky factor of their Gram matrix live in buffers grown one
     column at a time (shifted only when the inner loop drops an element), so entering an
-    element costs one ``A_P^T a`` and O(s^2).
+    element costs one ``A_P^T a`` and an O(s^2) factor update, and each outer step (one
+    element, or a batch) one least-squares solve on the factor, O(s^2).
 
     Parameters
     ----------

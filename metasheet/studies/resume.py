@@ -10,7 +10,6 @@ Files are written to a temporary name and renamed: a killed run leaves no half-w
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 import pickle
 from collections.abc import Callable, Sequence
@@ -61,12 +60,12 @@ class UnitCache:
         items: Sequence[Any],
         *,
         progress: Callable[[int, int], None] = lambda d, n: None,
-        chunk: int | None = None,
     ) -> list[Any]:
         """``[fn(x) for x in items]`` through ``executor``, skipping units already stored.
 
-        Missing units run in chunks of ``chunk`` items (default: about a tenth of them, at
-        least two per worker); each chunk is stored as soon as it finishes.
+        The missing units go to the executor at once (no worker idles while another finishes
+        a long unit) and each is stored as soon as it arrives: an interrupted map loses only
+        the units under way.
         """
         items = list(items)
         total = len(items)
@@ -85,18 +84,10 @@ class UnitCache:
         progress(done, total)
         if not todo:
             return results
-        workers = executor.workers if executor.kind != "dask" else 4
-        size = chunk or max(2 * workers, math.ceil(len(todo) / 10))
-        for start in range(0, len(todo), size):
-            part = todo[start:start + size]
-            base = done
 
-            def inner(d, n, base=base):
-                progress(base + d, total)
+        def keep(j: int, val: Any) -> None:
+            results[todo[j]] = val
+            self.store(keys[todo[j]], val)
 
-            out = executor.map(fn, [items[i] for i in part], progress=inner)
-            for i, val in zip(part, out):
-                results[i] = val
-                self.store(keys[i], val)
-            done += len(part)
+        executor.map(fn, [items[i] for i in todo], progress=lambda d, n: progress(done + d, total), on_result=keep)
         return results

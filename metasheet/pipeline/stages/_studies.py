@@ -249,3 +249,6 @@ class GridParams(CertifyParams):
     tol_mm: float = Field(1.0, gt=0, description="reach tolerance [mm]")
     max_steps: int = Field(60, ge=1, le=100000, description="inverse control steps per goal [-]")
     stop_after: int = Field(2, ge=0, description="failures in a row before a ray's outer points are left untried (0: try all) [-]")
+    strain_limit: float = Field(0.3, gt=0, description="max principal strain of the homogenisation's validity [-]")
+    stop_beyond_strain: bool = Field(False, description="a ray ends at its first reached point beyond "
+                                     "strain_limit (its outer points are not tried: outside the material model)")

@@ -27,7 +27,8 @@ def run(ctx: StageContext) -> dict:
     p: RangesParams = ctx.params
     spec = build_spec(ctx)
     grid = grid_from(p)
-    s = WorkspaceSettings(tol_mm=p.tol_mm, max_steps=p.max_steps, stop_after=p.stop_after)
+    s = WorkspaceSettings(tol_mm=p.tol_mm, max_steps=p.max_steps, stop_after=p.stop_after, strain_limit=p.strain_limit,
+                          stop_beyond_strain=p.stop_beyond_strain)
     res = motor_range_study(spec, grid, p.ranges, s, executor=ctx.executor, progress=progress(ctx),
                             cache=unit_cache(ctx))
     names = [f"{lo:g}-{hi:g}" for lo, hi in res.ranges]
@@ -44,6 +45,7 @@ def run(ctx: StageContext) -> dict:
     summary = {"ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
                "points": len(grid), "nested": res.nested,
                "violations": [{"wide": names[a], "narrow": names[b], "points": len(pts)} for a, b, pts in res.violations],
+               "strain_limit": p.strain_limit, "stop_beyond_strain": p.stop_beyond_strain,
                "model": p.model, "model_info": model_record(spec)}
     rr, ii = np.nonzero(res.reached)  # (range, point) of every reached point
     goals = np.column_stack([res.goals[ii], np.tile(res.rest_pose[3:], (len(ii), 1))])

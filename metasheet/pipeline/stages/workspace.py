@@ -38,9 +38,6 @@ class WorkspaceParams(GridParams):
     tol_rot_deg: float | None = Field(None, gt=0, le=90, description="rotation tolerance [deg]; None: the test's "
                                       "(2 or 3)")
     rotations: bool = Field(True, description="try the test's +-rot_deg rotations")
-    strain_limit: float = Field(0.3, gt=0, description="max principal strain of the homogenisation's validity [-]")
-    stop_beyond_strain: bool = Field(False, description="a ray ends at its first reached point beyond "
-                                     "strain_limit (its outer points are not tried: outside the material model)")
     continuity: bool = Field(True, description="test paths between neighbouring reached points")
     substeps: int = Field(3, ge=1, le=1000, description="intermediate goals on a continuity path [-]")
     hold_orientation: bool = Field(False, description="point goals also ask for the rest orientation (paper: position only)")
