@@ -155,7 +155,7 @@ if HAVE_NUMBA:
         out[2, 2] = (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) * r
         return det
 
-    @numba.njit(cache=True)
+    @numba.njit(cache=True, nogil=True)
     def _polar3(F, R, S, Xi):
         """Polar decomposition F = R S (3x3) into R, S; Xi is 3x3 scratch.
 
@@ -205,7 +205,7 @@ if HAVE_NUMBA:
                 S[i, j] = v
                 S[j, i] = v
 
-    @numba.njit(cache=True)
+    @numba.njit(cache=True, nogil=True)
     def _skew_into(v0, v1, v2, M, r, c, sign):
         """Add sign * [v]x into M[r:r+3, c:c+3]."""
         M[r + 0, c + 1] -= sign * v2
@@ -219,7 +219,7 @@ if HAVE_NUMBA:
     # rounded differently (forces 1e-13 apart), so a first run and a second run wrote different
     # bytes (issue 15). Without it: the same bits every run, no measurable cost (2.3 ms per
     # tangent on the quick sheets, both ways).
-    @numba.njit(cache=True, error_model="numpy")
+    @numba.njit(cache=True, nogil=True, error_model="numpy")
     def corotational_numba(x, tets, X_e, grads, Ke, block_map, f_out, data_out, tangent):
         """Fused kernel: global forces and CSR data of the consistent tangent.
 

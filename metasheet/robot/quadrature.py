@@ -164,7 +164,7 @@ if HAVE_NUMBA:
         out[0, 1] = out[1, 0] = s[5]
 
     # No fastmath, as in kernels.corotational_numba: bit-identical results on every run.
-    @numba.njit(cache=True, error_model="numpy")
+    @numba.njit(cache=True, nogil=True, error_model="numpy")
     def corotational_quadrature_numba(x, elems, grads, weights, C, block_map, f_out, data_out, tangent):
         """Fused kernel: global forces and CSR data of the consistent tangent, any ``nen``.
 
