@@ -55,8 +55,9 @@ def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_element
 
     nan = float("nan")
     deg = tuple(np.degrees(full_state.angles).round(4).tolist())
-    every = np.ones(len(full_robot.body.tets), bool)
-    strain = validity_strain(full_robot.body, full_state.x, every if strain_elements is None else strain_elements)
+    if strain_elements is None:
+        strain_elements = np.ones(len(full_robot.body.tets), bool)
+    strain = validity_strain(full_robot.body, full_state.x, strain_elements)
     try:
         r = solve_equilibrium(reduced, full_state.angles, linearizer=reduced_lz).state
     except ConvergenceError:

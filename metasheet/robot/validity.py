@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import check_range
+from ..errors import ConfigError, check_range
 
 #: width of the band along the grips left out of the validity check [mm] (the sheet thickness)
 GRIP_BAND_MM = 5.0
@@ -42,8 +42,6 @@ def validity_elements(robot, band_mm: float = GRIP_BAND_MM) -> np.ndarray:
         return np.ones(len(robot.body.tets), bool)
     keep = grip_distance(robot) > band_mm
     if not keep.any():
-        from ..errors import ConfigError
-
         raise ConfigError(f"strain_band_mm: {band_mm:g} mm leaves no element of the sheets to check: "
                           "use a narrower band")
     return keep
