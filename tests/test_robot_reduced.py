@@ -18,7 +18,7 @@ from metasheet.robot.inverse import InverseController
 from metasheet.robot.kinematics import kinematics
 from metasheet.robot.reduced import ReducedBasis, ReducedRobot, robot_key
 from metasheet.robot.rom_basis import add_sensitivities, nodal_error, pod_basis
-from metasheet.robot.rom_certificate import held_out_angles
+from metasheet.robot.rom_certificate import TARGETS, Comparison, held_out_angles, summarize
 from metasheet.robot.rom_training import motor_design, sensitivity, static_modes, train
 from metasheet.studies.adapter import paper_robot_spec
 
@@ -121,6 +121,24 @@ def test_held_out_set_is_the_mixed_corners_without_sobol_points():
     h = held_out_angles(lo, hi, 0, 1)  # held_out = 0: the two mixed corners only
     assert np.array_equal(h, [[0, 0, 0, 1, 1, 1], [1, 1, 1, 0, 0, 0]])
     assert held_out_angles(lo, hi, 3, 1).shape == (5, 6)
+
+
+def test_certificate_targets_apply_within_the_strain_limit_and_the_rest_is_reported_apart():
+    def row(strain, pos, jac=0.01):
+        return Comparison((0.0,), pos, 0.01, jac, 0.01, strain)
+
+    rows = [row(0.1, 0.02), row(0.25, 0.05), row(0.5, 0.8, jac=0.4), row(0.7, float("nan"))]
+    everything = summarize(rows)
+    assert not everything["met"] and everything["poses"] == 4 and everything["position_mm"]["failed"] == 1
+    inside = summarize(rows, 0.3)
+    assert inside["met"] and inside["poses"] == 2 and inside["poses_beyond_strain"] == 2
+    assert inside["position_mm"]["worst"] == 0.05 and inside["max_strain"] == 0.25
+    beyond = inside["beyond_strain"]
+    assert beyond["poses"] == 2 and beyond["position_mm"]["worst"] == 0.8 and beyond["position_mm"]["failed"] == 1
+    assert "met" not in beyond and beyond["jacobian_rel"]["worst"] == 0.4
+    # one pose inside beyond a target fails the certificate; none inside cannot pass it
+    assert not summarize([*rows, row(0.2, 2 * TARGETS["position_mm"])], 0.3)["met"]
+    assert not summarize(rows, 0.05)["met"] and summarize(rows, 0.05)["poses"] == 0
 
 
 def test_pod_basis_meets_its_projection_target(full):

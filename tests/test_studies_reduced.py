@@ -114,6 +114,56 @@ def test_reach_ending_outside_the_box_is_redone_by_the_full_model(trained, caplo
     assert np.linalg.norm(pose_full[:3] - r2.pose[:3]) <= POSITION_TARGET_MM
 
 
+def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trained):
+    """The edge state is the reduced equilibrium at the motors clipped into the box, and its
+    strain is the full model's at the same angles (within the basis's error); below the
+    limit the reach is the full model's, as without a domain strain."""
+    spec, rspec, basis = trained
+    goal = FemRobot(spec).rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
+    low = ReducedFem(rspec.with_domain_strain(1e-4))  # every edge is beyond
+    r = low.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert r.left_domain and not r.reached and low.fallbacks == 0 and low.edge_stops == 1
+    assert not hasattr(r.state, "x") and low.in_box(r.motors_deg)
+    q = np.radians(r.motors_deg)
+    assert np.isclose(q, basis.box_lo).any() or np.isclose(q, basis.box_hi).any()  # at the box's edge
+    pose_full, st_full = FemRobot(spec).equilibrium(r.motors_deg)
+    strain, strain_full = low.max_principal_strain(r.state), FemRobot(spec).max_principal_strain(st_full)
+    # a mixed corner of the box here (motors at both ends): the 12-snapshot test basis is least
+    # accurate there (0.34 mm); the strain, which decides, within a few per cent
+    assert np.linalg.norm(pose_full[:3] - r.pose[:3]) <= 1.0
+    assert strain > 1e-4 and strain == pytest.approx(strain_full, rel=0.05)
+    high = ReducedFem(rspec.with_domain_strain(10.0))  # no edge is beyond: the full model's reach
+    rh = high.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert not rh.left_domain and high.fallbacks == 1 and high.edge_stops == 0 and hasattr(rh.state, "x")
+    assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key)
+    assert rspec.with_domain_strain(None).key == rspec.key
+
+
+def test_a_ray_stopping_beyond_the_strain_limit_ends_at_the_edge_of_the_reduced_models_domain(trained):
+    spec, rspec, _ = trained
+    grid = star_grid(n_azimuth=2, n_elevation=1, n_steps=4, extent_axial=4.0, extent_lateral=14.0, thin_below=0.0)
+    free = explore_workspace(rspec, grid, WorkspaceSettings(max_steps=30, rotations=False, continuity=False))
+    model = ReducedFem(rspec)
+    inside = np.array([t and model.in_box(q) for t, q in zip(free.records.reached, free.records.motors_deg)])
+    assert inside.any() and (free.records.tried & ~inside).any()  # both kinds of point on this grid
+    # a limit above every point reached inside the box: the rays leave the box beyond it
+    s = WorkspaceSettings(max_steps=30, rotations=False, continuity=False, stop_beyond_strain=True,
+                          strain_limit=float(free.records.strain[inside].max()) + 0.005)
+    red = explore_workspace(rspec, grid, s)
+    rec = red.records
+    assert rec.left_domain.any()
+    assert (rec.strain[rec.left_domain] > s.strain_limit).all() and (red.cls[rec.left_domain] == -1).all()
+    assert rec.reached[inside].all()  # the points inside the box: reached as without the stop
+    for r in range(len(grid.directions)):
+        ids = grid.ray_points(r)
+        tried = ids[rec.tried[ids]]
+        # the ray ends at its first point beyond the limit: left the domain at the box's edge, or
+        # (the edge still within the limit) reached beyond it by the full model
+        beyond = tried[rec.strain[tried] > s.strain_limit]
+        assert len(beyond) <= 1 and (len(beyond) == 0 or beyond[0] == tried[-1])
+        assert not (rec.reached & rec.left_domain)[ids].any()
+
+
 def test_spec_key_follows_the_basis_and_material_changes_use_the_full_model(trained, tmp_path, caplog):
     from dataclasses import replace
 

@@ -208,7 +208,10 @@ def certificate(reduce_dir: Path) -> str:
         pos, jac = c["position_mm"]["worst"], c["jacobian_rel"]["worst"]
     except (OSError, ValueError, KeyError, TypeError):
         return ""
-    return (f"; certificate {'met' if c.get('met') else 'NOT met'}: held-out errors up to {pos:.2g} mm, "
+    where = f" (strain <= {c['strain_limit']:g})" if c.get("strain_limit") is not None else ""
+    if pos is None or jac is None:
+        return f"; certificate NOT met: no held-out pose{where} solved"
+    return (f"; certificate {'met' if c.get('met') else 'NOT met'}: held-out errors{where} up to {pos:.2g} mm, "
             f"Jacobian {100 * jac:.2g} %")
 
 

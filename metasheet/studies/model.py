@@ -35,6 +35,9 @@ class ReachResult:
     state : opaque model state, to continue from (picklable).
     converged : False when the model's equilibrium solver failed (the pose is then the last
         control state's, and the goal counts as not reached).
+    left_domain : True when the reach left the model's domain on the way (a reduced model's
+        training box, at angles where the material is already beyond the strain limit): the
+        pose and state are those at the domain's edge, and the goal counts as not reached.
     """
 
     reached: bool
@@ -45,6 +48,7 @@ class ReachResult:
     steps: int
     state: Any = None
     converged: bool = True
+    left_domain: bool = False
 
 
 @runtime_checkable

@@ -20,7 +20,7 @@ from ..executor import Executor
 from .grid import StarGrid
 from .model import MODELS, ModelSpec, check_motor_range
 from .resume import UnitCache
-from .workspace import RayTask, WorkspaceSettings, explore_ray
+from .workspace import RayTask, WorkspaceSettings, domain_spec, explore_ray
 
 
 @dataclass(frozen=True)
@@ -65,6 +65,7 @@ def motor_range_study(
     ranges = [check_motor_range(f"ranges[{i}]", *r) for i, r in enumerate(ranges)]
     s = replace(settings, rotations=False, continuity=False)
     cache = cache or UnitCache(None)
+    spec = domain_spec(spec, s)
     rest = MODELS.get(spec).rest_pose()
     rays = [grid.ray_points(r) for r in range(len(grid.directions))]
     tasks = [RayTask(spec.with_motor_range(lo, hi), s, rest[:3] + grid.points[ids]) for lo, hi in ranges for ids in rays]

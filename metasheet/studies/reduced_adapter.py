@@ -13,6 +13,13 @@ model (a warning is logged once per model; :attr:`ReducedFem.fallbacks` counts t
 result then carries a full :class:`~metasheet.robot.statics.RobotState`; a call given such a
 state continues on the reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.project`).
 
+With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
+beyond the strain limit) a reach that leaves the box is first checked at the box's edge: the
+reduced equilibrium at its motor angles clipped into the box. When the material there is
+already beyond the limit, the goal lies outside the homogenised model's domain whatever the
+full model would add: the reach returns that edge state with ``left_domain`` set (not
+reached), without the full model's reach (which costs minutes on the converged mesh).
+
 A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
 for one material): those return the full model's spec, with a logged warning, so a study that
 sweeps materials (the anisotropy sweep, the maze's silicone sheets) runs them on the full model.
@@ -49,11 +56,14 @@ class ReducedSpec:
     basis_path : absolute path of the ``reduce`` stage's ``basis.npz`` (workers read it: on a
         dask cluster it must be on a shared file system).
     basis_hash : :func:`file_hash` of that file when the spec was made (checked at build).
+    domain_strain : the strain limit [-] a reach leaving the box is checked against at the box's
+        edge (see the module docstring); None: such reaches always fall back to the full model.
     """
 
     full: RobotSpec
     basis_path: str
     basis_hash: str
+    domain_strain: float | None = None
 
     @classmethod
     def from_file(cls, full: RobotSpec, path: Path | str) -> "ReducedSpec":
@@ -65,7 +75,13 @@ class ReducedSpec:
 
     @property
     def key(self) -> str:
-        return "rom-" + hashlib.sha256(f"{self.full.key}|{self.basis_hash}".encode()).hexdigest()[:24]
+        tail = "" if self.domain_strain is None else f"|{self.domain_strain!r}"
+        return "rom-" + hashlib.sha256(f"{self.full.key}|{self.basis_hash}{tail}".encode()).hexdigest()[:24]
+
+    def with_domain_strain(self, limit: float | None) -> "ReducedSpec":
+        """The same reduced robot whose reaches leaving the box stop at its edge when the strain
+        there exceeds ``limit`` [-] (None: they fall back to the full model)."""
+        return replace(self, domain_strain=None if limit is None else float(limit))
 
     @property
     def design_alpha(self) -> float:
@@ -143,6 +159,7 @@ class ReducedFem(FemRobot):
         self.motor_range = self.full.motor_range
         self.rod_axis = self.full.rod_axis
         self.fallbacks = 0
+        self.edge_stops = 0  # reaches stopped at the box's edge beyond the domain strain
         self._warned = False
 
     # -- which model a state belongs to ----------------------------------------------------
@@ -196,11 +213,36 @@ class ReducedFem(FemRobot):
         if state is not None and not self.robot.in_box(state.angles):
             self._fallback("reach start", np.degrees(state.angles))
             return self.full.reach(goal, state=self._to_full(state), **kw)
-        r = super().reach(goal, state=self._to_reduced(state), **kw)
+        start = self._to_reduced(state)
+        r = super().reach(goal, state=start, **kw)
         if self.in_box(r.motors_deg):
             return r
+        edge = self._beyond_at_edge(goal, r, start)
+        if edge is not None:
+            return edge
         self._fallback("reach", r.motors_deg)
         return self.full.reach(goal, state=self._to_full(state), **kw)
+
+    def _beyond_at_edge(self, goal, r, start):
+        """The reach ``r`` that left the box, stopped at the box's edge when the strain there
+        exceeds the spec's domain strain (a :class:`ReachResult` with ``left_domain``); else None."""
+        from ..robot.equilibrium import solve_equilibrium
+        from .model import ReachResult
+
+        limit = self.spec.domain_strain
+        if limit is None:
+            return None
+        edge = np.clip(np.radians(r.motors_deg), self.basis.box_lo, self.basis.box_hi)
+        try:
+            st = solve_equilibrium(self.robot, edge, state=self.rest if start is None else start,
+                                   linearizer=self.lz).state
+        except ConvergenceError:
+            return None
+        if not self.max_principal_strain(st) > limit:
+            return None
+        self.edge_stops += 1
+        e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
+        return ReachResult(False, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True, left_domain=True)
 
     def equilibrium(self, motors_deg, *, state=None):
         """:meth:`FemRobot.equilibrium` on the reduced model, or the full one outside the training box."""

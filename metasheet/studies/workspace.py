@@ -133,7 +133,9 @@ class PointRecords:
     parent (k,) int: index in the ray of the point continuation started from (-1 = rest);
     converged (k,) bool: False where the model's equilibrium solver failed on the point reach
     (counted as not reached, with its error as recorded); rot_jump_mm (k,): the largest
-    effector jump between successive test states [mm] (NaN unless the test checks it).
+    effector jump between successive test states [mm] (NaN unless the test checks it);
+    left_domain (k,) bool: the reach left the model's domain (:attr:`~.model.ReachResult.left_domain`),
+    its strain is the one at the domain's edge and the point counts as not reached.
     """
 
     tried: np.ndarray
@@ -150,6 +152,7 @@ class PointRecords:
     parent: np.ndarray
     converged: np.ndarray
     rot_jump_mm: np.ndarray
+    left_domain: np.ndarray
 
 
 def rotation_goals(point: np.ndarray, rest_rot: np.ndarray, rot_deg: float) -> np.ndarray:
@@ -182,7 +185,7 @@ def explore_ray(task: RayTask) -> PointRecords:
                motors_deg=np.full((k, len(model.rest_motors())), np.nan), steps=np.zeros(k, int),
                rot_error_mm=np.full((k, 6), np.nan), rot_error_deg=np.full((k, 6), np.nan),
                rot_ok=np.zeros((k, 3), bool), strain=nan.copy(), sigma_min=nan.copy(), parent=np.full(k, -1),
-               converged=np.ones(k, bool), rot_jump_mm=nan.copy())
+               converged=np.ones(k, bool), rot_jump_mm=nan.copy(), left_domain=np.zeros(k, bool))
     state, parent, fails = start_state(model), -1, 0
     for i, p in enumerate(task.goals):
         if s.stop_after and fails >= s.stop_after:
@@ -197,7 +200,12 @@ def explore_ray(task: RayTask) -> PointRecords:
         rec["steps"][i] = res.steps
         rec["parent"][i] = parent
         rec["converged"][i] = res.converged
-        if e_mm > s.tol_mm or not res.converged:
+        if res.left_domain:  # beyond the strain limit on the way: outside the material model
+            rec["left_domain"][i] = True
+            rec["strain"][i] = model.max_principal_strain(res.state)
+            if s.stop_beyond_strain:
+                break
+        if e_mm > s.tol_mm or not res.converged or res.left_domain:
             fails += 1
             continue
         fails = 0
@@ -236,6 +244,14 @@ def _rotation_test(model, s: WorkspaceSettings, rec: dict, i: int, point, base, 
 
 def _within(rec, i, j, s) -> bool:
     return bool(rec["rot_error_mm"][i, j] <= s.tol_mm and rec["rot_error_deg"][i, j] <= s.tol_rot_deg)
+
+
+def domain_spec(spec: ModelSpec, settings: WorkspaceSettings) -> ModelSpec:
+    """``spec``, told the strain limit when the study stops beyond it and the model can use it
+    (a reduced model then stops reaches that leave its box beyond the limit at the box's edge)."""
+    if settings.stop_beyond_strain and hasattr(spec, "with_domain_strain"):
+        return spec.with_domain_strain(settings.strain_limit)
+    return spec
 
 
 def start_state(model):
@@ -329,6 +345,7 @@ def explore_workspace(
 ) -> WorkspaceResult:
     """Run the workspace study of ``spec``'s robot on ``grid`` (see the module docstring)."""
     cache = cache or UnitCache(None)
+    spec = domain_spec(spec, settings)
     rest = MODELS.get(spec).rest_pose()
     order = np.concatenate([grid.ray_points(r) for r in range(len(grid.directions))])
     tasks = [RayTask(spec, settings, rest[:3] + grid.points[grid.ray_points(r)]) for r in range(len(grid.directions))]
