@@ -17,7 +17,7 @@ from metasheet.material import Isotropic
 from metasheet.studies.adapter import FemRobot, paper_robot_spec
 from metasheet.studies.certify import certify_study, sample
 from metasheet.studies.grid import star_grid
-from metasheet.studies.reduced_adapter import ReducedFem, ReducedSpec
+from metasheet.studies.reduced_adapter import ReducedFem, ReducedSpec, box_exit
 from metasheet.studies.workspace import WorkspaceSettings, explore_workspace
 
 POSITION_TARGET_MM = 0.1  # the reduce stage's certificate target for positions inside the box [mm]
@@ -115,7 +115,7 @@ def test_reach_ending_outside_the_box_is_redone_by_the_full_model(trained, caplo
 
 
 def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trained):
-    """The edge state is the reduced equilibrium at the motors clipped into the box, and its
+    """The edge state is the reduced equilibrium where the motor path leaves the box, and its
     strain is the full model's at the same angles (within the basis's error); below the
     limit the reach is the full model's, as without a domain strain."""
     spec, rspec, basis = trained
@@ -125,7 +125,7 @@ def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trai
     assert r.left_domain and not r.reached and low.fallbacks == 0 and low.edge_stops == 1
     assert not hasattr(r.state, "x") and low.in_box(r.motors_deg)
     q = np.radians(r.motors_deg)
-    assert np.isclose(q, basis.box_lo).any() or np.isclose(q, basis.box_hi).any()  # at the box's edge
+    assert np.isclose(q, basis.box_lo).any() or np.isclose(q, basis.box_hi).any()  # on the box's boundary
     pose_full, st_full = FemRobot(spec).equilibrium(r.motors_deg)
     strain, strain_full = low.max_principal_strain(r.state), FemRobot(spec).max_principal_strain(st_full)
     # a mixed corner of the box here (motors at both ends): the 12-snapshot test basis is least
@@ -137,6 +137,15 @@ def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trai
     assert not rh.left_domain and high.fallbacks == 1 and high.edge_stops == 0 and hasattr(rh.state, "x")
     assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key)
     assert rspec.with_domain_strain(None).key == rspec.key
+
+
+def test_box_exit_is_where_the_motor_path_leaves_the_box():
+    lo, hi = np.zeros(3), np.ones(3)
+    q0 = np.array([0.5, 0.5, 0.5])
+    assert np.allclose(box_exit(q0, [0.5, 2.5, 0.0], lo, hi), [0.5, 1.0, 0.375])  # y leaves first, t = 1/4
+    assert np.allclose(box_exit(q0, [-1.5, 0.5, 0.9], lo, hi), [0.0, 0.5, 0.6])  # x through 0, t = 1/4
+    assert np.allclose(box_exit(q0, [0.8, 0.2, 0.5], lo, hi), [0.8, 0.2, 0.5])  # inside: the end itself
+    assert np.allclose(box_exit([1.0, 0.5, 0.5], [2.0, 0.5, 0.5], lo, hi), [1.0, 0.5, 0.5])  # on the edge: t = 0
 
 
 def test_a_ray_stopping_beyond_the_strain_limit_ends_at_the_edge_of_the_reduced_models_domain(trained):

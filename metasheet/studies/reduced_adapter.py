@@ -15,8 +15,8 @@ state continues on the reduced model from its projection (:meth:`~metasheet.robo
 
 With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
 beyond the strain limit) a reach that leaves the box is first checked at the box's edge: the
-reduced equilibrium at its motor angles clipped into the box. When the material there is
-already beyond the limit, the goal lies outside the homogenised model's domain whatever the
+reduced equilibrium where the straight path in motor space from the reach's start to its end
+leaves the box (:func:`box_exit`). When the material there is already beyond the limit, the goal lies outside the homogenised model's domain whatever the
 full model would add: the reach returns that edge state with ``left_domain`` set (not
 reached), without the full model's reach (which costs minutes on the converged mesh).
 
@@ -224,18 +224,19 @@ class ReducedFem(FemRobot):
         return self.full.reach(goal, state=self._to_full(state), **kw)
 
     def _beyond_at_edge(self, goal, r, start):
-        """The reach ``r`` that left the box, stopped at the box's edge when the strain there
-        exceeds the spec's domain strain (a :class:`ReachResult` with ``left_domain``); else None."""
+        """The reach ``r`` that left the box, stopped where its motor path leaves the box when
+        the strain there exceeds the spec's domain strain (a :class:`ReachResult` with
+        ``left_domain``); else None."""
         from ..robot.equilibrium import solve_equilibrium
         from .model import ReachResult
 
         limit = self.spec.domain_strain
         if limit is None:
             return None
-        edge = np.clip(np.radians(r.motors_deg), self.basis.box_lo, self.basis.box_hi)
+        start = self.rest if start is None else start
+        edge = box_exit(start.angles, np.radians(r.motors_deg), self.basis.box_lo, self.basis.box_hi)
         try:
-            st = solve_equilibrium(self.robot, edge, state=self.rest if start is None else start,
-                                   linearizer=self.lz).state
+            st = solve_equilibrium(self.robot, edge, state=start, linearizer=self.lz).state
         except ConvergenceError:
             return None
         if not self.max_principal_strain(st) > limit:
@@ -291,6 +292,17 @@ class ReducedFem(FemRobot):
             full_err, conv = nan, False
         ok = conv and full_err[0] <= tol_mm and (tol_deg is None or full_err[1] <= tol_deg)
         return PointCertificate(*red_err, *full_err, conv, bool(ok), self.robot.in_box(ang))
+
+
+def box_exit(q0, q1, lo, hi) -> np.ndarray:
+    """(na,) the point where the segment from ``q0`` (in the box [lo, hi]) to ``q1`` leaves the
+    box (``q1`` itself when it does not); all (na,) in the same unit."""
+    q0, q1, lo, hi = (np.asarray(a, float) for a in (q0, q1, lo, hi))
+    d = q1 - q0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(d > 0, (hi - q0) / d, np.where(d < 0, (lo - q0) / d, np.inf))
+    t = float(np.clip(room.min(initial=1.0), 0.0, 1.0))
+    return np.clip(q0 + t * d, lo, hi)  # the clip: round-off only
 
 
 @dataclass(frozen=True)
