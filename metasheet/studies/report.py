@@ -13,6 +13,7 @@ from ..material import CONSTANT_NAMES
 from .constants_report import constants_section
 from .convergence_report import convergence_section
 from .model_report import model_section
+from .reduce_report import reduce_section
 
 
 def _table(rows: list[tuple[str, object]]) -> str:
@@ -109,6 +110,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     lines += section
     diffs += found
     section, found = convergence_section(s.get("convergence"), summaries.get("meshes") or {})
+    lines += section
+    diffs += found
+    section, found = reduce_section(s.get("reduce_json"), summaries.get("reduce_seconds"))
     lines += section
     diffs += found
     if "workspace" in s:

@@ -53,6 +53,9 @@ def run(ctx: StageContext) -> dict:
     if "robot" in ctx.inputs and (ctx.inputs["robot"] / "convergence.json").exists():
         summaries["convergence"] = json.loads((ctx.inputs["robot"] / "convergence.json").read_text())
         summaries["meshes"] = _robot_meshes(ctx)
+    if "reduce" in ctx.inputs and (ctx.inputs["reduce"] / "reduce.json").exists():
+        summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
+        summaries["reduce_seconds"] = (read_manifest(ctx.inputs["reduce"]) or {}).get("wall_time_s")
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}
@@ -89,6 +92,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 
 register(Stage(
     name="report", params=ReportParams, run=run,
-    optional=("cell", "homogenize", "chart", "material", "orient", "robot", "workspace", "ranges", "anisotropy", "maze"),
+    optional=("cell", "homogenize", "chart", "material", "orient", "robot", "reduce", "workspace", "ranges",
+              "anisotropy", "maze"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))

@@ -1,0 +1,62 @@
+"""Report section: the reduced-order robot and its certificate (``reduce/reduce.json``, issue 16).
+
+The basis and element sample the studies ran on, what training cost, and the certificate:
+reduced against full on held-out poses, worst and 95th percentile of each measure against its
+target, over the poses within the strain limit (the material model's domain; the others
+follow as information, outside every study's domain).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+MEASURES = (("position_mm", "effector position [mm]"), ("orientation_deg", "effector orientation [deg]"),
+            ("jacobian_rel", "Jacobian [relative Frobenius]"), ("inverse_motor_deg", "inverse model's motors [deg]"))
+
+
+def _g(v) -> str:
+    return "-" if v is None else f"{v:.3g}"
+
+
+def _rows(cert: Mapping, with_target: bool) -> list[str]:
+    out = []
+    for key, label in MEASURES:
+        m = cert.get(key) or {}
+        target = m.get("target")
+        verdict = "" if target is None else ("met" if m.get("met") else "NOT met")
+        cells = [label, _g(m.get("worst")), _g(m.get("p95")), str(m.get("failed", 0))]
+        if with_target:
+            cells += [_g(target), verdict]
+        out.append("| " + " | ".join(cells) + " |")
+    return out
+
+
+def reduce_section(red: Mapping | None, seconds: float | None = None) -> tuple[list[str], list[str]]:
+    """(Markdown lines, differences) of the reduced model's section; ``red`` is reduce.json
+    (None: no section), ``seconds`` the stage's wall time."""
+    if not red:
+        return [], []
+    cert = red["certificate"]
+    lo, hi = red["box_deg"]
+    box = f"{min(lo):g} to {max(hi):g} deg" if len(set(lo)) == 1 and len(set(hi)) == 1 else f"{lo} to {hi} deg"
+    t = red.get("training", {})
+    limit = cert.get("strain_limit")
+    where = f"within the strain limit {limit:g}" if limit is not None else "all"
+    lines = ["## Reduced-order robot and its certificate (issue 16)", "",
+             f"Basis of k = {red['k']} modes ({t.get('static_modes', '?')} static, {t.get('pod_modes', '?')} POD, "
+             f"{t.get('sensitivity_modes', '?')} from the static responses) over {red['free_dofs']} free dofs; "
+             f"{red['elements']} of {red['elements_total']} elements sampled (ECSW, non-negative weights); "
+             f"trained on motor angles {box}"
+             + (f" in {seconds:.0f} s." if seconds is not None else "."), "",
+             f"Held-out poses (not used in training) {where}: {cert['poses']}"
+             + (f"; beyond it: {cert.get('poses_beyond_strain', 0)}." if limit is not None else "."), "",
+             "| measure | worst | p95 | failed | target | verdict |", "|---|---|---|---|---|---|",
+             *_rows(cert, True), "",
+             f"Certificate: **{'met' if cert.get('met') else 'NOT met'}**."]
+    if cert.get("beyond_strain"):
+        lines += ["", f"Beyond the strain limit (outside the homogenised model's domain; information only, "
+                  f"{cert['beyond_strain']['poses']} poses, strain up to {_g(cert['beyond_strain'].get('max_strain'))}):",
+                  "", "| measure | worst | p95 | failed |", "|---|---|---|---|", *_rows(cert["beyond_strain"], False)]
+    diffs = [] if cert.get("met") else [
+        f"reduced model (issue 16): the certificate is not met on the held-out poses {where} (see its section)."]
+    return [*lines, ""], diffs

@@ -1,0 +1,34 @@
+"""The report's section on the reduced model: the certificate's numbers as reduce.json has them."""
+
+from metasheet.robot.rom_certificate import Comparison, summarize
+from metasheet.studies.report import build_report
+from metasheet.studies.reduce_report import reduce_section
+
+
+def _reduce_json(rows, limit=0.3):
+    return {"k": 77, "elements": 1778, "elements_total": 7012, "free_dofs": 30000,
+            "box_deg": [[65.3] * 6, [81.3] * 6], "training": {"static_modes": 13, "pod_modes": 26,
+                                                              "sensitivity_modes": 38},
+            "certificate": summarize(rows, limit)}
+
+
+def test_section_shows_the_certificate_within_the_strain_limit_and_the_rest_apart():
+    rows = [Comparison((0.0,), 0.0123, 0.004, 0.011, 0.02, 0.2), Comparison((0.0,), 0.5, 0.3, 0.4, 3.0, 0.7)]
+    lines, diffs = reduce_section(_reduce_json(rows), seconds=124.0)
+    text = "\n".join(lines)
+    assert "k = 77 modes" in text and "1778 of 7012 elements" in text and "in 124 s" in text
+    assert "| effector position [mm] | 0.0123 | 0.0123 | 0 | 0.1 | met |" in text
+    assert "within the strain limit 0.3: 1; beyond it: 1" in text and "Certificate: **met**" in text
+    assert "| effector position [mm] | 0.5 | 0.5 | 0 |" in text  # the pose beyond, reported apart
+    assert diffs == []
+    # a pose inside beyond a target: NOT met, and said among the differences
+    bad = [*rows, Comparison((0.0,), 0.2, 0.01, 0.01, 0.01, 0.25)]
+    lines, diffs = reduce_section(_reduce_json(bad))
+    assert "Certificate: **NOT met**" in "\n".join(lines) and len(diffs) == 1
+    assert reduce_section(None) == ([], [])
+
+
+def test_the_report_carries_the_section():
+    rows = [Comparison((0.0,), 0.01, 0.004, 0.011, 0.02, 0.2)]
+    text = build_report({"reduce_json": _reduce_json(rows)}, {})
+    assert "## Reduced-order robot and its certificate (issue 16)" in text
