@@ -139,6 +139,26 @@ def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trai
     assert rspec.with_domain_strain(None).key == rspec.key
 
 
+def test_a_reach_just_outside_the_box_is_answered_by_one_full_equilibrium(trained):
+    """The reduced answer's motors, checked by the full model: its equilibrium there meets the
+    goal's tolerance, so it is the answer (a full state), without the full model's reach."""
+    spec, rspec, _ = trained
+    ref = FemRobot(spec)
+    q = ref.rest_motors() + np.array([12.0, 0, 0, 0, 0, -6.0])  # 2 deg beyond rest +-10 deg
+    goal, _ = ref.equilibrium(q)
+    model = ReducedFem(rspec)
+    r = model.reach(goal, tol_mm=0.5, tol_deg=0.5)  # the whole pose: one set of motors, outside the box
+    assert r.reached and hasattr(r.state, "x") and model.full_checks == 1 and model.fallbacks == 0
+    assert not model.in_box(r.motors_deg)
+    pose, _ = ref.equilibrium(r.motors_deg)  # independent: the full model at the answer's motors
+    assert np.abs(pose - r.pose).max() < 1e-6 and r.error_mm == pytest.approx(np.linalg.norm(pose[:3] - goal[:3]))
+    assert r.error_mm <= 0.5 and r.error_deg <= 0.5
+    # a tolerance the reduced answer's motors miss under the full model: the full model's reach
+    tight = ReducedFem(rspec)
+    tight.reach(goal, tol_mm=1e-4, tol_deg=0.5, max_steps=5)
+    assert tight.full_checks == 0 and tight.fallbacks == 1
+
+
 def test_box_exit_is_where_the_motor_path_leaves_the_box():
     lo, hi = np.zeros(3), np.ones(3)
     q0 = np.array([0.5, 0.5, 0.5])

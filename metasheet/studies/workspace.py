@@ -24,7 +24,7 @@ draws a point that passes as "3T + 3R" (line 272); here it counts one axis (clas
 Beyond the paper: the largest principal strain at each reached point against a limit
 (the homogenisation's domain of validity; with ``stop_beyond_strain`` a ray ends at its first
 point beyond it, so the study stays where the material model holds and a reduced model trained
-there suffices; its outer points count as not tried), the smallest Jacobian singular value (loss of
+there suffices; that point is not rotation-tested and its outer points count as not tried), the smallest Jacobian singular value (loss of
 control), and continuity: a graph whose nodes are the reached points (and the rest pose),
 with an edge along each ray where continuation went, and an edge between points at the same
 step of neighbouring rays when the inverse model walks from one to the other through
@@ -212,9 +212,10 @@ def explore_ray(task: RayTask) -> PointRecords:
         rec["reached"][i] = True
         rec["strain"][i] = model.max_principal_strain(res.state)
         rec["sigma_min"][i] = model.min_singular_value(res.state)
-        if s.rotations:
+        beyond = s.stop_beyond_strain and not rec["strain"][i] <= s.strain_limit
+        if s.rotations and not beyond:  # beyond: outside the material model, not rotation-tested
             _rotation_test(model, s, rec, i, p, rest[3:] if s.hold_orientation else res.pose[3:], res)
-        if s.stop_beyond_strain and not rec["strain"][i] <= s.strain_limit:
+        if beyond:
             break  # outside the material model's domain: the outer points are not tried
         state, parent = res.state, i
     return PointRecords(**rec)
