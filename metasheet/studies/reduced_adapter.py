@@ -8,17 +8,20 @@ fallbacks and the certificate), the :class:`~metasheet.robot.reduced.ReducedRobo
 the eq. (8) controller on the reduced robot, limited to the spec's motor range.
 
 Outside its training box (``basis.box_lo``, ``basis.box_hi`` [rad]) the reduced model would
-extrapolate: a reach that ends there, or an equilibrium asked there, is redone by the full
-model (a warning is logged once per model; :attr:`ReducedFem.fallbacks` counts them). Its
-result then carries a full :class:`~metasheet.robot.statics.RobotState`; a call given such a
-state continues on the reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.project`).
+extrapolate: an equilibrium asked there is solved by the full model, and a reach that ends
+there is judged as below (a warning is logged once per model when the full model takes over;
+:attr:`ReducedFem.fallbacks` counts those). Such a result carries a full
+:class:`~metasheet.robot.statics.RobotState`; a call given a full state continues on the
+reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.project`)
+when it lies in the box, else from the reduced rest.
 
 With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
 beyond the strain limit) a reach that leaves the box is first checked at the box's edge: the
 reduced equilibrium where the straight path in motor space from the reach's start to its end
-leaves the box (:func:`box_exit`). When the material there is already beyond the limit, the goal lies outside the homogenised model's domain whatever the
-full model would add: the reach returns that edge state with ``left_domain`` set (not
-reached), without the full model's reach (which costs minutes on the converged mesh).
+leaves the box (:func:`box_exit`). When the material there is already beyond the limit, the
+goal lies outside the homogenised model's domain: the reach returns that edge state with
+``left_domain`` set (not reached), without the full model's reach (which costs minutes on
+the converged mesh).
 
 A reach outside the box that the reduced model says reached its goal is then checked by the
 full model's equilibrium at the reduced answer's motor angles (one solve instead of a whole
