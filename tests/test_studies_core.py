@@ -260,6 +260,39 @@ def test_rays_stop_beyond_the_strain_limit():
         np.testing.assert_array_equal(stop.records.motors_deg[inside], free.records.motors_deg[inside])
 
 
+def test_rotation_tries_beyond_the_strain_limit_fail_when_the_study_stops_there():
+    """With stop_beyond_strain a rotation try that meets its tolerances counts only within the
+    strain limit: the classes are those of the free study with every try whose answer's strain
+    (re-reached independently on the stand-in) exceeds the limit failed."""
+    from metasheet.studies.workspace import RayTask, explore_ray, rotation_goals
+
+    spec = StandInSpec()
+    model = MODELS.get(spec)
+    rest = model.rest_pose()
+    goals = rest[:3] + np.array([[0.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 8.0, 0.0]])
+    free_s = WorkspaceSettings(continuity=False, strain_limit=10.0)
+    free = explore_ray(RayTask(spec, free_s, goals))
+    # the answers' strains, try by try, from each point's own state
+    strains = np.full((len(goals), 6), np.nan)
+    for i, p in enumerate(goals):
+        base = model.reach(np.concatenate([p, rest[3:]]), tol_mm=1.0, rot_weight=0.0)
+        for j, g in enumerate(rotation_goals(p, base.pose[3:], free_s.rot_deg)):
+            r = model.reach(g, state=base.state, tol_mm=1.0, tol_deg=free_s.tol_rot_deg, max_steps=free_s.max_steps)
+            strains[i, j] = model.max_principal_strain(r.state)
+    ok_free = (free.rot_error_mm <= 1.0) & (free.rot_error_deg <= free_s.tol_rot_deg)
+    # a limit above every point's strain, below some passing tries' answers
+    limit = float(max(np.nanmax(free.strain), np.nanmin(strains[ok_free]))) + 1e-6
+    assert (ok_free & (strains > limit)).any() and (ok_free & (strains <= limit)).any()  # both kinds
+    stop = explore_ray(RayTask(spec, WorkspaceSettings(continuity=False, strain_limit=limit,
+                                                       stop_beyond_strain=True), goals))
+    assert stop.reached.all() and (stop.strain <= limit).all()
+    ok = ok_free & ~(strains > limit)
+    expect = np.array([[ok[i, 2 * a] and ok[i, 2 * a + 1] for a in range(3)] for i in range(len(goals))])
+    np.testing.assert_array_equal(stop.rot_ok, expect)
+    np.testing.assert_array_equal(stop.rot_beyond, ok_free & (strains > limit) & ~np.isnan(stop.rot_error_mm))
+    assert not free.rot_beyond.any()
+
+
 def _square_slow_first(x):
     import time
 

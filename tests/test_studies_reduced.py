@@ -132,11 +132,46 @@ def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trai
     # accurate there (0.34 mm); the strain, which decides, within a few per cent
     assert np.linalg.norm(pose_full[:3] - r.pose[:3]) <= 1.0
     assert strain > 1e-4 and strain == pytest.approx(strain_full, rel=0.05)
-    high = ReducedFem(rspec.with_domain_strain(10.0))  # no edge is beyond: the full model's reach
+    high = ReducedFem(rspec.with_domain_strain(10.0))  # nothing is beyond: the full model's answer
     rh = high.reach(goal, tol_mm=0.5, rot_weight=0.0)
-    assert not rh.left_domain and high.fallbacks == 1 and high.edge_stops == 0 and hasattr(rh.state, "x")
+    assert not rh.left_domain and high.edge_stops == high.walk_stops == 0 and hasattr(rh.state, "x")
+    assert high.full_checks + high.fallbacks == 1
+    pose_ref, _ = FemRobot(spec).equilibrium(rh.motors_deg)  # independent: the full model at its motors
+    assert np.abs(pose_ref - rh.pose).max() < 1e-6
     assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key)
     assert rspec.with_domain_strain(None).key == rspec.key
+
+
+def test_beyond_the_box_the_full_model_walks_the_motor_path_to_the_strain_limit(trained):
+    """A limit between the strain at the box's edge and at the reduced answer: the full model's
+    walk along the straight motor path stops at its first step beyond the limit; independent
+    full equilibria at that step and at the one before it sit on either side of the limit."""
+    from metasheet.studies.reduced_adapter import WALK_STEP_DEG
+    from metasheet.studies.workspace import start_state
+
+    spec, rspec, basis = trained
+    ref = FemRobot(spec)
+    goal = ref.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
+    probe = ReducedFem(rspec)
+    r_red = super(ReducedFem, probe).reach(goal, state=start_state(probe), tol_mm=0.5, rot_weight=0.0)
+    q0, q_end = probe.rest.angles, np.radians(r_red.motors_deg)
+    edge = box_exit(q0, q_end, basis.box_lo, basis.box_hi)
+    s_edge = ref.max_principal_strain(ref.equilibrium(np.degrees(edge))[1])
+    s_end = ref.max_principal_strain(ref.equilibrium(r_red.motors_deg)[1])
+    assert s_end > 1.2 * s_edge  # the path's strain grows beyond the box: a limit fits between
+    limit = 0.5 * (s_edge + s_end)
+    model = ReducedFem(rspec.with_domain_strain(limit))
+    r = model.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert r.left_domain and not r.reached and hasattr(r.state, "x")
+    assert model.walk_stops == 1 and model.edge_stops == model.fallbacks == model.full_checks == 0
+    n = int(np.ceil(np.degrees(np.abs(q_end - edge).max()) / WALK_STEP_DEG))
+    step = (q_end - edge) / n
+    i = np.rint(np.linalg.norm(np.radians(r.motors_deg) - edge) / np.linalg.norm(step))
+    assert 1 <= i <= n and np.allclose(np.radians(r.motors_deg), edge + i * step, atol=1e-9)  # on the path
+    pose_at, st_at = ref.equilibrium(r.motors_deg)
+    before = ref.max_principal_strain(ref.equilibrium(np.degrees(edge + (i - 1) * step))[1])
+    assert ref.max_principal_strain(st_at) > limit >= before
+    assert np.abs(pose_at - r.pose).max() < 1e-6
 
 
 def test_a_reach_just_outside_the_box_is_answered_by_one_full_equilibrium(trained):

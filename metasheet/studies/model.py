@@ -36,8 +36,8 @@ class ReachResult:
     converged : False when the model's equilibrium solver failed (the pose is then the last
         control state's, and the goal counts as not reached).
     left_domain : True when the reach left the model's domain on the way (a reduced model's
-        training box, at angles where the material is already beyond the strain limit): the
-        pose and state are those at the domain's edge, and the goal counts as not reached.
+        motor path out of its training box, where the material passes the strain limit): the
+        pose and state are those where it passed, and the goal counts as not reached.
     """
 
     reached: bool

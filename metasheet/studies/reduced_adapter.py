@@ -16,18 +16,22 @@ reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.
 when it lies in the box, else from the reduced rest.
 
 With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
-beyond the strain limit) a reach that leaves the box is first checked at the box's edge: the
-reduced equilibrium where the straight path in motor space from the reach's start to its end
-leaves the box (:func:`box_exit`). When the material there is already beyond the limit, the
-goal lies outside the homogenised model's domain: the reach returns that edge state with
-``left_domain`` set (not reached), without the full model's reach (which costs minutes on
-the converged mesh).
+beyond the strain limit) a reach that leaves the box is followed along the straight path in
+motor space from its start to its end: first to where that path leaves the box
+(:func:`box_exit`), on the reduced model; when the material there is already beyond the limit,
+the goal lies outside the homogenised model's domain and the reach returns that edge state
+with ``left_domain`` set (not reached). Otherwise the full model takes the path on from the
+edge, in steps of at most :data:`WALK_STEP_DEG` (each a full equilibrium from the last, a
+second or so on the converged mesh), and stops with ``left_domain`` at the first step beyond
+the limit. A path that stays within the limit ends at the full equilibrium at the reduced
+answer's motor angles: that is the answer when it meets the goal's tolerances, else the full
+model reaches the goal from there.
 
-A reach outside the box that the reduced model says reached its goal is then checked by the
-full model's equilibrium at the reduced answer's motor angles (one solve instead of a whole
-reach): when the full pose there meets the goal's tolerances, that full equilibrium is the
-answer (a full state, judged as the full model's reach would be). Only otherwise does the
-full model reach the goal itself.
+Without a domain strain, a reach outside the box that the reduced model says reached its goal
+is checked by the full model's equilibrium at the reduced answer's motor angles (one solve
+instead of a whole reach): when the full pose there meets the goal's tolerances, that full
+equilibrium is the answer (a full state, judged as the full model's reach would be). Only
+otherwise does the full model reach the goal itself.
 
 A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
 for one material): those return the full model's spec, with a logged warning, so a study that
@@ -49,6 +53,11 @@ from .model import pose_errors
 
 log = logging.getLogger(__name__)
 
+#: Largest motor step [deg] of the full model's walk beyond the box (module docstring): on the
+#: authors' P2 robot the strain grows ~0.03 per degree there, so a 2 deg step overshoots the
+#: limit by at most ~0.06 and the walk stops one or two solves past the box.
+WALK_STEP_DEG = 2.0
+
 
 def file_hash(path: Path | str) -> str:
     """sha256 of a file's bytes (hex, 24 characters)."""
@@ -65,8 +74,8 @@ class ReducedSpec:
     basis_path : absolute path of the ``reduce`` stage's ``basis.npz`` (workers read it: on a
         dask cluster it must be on a shared file system).
     basis_hash : :func:`file_hash` of that file when the spec was made (checked at build).
-    domain_strain : the strain limit [-] a reach leaving the box is checked against at the box's
-        edge (see the module docstring); None: such reaches always fall back to the full model.
+    domain_strain : the strain limit [-] a reach leaving the box is checked against on its way
+        out (see the module docstring); None: such reaches are checked or redone by the full model.
     """
 
     full: RobotSpec
@@ -88,8 +97,8 @@ class ReducedSpec:
         return "rom-" + hashlib.sha256(f"{self.full.key}|{self.basis_hash}{tail}".encode()).hexdigest()[:24]
 
     def with_domain_strain(self, limit: float | None) -> "ReducedSpec":
-        """The same reduced robot whose reaches leaving the box stop at its edge when the strain
-        there exceeds ``limit`` [-] (None: they fall back to the full model)."""
+        """The same reduced robot whose reaches leaving the box stop where their motor path
+        passes the strain ``limit`` [-] (None: they are checked or redone by the full model)."""
         return replace(self, domain_strain=None if limit is None else float(limit))
 
     @property
@@ -169,6 +178,7 @@ class ReducedFem(FemRobot):
         self.rod_axis = self.full.rod_axis
         self.fallbacks = 0
         self.edge_stops = 0  # reaches stopped at the box's edge beyond the domain strain
+        self.walk_stops = 0  # reaches stopped by the full model's walk beyond the box
         self.full_checks = 0  # reaches outside the box answered by one full equilibrium
         self._warned = False
 
@@ -220,19 +230,23 @@ class ReducedFem(FemRobot):
     def reach(self, goal, *, state=None, **kw):
         """:meth:`FemRobot.reach` on the reduced model (from ``state``'s reduced counterpart, or
         the reduced rest when ``state`` lies outside the box); an answer outside the box is
-        stopped at its edge, checked by the full model, or redone by it (module docstring)."""
+        followed beyond the box by the full model, checked by it, or redone by it (module docstring)."""
         start = self._to_reduced(state)
         r = super().reach(goal, state=start, **kw)
         if self.in_box(r.motors_deg):
             return r
-        edge = self._beyond_at_edge(goal, r, start)
-        if edge is not None:
-            return edge
-        checked = self._checked_by_full(goal, r, **kw)
-        if checked is not None:
-            return checked
+        if self.spec.domain_strain is not None:
+            walked, end = self._walk_beyond_box(goal, r, start, **kw)
+            if walked is not None:
+                return walked
+            full_start = end if end is not None else self._to_full(state)
+        else:
+            checked = self._checked_by_full(goal, r, **kw)
+            if checked is not None:
+                return checked
+            full_start = self._to_full(state)
         self._fallback("reach", r.motors_deg)
-        return self.full.reach(goal, state=self._to_full(state), **kw)
+        return self.full.reach(goal, state=full_start, **kw)
 
     def _checked_by_full(self, goal, r, *, tol_mm=1.0, tol_deg=None, **_):
         """A reduced reach ``r`` that reached its goal outside the box, checked by the full
@@ -255,27 +269,48 @@ class ReducedFem(FemRobot):
         self.full_checks += 1
         return ReachResult(True, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True)
 
-    def _beyond_at_edge(self, goal, r, start):
-        """The reach ``r`` that left the box, stopped where its motor path leaves the box when
-        the strain there exceeds the spec's domain strain (a :class:`ReachResult` with
-        ``left_domain``); else None."""
+    def _walk_beyond_box(self, goal, r, start, *, tol_mm=1.0, tol_deg=None, **_):
+        """Follow the reduced reach ``r`` that left the box along its straight motor path (module
+        docstring). Returns ``(result, None)`` with a :class:`ReachResult` when the path leaves
+        the strain limit (``left_domain``) or ends at a full equilibrium meeting the goal's
+        tolerances; else ``(None, end)``, ``end`` the full equilibrium at ``r``'s motors (None
+        when a full solve on the way failed)."""
         from ..robot.equilibrium import solve_equilibrium
         from .model import ReachResult
 
         limit = self.spec.domain_strain
-        if limit is None:
-            return None
+        goal = np.asarray(goal, float)
         start = self.rest if start is None else start
-        edge = box_exit(start.angles, np.radians(r.motors_deg), self.basis.box_lo, self.basis.box_hi)
+        q_end = np.radians(r.motors_deg)
+        edge = box_exit(start.angles, q_end, self.basis.box_lo, self.basis.box_hi)
+
+        def result(st, reached, stopped):
+            e_mm, e_deg = pose_errors(goal, st.pose)
+            return ReachResult(reached, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True,
+                               left_domain=stopped)
+
         try:
             st = solve_equilibrium(self.robot, edge, state=start, linearizer=self.lz).state
         except ConvergenceError:
-            return None
-        if not self.max_principal_strain(st) > limit:
-            return None
-        self.edge_stops += 1
-        e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
-        return ReachResult(False, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True, left_domain=True)
+            return None, None
+        if not self.max_principal_strain(st) <= limit:
+            self.edge_stops += 1
+            return result(st, False, True), None
+        n = max(1, int(np.ceil(np.degrees(np.abs(q_end - edge).max()) / WALK_STEP_DEG)))
+        st = self.robot.full_state(st)
+        for q in [edge] + [edge + (q_end - edge) * i / n for i in range(1, n + 1)]:
+            try:
+                st = solve_equilibrium(self.full.robot, q, state=st, linearizer=self.full.lz).state
+            except ConvergenceError:
+                return None, None
+            if not self.full.max_principal_strain(st) <= limit:
+                self.walk_stops += 1
+                return result(st, False, True), None
+        out = result(st, False, False)
+        if r.reached and out.error_mm <= tol_mm and (tol_deg is None or out.error_deg <= tol_deg):
+            self.full_checks += 1
+            return replace(out, reached=True), None
+        return None, st
 
     def equilibrium(self, motors_deg, *, state=None):
         """:meth:`FemRobot.equilibrium` on the reduced model, or the full one outside the training box."""

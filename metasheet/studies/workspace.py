@@ -24,7 +24,9 @@ draws a point that passes as "3T + 3R" (line 272); here it counts one axis (clas
 Beyond the paper: the largest principal strain at each reached point against a limit
 (the homogenisation's domain of validity; with ``stop_beyond_strain`` a ray ends at its first
 point beyond it, so the study stays where the material model holds and a reduced model trained
-there suffices; that point is not rotation-tested and its outer points count as not tried), the smallest Jacobian singular value (loss of
+there suffices; that point is not rotation-tested and its outer points count as not tried; and
+a rotation try fails when it meets its tolerances only beyond the limit, or its reach leaves the
+model's domain on the way: :attr:`PointRecords.rot_beyond`), the smallest Jacobian singular value (loss of
 control), and continuity: a graph whose nodes are the reached points (and the rest pose),
 with an edge along each ray where continuation went, and an edge between points at the same
 step of neighbouring rays when the inverse model walks from one to the other through
@@ -135,7 +137,9 @@ class PointRecords:
     (counted as not reached, with its error as recorded); rot_jump_mm (k,): the largest
     effector jump between successive test states [mm] (NaN unless the test checks it);
     left_domain (k,) bool: the reach left the model's domain (:attr:`~.model.ReachResult.left_domain`),
-    its strain is the one at the domain's edge and the point counts as not reached.
+    its strain is the one at the domain's edge and the point counts as not reached;
+    rot_beyond (k, 6) bool: with ``stop_beyond_strain``, the rotation try left the model's domain
+    or met its tolerances beyond the strain limit: it fails (outside the material model).
     """
 
     tried: np.ndarray
@@ -153,6 +157,7 @@ class PointRecords:
     converged: np.ndarray
     rot_jump_mm: np.ndarray
     left_domain: np.ndarray
+    rot_beyond: np.ndarray
 
 
 def rotation_goals(point: np.ndarray, rest_rot: np.ndarray, rot_deg: float) -> np.ndarray:
@@ -185,7 +190,8 @@ def explore_ray(task: RayTask) -> PointRecords:
                motors_deg=np.full((k, len(model.rest_motors())), np.nan), steps=np.zeros(k, int),
                rot_error_mm=np.full((k, 6), np.nan), rot_error_deg=np.full((k, 6), np.nan),
                rot_ok=np.zeros((k, 3), bool), strain=nan.copy(), sigma_min=nan.copy(), parent=np.full(k, -1),
-               converged=np.ones(k, bool), rot_jump_mm=nan.copy(), left_domain=np.zeros(k, bool))
+               converged=np.ones(k, bool), rot_jump_mm=nan.copy(), left_domain=np.zeros(k, bool),
+               rot_beyond=np.zeros((k, 6), bool))
     state, parent, fails = start_state(model), -1, 0
     for i, p in enumerate(task.goals):
         if s.stop_after and fails >= s.stop_after:
@@ -233,10 +239,12 @@ def _rotation_test(model, s: WorkspaceSettings, rec: dict, i: int, point, base, 
             r = model.reach(goals[j], state=state if s.sequential else res.state, tol_mm=s.tol_mm,
                             tol_deg=s.tol_rot_deg, max_steps=s.max_steps)
             rec["rot_error_mm"][i, j], rec["rot_error_deg"][i, j] = pose_errors(goals[j], r.pose)
+            if s.stop_beyond_strain and (r.left_domain or _within(rec, i, j, s)):
+                rec["rot_beyond"][i, j] = r.left_domain or not model.max_principal_strain(r.state) <= s.strain_limit
             jump = max(jump, float(np.abs(r.pose[:3] - pose[:3]).max()))  # [mm], any coordinate
             if s.sequential:
                 state, pose = r.state, r.pose
-    ok = (rec["rot_error_mm"][i] <= s.tol_mm) & (rec["rot_error_deg"][i] <= s.tol_rot_deg)
+    ok = (rec["rot_error_mm"][i] <= s.tol_mm) & (rec["rot_error_deg"][i] <= s.tol_rot_deg) & ~rec["rot_beyond"][i]
     if s.jump_mm is not None:
         rec["rot_jump_mm"][i] = jump
         ok &= jump <= s.jump_mm
@@ -244,7 +252,8 @@ def _rotation_test(model, s: WorkspaceSettings, rec: dict, i: int, point, base, 
 
 
 def _within(rec, i, j, s) -> bool:
-    return bool(rec["rot_error_mm"][i, j] <= s.tol_mm and rec["rot_error_deg"][i, j] <= s.tol_rot_deg)
+    return bool(rec["rot_error_mm"][i, j] <= s.tol_mm and rec["rot_error_deg"][i, j] <= s.tol_rot_deg
+                and not rec["rot_beyond"][i, j])
 
 
 def domain_spec(spec: ModelSpec, settings: WorkspaceSettings) -> ModelSpec:

@@ -78,11 +78,11 @@ def run(ctx: StageContext) -> dict:
                "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
               + [f"rot{c}_error_deg" for c in ROT_COLS] + [f"rot{c}_error_mm" for c in ROT_COLS]
               + ["rot_x_ok", "rot_y_ok", "rot_z_ok", "rot_jump_mm", "max_principal_strain", "valid",
-                 "min_singular_value", "component", "converged", "left_domain"])
+                 "min_singular_value", "component", "converged", "left_domain", "rot_beyond_strain"])
     rows = ([i, grid.ray[i], grid.index[i], *res.goals[i], res.cls[i], CLASS_NAMES[res.cls[i]], r.tried[i],
              r.reached[i], r.error_mm[i], r.error_deg[i], r.steps[i], *r.motors_deg[i], *r.rot_error_deg[i],
              *r.rot_error_mm[i], *r.rot_ok[i], r.rot_jump_mm[i], r.strain[i], res.valid[i], r.sigma_min[i],
-             res.component[i], r.converged[i], r.left_domain[i]]
+             res.component[i], r.converged[i], r.left_domain[i], int(r.rot_beyond[i].sum())]
             for i in range(len(grid)))
     write_csv(ctx.path("workspace.csv"), header, rows)
     write_vtp(ctx.path("workspace.vtp"), res.goals, {
@@ -102,6 +102,7 @@ def run(ctx: StageContext) -> dict:
         "solver_failures": int((r.tried & ~r.converged).sum()),
         "invalid_strain": int((reached & ~res.valid).sum()), "strain_limit": p.strain_limit,
         "left_domain": int(r.left_domain.sum()),
+        "rotations_beyond_strain": int(r.rot_beyond.sum()),
         "stop_beyond_strain": p.stop_beyond_strain, "strain_band_mm": getattr(spec, "strain_band_mm", None),
         "max_strain": float(np.nanmax(r.strain[reached])) if reached.any() else None,
         "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
