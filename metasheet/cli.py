@@ -101,6 +101,33 @@ def _progress_factory(progress: Progress):
     return factory
 
 
+def _log_progress_factory(target: Console, every_s: float = 30.0, clock=None):
+    """Progress as plain lines for a log (no terminal): a line when a task starts, ends, passes
+    another tenth of its total, or ``every_s`` seconds after the last line, with the elapsed
+    time and a linear estimate of the time left."""
+    import time
+
+    clock = clock or time.monotonic
+
+    def factory(stage: str):
+        seen: dict[str, tuple] = {}  # label -> (start, last line time, last tenth)
+
+        def update(desc: str, done: int, total: int) -> None:
+            label, now = f"{stage}: {desc}", clock()
+            start, last, tenth = seen.get(label, (now, None, -1))
+            t = int(10 * done / total) if total else 10
+            if last is not None and done < total and t == tenth and now - last < every_s:
+                return
+            seen[label] = (start, now, t)
+            left = (now - start) * (total - done) / done if 0 < done < total else None
+            eta = "" if left is None else f", ~{left:.0f} s left"
+            target.print(f"{label} {done}/{total} ({now - start:.0f} s{eta})", soft_wrap=True, markup=False)
+
+        return update
+
+    return factory
+
+
 def _reporter(target: Console):
     def report(stage: str, message: str) -> None:
         target.print(Text.assemble((stage, "bold"), ": ", str(message)), soft_wrap=True)
@@ -138,7 +165,8 @@ def run(
             outcomes = run_pipeline(p, report=_reporter(progress.console),
                                     progress_factory=_progress_factory(progress), **options)
     else:
-        outcomes = run_pipeline(p, report=_reporter(console), **options)
+        outcomes = run_pipeline(p, report=_reporter(console), progress_factory=_log_progress_factory(console),
+                                **options)
     stdout.print(_table(f"pipeline {p.name}", ("stage", "status", "time [s]", "outputs"),
                         [(o.name, o.status, f"{o.wall_time:.1f}", o.directory) for o in outcomes]))
 

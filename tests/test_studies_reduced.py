@@ -17,7 +17,7 @@ from metasheet.material import Isotropic
 from metasheet.studies.adapter import FemRobot, paper_robot_spec
 from metasheet.studies.certify import certify_study, sample
 from metasheet.studies.grid import star_grid
-from metasheet.studies.reduced_adapter import ReducedFem, ReducedSpec, box_exit
+from metasheet.studies.reduced_adapter import ReducedFem, ReducedSpec
 from metasheet.studies.workspace import WorkspaceSettings, explore_workspace
 
 POSITION_TARGET_MM = 0.1  # the reduce stage's certificate target for positions inside the box [mm]
@@ -95,112 +95,78 @@ def test_outside_the_box_warns_once_and_is_the_full_model(trained, caplog):
     assert model.max_principal_strain(st) == pytest.approx(ref.max_principal_strain(st_ref), abs=1e-12)
 
 
-def test_reach_ending_outside_the_box_is_redone_by_the_full_model(trained, caplog):
-    spec, rspec, _ = trained
+def test_a_stop_ends_the_controller_before_the_step_that_fires_it(trained):
+    spec, _, _ = trained
+    ref = FemRobot(spec)
+    goal = ref.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])
+    free = ref.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    q0 = ref.rest_motors()
+    far = np.abs(free.motors_deg - q0).max()
+    assert far > 6.0 and not free.stopped  # the free reach moves a motor further than the stop allows
+    r = ref.reach(goal, tol_mm=0.5, rot_weight=0.0, stop=lambda st: np.abs(np.degrees(st.angles) - q0).max() > 3.0)
+    assert r.stopped and not r.reached and r.steps >= 1 and np.abs(r.motors_deg - q0).max() <= 3.0
+    pose, _ = ref.equilibrium(r.motors_deg)  # the stopped state is an equilibrium (certified)
+    assert np.abs(pose - r.pose).max() < 1e-6
+
+
+def test_a_reach_leaving_the_box_is_carried_on_by_the_full_model_from_the_edge(trained, caplog):
+    spec, rspec, basis = trained
     model, ref = ReducedFem(rspec), FemRobot(spec)
     goal = model.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
     with caplog.at_level(logging.WARNING, logger=LOG):
         r = model.reach(goal, tol_mm=0.5, rot_weight=0.0)
     assert model.fallbacks == 1 and any("training box" in x.getMessage() for x in caplog.records)
-    rf = ref.reach(goal, tol_mm=0.5, rot_weight=0.0)
-    assert r.reached == rf.reached and hasattr(r.state, "x")
-    assert np.abs(r.motors_deg - rf.motors_deg).max() < 1e-6
-    assert np.abs(r.pose - rf.pose).max() < 1e-6
+    rf = ref.reach(goal, tol_mm=0.5, rot_weight=0.0)  # the full model's own reach from rest
+    assert r.reached and rf.reached and hasattr(r.state, "x") and not model.in_box(r.motors_deg)
+    pose, _ = ref.equilibrium(r.motors_deg)  # independent: the full model at the answer's motors
+    assert np.abs(pose - r.pose).max() < 1e-6 and r.error_mm <= 0.5
+    assert np.abs(r.motors_deg - rf.motors_deg).max() < 2.0  # another path, the same neighbourhood
+    # from that full state outside the box, the next goal is the full model's alone
+    r3 = model.reach(goal + np.array([0.0, 0.5, 0.0, 0, 0, 0]), state=r.state, tol_mm=0.5, rot_weight=0.0)
+    assert r3.reached and hasattr(r3.state, "x") and model.fallbacks == 1
     # a reach inside the box stays reduced and lands where the full model does at its motors
     g2 = model.rest_pose() + np.array([0.0, 2.0, 1.0, 0, 0, 0])
-    r2 = model.reach(g2, tol_mm=0.5, rot_weight=0.0)
-    assert model.fallbacks == 1 and r2.reached and not hasattr(r2.state, "x")
+    fresh = ReducedFem(rspec)
+    r2 = fresh.reach(g2, tol_mm=0.5, rot_weight=0.0)
+    assert fresh.fallbacks == 0 and r2.reached and not hasattr(r2.state, "x")
     pose_full, _ = ref.equilibrium(r2.motors_deg)
     assert np.linalg.norm(pose_full[:3] - r2.pose[:3]) <= POSITION_TARGET_MM
 
 
-def test_a_reach_leaving_the_box_beyond_the_domain_strain_stops_at_its_edge(trained):
-    """The edge state is the reduced equilibrium where the motor path leaves the box, and its
-    strain is the full model's at the same angles (within the basis's error); below the
-    limit the reach is the full model's, as without a domain strain."""
+def test_a_reach_leaving_the_box_stops_where_the_strain_passes_the_domain_limit(trained):
+    """Beyond at the box's edge: the reduced edge state, its strain the full model's at the same
+    angles (within the basis's error). Between the edge and the answer: the full continuation
+    stops past the box, at a full equilibrium beyond the limit. Above the answer's strain: the
+    full model's answer, as without a domain strain."""
     spec, rspec, basis = trained
-    goal = FemRobot(spec).rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
+    ref = FemRobot(spec)
+    goal = ref.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
     low = ReducedFem(rspec.with_domain_strain(1e-4))  # every edge is beyond
     r = low.reach(goal, tol_mm=0.5, rot_weight=0.0)
     assert r.left_domain and not r.reached and low.fallbacks == 0 and low.edge_stops == 1
     assert not hasattr(r.state, "x") and low.in_box(r.motors_deg)
-    q = np.radians(r.motors_deg)
-    assert np.isclose(q, basis.box_lo).any() or np.isclose(q, basis.box_hi).any()  # on the box's boundary
-    pose_full, st_full = FemRobot(spec).equilibrium(r.motors_deg)
-    strain, strain_full = low.max_principal_strain(r.state), FemRobot(spec).max_principal_strain(st_full)
-    # a mixed corner of the box here (motors at both ends): the 12-snapshot test basis is least
-    # accurate there (0.34 mm); the strain, which decides, within a few per cent
+    q = np.radians(r.motors_deg)  # within one control step (max_step_deg) of the box's boundary
+    margin = np.radians(spec.max_step_deg)
+    assert (np.minimum(q - basis.box_lo, basis.box_hi - q) <= margin).any()
+    pose_full, st_full = ref.equilibrium(r.motors_deg)
+    s_edge, s_edge_full = low.max_principal_strain(r.state), ref.max_principal_strain(st_full)
     assert np.linalg.norm(pose_full[:3] - r.pose[:3]) <= 1.0
-    assert strain > 1e-4 and strain == pytest.approx(strain_full, rel=0.05)
+    assert s_edge > 1e-4 and s_edge == pytest.approx(s_edge_full, rel=0.05)
     high = ReducedFem(rspec.with_domain_strain(10.0))  # nothing is beyond: the full model's answer
     rh = high.reach(goal, tol_mm=0.5, rot_weight=0.0)
-    assert not rh.left_domain and high.edge_stops == high.walk_stops == 0 and hasattr(rh.state, "x")
-    assert high.full_checks + high.fallbacks == 1
-    pose_ref, _ = FemRobot(spec).equilibrium(rh.motors_deg)  # independent: the full model at its motors
-    assert np.abs(pose_ref - rh.pose).max() < 1e-6
+    assert rh.reached and not rh.left_domain and high.edge_stops == high.strain_stops == 0 and high.fallbacks == 1
+    s_end = ref.max_principal_strain(rh.state)
+    assert s_end > 1.2 * s_edge_full  # the strain grows past the box: a limit fits between
+    limit = 0.5 * (s_edge_full + s_end)
+    mid = ReducedFem(rspec.with_domain_strain(limit))
+    rm = mid.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert rm.left_domain and not rm.reached and hasattr(rm.state, "x") and not mid.in_box(rm.motors_deg)
+    assert mid.strain_stops == 1 and mid.edge_stops == 0
+    pose_at, st_at = ref.equilibrium(rm.motors_deg)  # independent: beyond the limit there
+    assert ref.max_principal_strain(st_at) > limit and np.abs(pose_at - rm.pose).max() < 1e-6
+    assert rm.steps < rh.steps  # it stopped on the way
     assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key)
     assert rspec.with_domain_strain(None).key == rspec.key
-
-
-def test_beyond_the_box_the_full_model_walks_the_motor_path_to_the_strain_limit(trained):
-    """A limit between the strain at the box's edge and at the reduced answer: the full model's
-    walk along the straight motor path stops at its first step beyond the limit; independent
-    full equilibria at that step and at the one before it sit on either side of the limit."""
-    from metasheet.studies.reduced_adapter import WALK_STEP_DEG
-    from metasheet.studies.workspace import start_state
-
-    spec, rspec, basis = trained
-    ref = FemRobot(spec)
-    goal = ref.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
-    probe = ReducedFem(rspec)
-    r_red = super(ReducedFem, probe).reach(goal, state=start_state(probe), tol_mm=0.5, rot_weight=0.0)
-    q0, q_end = probe.rest.angles, np.radians(r_red.motors_deg)
-    edge = box_exit(q0, q_end, basis.box_lo, basis.box_hi)
-    s_edge = ref.max_principal_strain(ref.equilibrium(np.degrees(edge))[1])
-    s_end = ref.max_principal_strain(ref.equilibrium(r_red.motors_deg)[1])
-    assert s_end > 1.2 * s_edge  # the path's strain grows beyond the box: a limit fits between
-    limit = 0.5 * (s_edge + s_end)
-    model = ReducedFem(rspec.with_domain_strain(limit))
-    r = model.reach(goal, tol_mm=0.5, rot_weight=0.0)
-    assert r.left_domain and not r.reached and hasattr(r.state, "x")
-    assert model.walk_stops == 1 and model.edge_stops == model.fallbacks == model.full_checks == 0
-    n = int(np.ceil(np.degrees(np.abs(q_end - edge).max()) / WALK_STEP_DEG))
-    step = (q_end - edge) / n
-    i = np.rint(np.linalg.norm(np.radians(r.motors_deg) - edge) / np.linalg.norm(step))
-    assert 1 <= i <= n and np.allclose(np.radians(r.motors_deg), edge + i * step, atol=1e-9)  # on the path
-    pose_at, st_at = ref.equilibrium(r.motors_deg)
-    before = ref.max_principal_strain(ref.equilibrium(np.degrees(edge + (i - 1) * step))[1])
-    assert ref.max_principal_strain(st_at) > limit >= before
-    assert np.abs(pose_at - r.pose).max() < 1e-6
-
-
-def test_a_reach_just_outside_the_box_is_answered_by_one_full_equilibrium(trained):
-    """The reduced answer's motors, checked by the full model: its equilibrium there meets the
-    goal's tolerance, so it is the answer (a full state), without the full model's reach."""
-    spec, rspec, _ = trained
-    ref = FemRobot(spec)
-    q = ref.rest_motors() + np.array([12.0, 0, 0, 0, 0, -6.0])  # 2 deg beyond rest +-10 deg
-    goal, _ = ref.equilibrium(q)
-    model = ReducedFem(rspec)
-    r = model.reach(goal, tol_mm=0.5, tol_deg=0.5)  # the whole pose: one set of motors, outside the box
-    assert r.reached and hasattr(r.state, "x") and model.full_checks == 1 and model.fallbacks == 0
-    assert not model.in_box(r.motors_deg)
-    pose, _ = ref.equilibrium(r.motors_deg)  # independent: the full model at the answer's motors
-    assert np.abs(pose - r.pose).max() < 1e-6 and r.error_mm == pytest.approx(np.linalg.norm(pose[:3] - goal[:3]))
-    assert r.error_mm <= 0.5 and r.error_deg <= 0.5
-    # a tolerance the reduced answer's motors miss under the full model: the full model's reach
-    tight = ReducedFem(rspec)
-    tight.reach(goal, tol_mm=1e-4, tol_deg=0.5, max_steps=5)
-    assert tight.full_checks == 0 and tight.fallbacks == 1
-
-
-def test_box_exit_is_where_the_motor_path_leaves_the_box():
-    lo, hi = np.zeros(3), np.ones(3)
-    q0 = np.array([0.5, 0.5, 0.5])
-    assert np.allclose(box_exit(q0, [0.5, 2.5, 0.0], lo, hi), [0.5, 1.0, 0.375])  # y leaves first, t = 1/4
-    assert np.allclose(box_exit(q0, [-1.5, 0.5, 0.9], lo, hi), [0.0, 0.5, 0.6])  # x through 0, t = 1/4
-    assert np.allclose(box_exit(q0, [0.8, 0.2, 0.5], lo, hi), [0.8, 0.2, 0.5])  # inside: the end itself
-    assert np.allclose(box_exit([1.0, 0.5, 0.5], [2.0, 0.5, 0.5], lo, hi), [1.0, 0.5, 0.5])  # on the edge: t = 0
 
 
 def test_a_ray_stopping_beyond_the_strain_limit_ends_at_the_edge_of_the_reduced_models_domain(trained):

@@ -149,7 +149,7 @@ class InverseResult:
 
     Attributes
     ----------
-    status : "reached", "stalled" or "max_steps".
+    status : "reached", "stalled", "max_steps" or "stopped" (the caller's ``stop`` fired).
     state : equilibrium at the final motor angles.
     angles_deg : (na,) final motor angles [deg].
     pose : (6,) final effector pose (mm, deg: rotation vector).
@@ -351,12 +351,15 @@ class InverseController:
         return good
 
     def goto(self, pose, state: RobotState | None = None, *,
-             settings: InverseSettings | None = None) -> InverseResult:
+             settings: InverseSettings | None = None, stop=None) -> InverseResult:
         """Drive the effector to ``pose`` (6,) = (x, y, z [mm], rotation vector [deg]).
 
         ``state`` : where to start (default: the current state); a state this controller
         produced keeps the kept tangent (see the module docstring on continuation).
         ``settings`` : this call's settings (default :attr:`settings`, which stay unchanged).
+        ``stop`` : ``stop(state) -> bool`` asked after each step; True ends the run at the
+        state before that step (status "stopped"): a caller's domain (a reduced model's box,
+        a strain limit) is not crossed.
         """
         pose = np.asarray(pose, dtype=float).reshape(-1)
         if pose.shape != (6,) or not np.all(np.isfinite(pose)):
@@ -386,9 +389,13 @@ class InverseController:
                 if since >= s.stall_steps:
                     status = "stalled"
                     break
+            before = self.state
             info = self.step(goal_p, goal_R, settings=s)
             times.append(info.time)
             res.append(info.residual)
+            if stop is not None and stop(self.state):
+                self.state, status = before, "stopped"
+                break
         if status != "reached":
             if status == "stalled":
                 self.state = best_state

@@ -198,7 +198,10 @@ class FemRobot:
     def rest_motors(self) -> np.ndarray:
         return np.degrees(self.rest.angles)
 
-    def reach(self, goal, *, state=None, tol_mm=1.0, tol_deg=None, max_steps=50, rot_weight=None) -> ReachResult:
+    def reach(self, goal, *, state=None, tol_mm=1.0, tol_deg=None, max_steps=50, rot_weight=None,
+              stop=None) -> ReachResult:
+        """The inverse controller's run towards ``goal`` (6,) [mm, rad] from ``state`` (None: rest);
+        ``stop(state) -> bool`` ends it before a step that makes it True (``stopped``)."""
         goal = np.asarray(goal, float)
         # rot_weight 0 (position only) becomes a tiny weight: the controller needs w > 0
         rw = self.settings.rot_weight if rot_weight is None else max(float(rot_weight), 1e-6)
@@ -211,14 +214,14 @@ class FemRobot:
         try:
             # continuation: a state this controller produced (the previous point on a ray, the
             # point a rotation is tried from) keeps its tangent; the loop still checks it
-            r = self.ctrl.goto(goal_deg, state=self.rest if state is None else state, settings=settings)
-            st, steps = r.state, r.steps
+            r = self.ctrl.goto(goal_deg, state=self.rest if state is None else state, settings=settings, stop=stop)
+            st, steps, stopped = r.state, r.steps, r.status == "stopped"
         except ConvergenceError:  # the final equilibrium failed: report the last control state
-            st, steps, converged = self.ctrl.state, self.ctrl.total_steps - steps0, False
+            st, steps, converged, stopped = self.ctrl.state, self.ctrl.total_steps - steps0, False, False
         pose = st.pose
         e_mm, e_deg = pose_errors(goal, pose)
         ok = converged and e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)
-        return ReachResult(ok, pose, np.degrees(st.angles), e_mm, e_deg, int(steps), st, converged)
+        return ReachResult(ok, pose, np.degrees(st.angles), e_mm, e_deg, int(steps), st, converged, stopped=stopped)
 
     def equilibrium(self, motors_deg, *, state=None):
         from ..robot.equilibrium import solve_equilibrium

@@ -35,9 +35,11 @@ class ReachResult:
     state : opaque model state, to continue from (picklable).
     converged : False when the model's equilibrium solver failed (the pose is then the last
         control state's, and the goal counts as not reached).
-    left_domain : True when the reach left the model's domain on the way (a reduced model's
-        motor path out of its training box, where the material passes the strain limit): the
-        pose and state are those where it passed, and the goal counts as not reached.
+    left_domain : True when the reach left the model's domain on the way (past a reduced
+        model's training box, the material beyond the strain limit): the pose and state are
+        those where it left, and the goal counts as not reached.
+    stopped : True when the caller's ``stop`` ended the reach before its goal (the state is
+        the last one before ``stop`` fired).
     """
 
     reached: bool
@@ -49,6 +51,7 @@ class ReachResult:
     state: Any = None
     converged: bool = True
     left_domain: bool = False
+    stopped: bool = False
 
 
 @runtime_checkable

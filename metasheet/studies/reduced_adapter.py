@@ -8,30 +8,22 @@ fallbacks and the certificate), the :class:`~metasheet.robot.reduced.ReducedRobo
 the eq. (8) controller on the reduced robot, limited to the spec's motor range.
 
 Outside its training box (``basis.box_lo``, ``basis.box_hi`` [rad]) the reduced model would
-extrapolate: an equilibrium asked there is solved by the full model, and a reach that ends
-there is judged as below (a warning is logged once per model when the full model takes over;
-:attr:`ReducedFem.fallbacks` counts those). Such a result carries a full
-:class:`~metasheet.robot.statics.RobotState`; a call given a full state continues on the
+extrapolate, and it never does: an equilibrium asked there is solved by the full model, and a
+reach is stopped before the control step that would leave the box (``stop`` of
+:meth:`~metasheet.robot.inverse.InverseController.goto`); from that state, lifted to the full
+mesh, the full model carries the reach on (a warning is logged once per model when the full
+model takes over; :attr:`ReducedFem.fallbacks` counts those). Such a result carries a full
+:class:`~metasheet.robot.statics.RobotState`; a reach given a full state continues on the
 reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.project`)
-when it lies in the box, else from the reduced rest.
+when it lies in the box, else on the full model.
 
 With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
-beyond the strain limit) a reach that leaves the box is followed along the straight path in
-motor space from its start to its end: first to where that path leaves the box
-(:func:`box_exit`), on the reduced model; when the material there is already beyond the limit,
-the goal lies outside the homogenised model's domain and the reach returns that edge state
-with ``left_domain`` set (not reached). Otherwise the full model takes the path on from the
-edge, in steps of at most :data:`WALK_STEP_DEG` (each a full equilibrium from the last, a
-second or so on the converged mesh), and stops with ``left_domain`` at the first step beyond
-the limit. A path that stays within the limit ends at the full equilibrium at the reduced
-answer's motor angles: that is the answer when it meets the goal's tolerances, else the full
-model reaches the goal from there.
-
-Without a domain strain, a reach outside the box that the reduced model says reached its goal
-is checked by the full model's equilibrium at the reduced answer's motor angles (one solve
-instead of a whole reach): when the full pose there meets the goal's tolerances, that full
-equilibrium is the answer (a full state, judged as the full model's reach would be). Only
-otherwise does the full model reach the goal itself.
+beyond the strain limit), a reach that stops at the box's edge with the material there already
+beyond the limit ends there: the goal lies outside the homogenised model's domain, and the
+reach returns that edge state with ``left_domain`` set (not reached), without the full model.
+Otherwise the full model's continuation stops at its first control step beyond the limit
+and returns the equilibrium there, also with ``left_domain``: the study pays a few full steps past the box, not a full reach to
+angles where the material model no longer holds (minutes each on the converged mesh).
 
 A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
 for one material): those return the full model's spec, with a logged warning, so a study that
@@ -53,11 +45,6 @@ from .model import pose_errors
 
 log = logging.getLogger(__name__)
 
-#: Largest motor step [deg] of the full model's walk beyond the box (module docstring): on the
-#: authors' P2 robot the strain grows ~0.03 per degree there, so a 2 deg step overshoots the
-#: limit by at most ~0.06 and the walk stops one or two solves past the box.
-WALK_STEP_DEG = 2.0
-
 
 def file_hash(path: Path | str) -> str:
     """sha256 of a file's bytes (hex, 24 characters)."""
@@ -74,8 +61,8 @@ class ReducedSpec:
     basis_path : absolute path of the ``reduce`` stage's ``basis.npz`` (workers read it: on a
         dask cluster it must be on a shared file system).
     basis_hash : :func:`file_hash` of that file when the spec was made (checked at build).
-    domain_strain : the strain limit [-] a reach leaving the box is checked against on its way
-        out (see the module docstring); None: such reaches are checked or redone by the full model.
+    domain_strain : the strain limit [-] a reach leaving the box is stopped at (see the module
+        docstring); None: such reaches are carried on by the full model to their end.
     """
 
     full: RobotSpec
@@ -97,8 +84,8 @@ class ReducedSpec:
         return "rom-" + hashlib.sha256(f"{self.full.key}|{self.basis_hash}{tail}".encode()).hexdigest()[:24]
 
     def with_domain_strain(self, limit: float | None) -> "ReducedSpec":
-        """The same reduced robot whose reaches leaving the box stop where their motor path
-        passes the strain ``limit`` [-] (None: they are checked or redone by the full model)."""
+        """The same reduced robot whose reaches leaving the box stop where the material passes
+        the strain ``limit`` [-] (None: the full model carries them on to their end)."""
         return replace(self, domain_strain=None if limit is None else float(limit))
 
     @property
@@ -178,8 +165,7 @@ class ReducedFem(FemRobot):
         self.rod_axis = self.full.rod_axis
         self.fallbacks = 0
         self.edge_stops = 0  # reaches stopped at the box's edge beyond the domain strain
-        self.walk_stops = 0  # reaches stopped by the full model's walk beyond the box
-        self.full_checks = 0  # reaches outside the box answered by one full equilibrium
+        self.strain_stops = 0  # full continuations stopped at the strain limit past the box
         self._warned = False
 
     # -- which model a state belongs to ----------------------------------------------------
@@ -228,89 +214,49 @@ class ReducedFem(FemRobot):
 
     # -- the protocol ----------------------------------------------------------------------
     def reach(self, goal, *, state=None, **kw):
-        """:meth:`FemRobot.reach` on the reduced model (from ``state``'s reduced counterpart, or
-        the reduced rest when ``state`` lies outside the box); an answer outside the box is
-        followed beyond the box by the full model, checked by it, or redone by it (module docstring)."""
-        start = self._to_reduced(state)
-        r = super().reach(goal, state=start, **kw)
-        if self.in_box(r.motors_deg):
-            return r
-        if self.spec.domain_strain is not None:
-            walked, end = self._walk_beyond_box(goal, r, start, **kw)
-            if walked is not None:
-                return walked
-            full_start = end if end is not None else self._to_full(state)
-        else:
-            checked = self._checked_by_full(goal, r, **kw)
-            if checked is not None:
-                return checked
-            full_start = self._to_full(state)
-        self._fallback("reach", r.motors_deg)
-        return self.full.reach(goal, state=full_start, **kw)
-
-    def _checked_by_full(self, goal, r, *, tol_mm=1.0, tol_deg=None, **_):
-        """A reduced reach ``r`` that reached its goal outside the box, checked by the full
-        model's equilibrium at its motor angles (one solve, from the reduced state's
-        reconstruction): that equilibrium, when it meets the goal's tolerances (a full
-        :class:`ReachResult`, as the full model's reach would be judged); else None."""
-        from ..robot.equilibrium import solve_equilibrium
-        from .model import ReachResult
-
-        if not r.reached:
-            return None
-        try:
-            st = solve_equilibrium(self.full.robot, np.radians(r.motors_deg), state=self.robot.full_state(r.state),
-                                   linearizer=self.full.lz).state
-        except ConvergenceError:
-            return None
-        e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
-        if not (e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)):
-            return None
-        self.full_checks += 1
-        return ReachResult(True, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True)
-
-    def _walk_beyond_box(self, goal, r, start, *, tol_mm=1.0, tol_deg=None, **_):
-        """Follow the reduced reach ``r`` that left the box along its straight motor path (module
-        docstring). Returns ``(result, None)`` with a :class:`ReachResult` when the path leaves
-        the strain limit (``left_domain``) or ends at a full equilibrium meeting the goal's
-        tolerances; else ``(None, end)``, ``end`` the full equilibrium at ``r``'s motors (None
-        when a full solve on the way failed)."""
-        from ..robot.equilibrium import solve_equilibrium
-        from .model import ReachResult
-
+        """:meth:`FemRobot.reach` on the reduced model within its box, carried on by the full
+        model past it (module docstring)."""
         limit = self.spec.domain_strain
-        goal = np.asarray(goal, float)
-        start = self.rest if start is None else start
-        q_end = np.radians(r.motors_deg)
-        edge = box_exit(start.angles, q_end, self.basis.box_lo, self.basis.box_hi)
-
-        def result(st, reached, stopped):
-            e_mm, e_deg = pose_errors(goal, st.pose)
-            return ReachResult(reached, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True,
-                               left_domain=stopped)
-
-        try:
-            st = solve_equilibrium(self.robot, edge, state=start, linearizer=self.lz).state
-        except ConvergenceError:
-            return None, None
-        if not self.max_principal_strain(st) <= limit:
+        if self._is_full(state) and not self.robot.in_box(state.angles):  # already past the box
+            return self._full_reach(goal, state, limit, **kw)
+        r = super().reach(goal, state=self._to_reduced(state), stop=self._leaves_box, **kw)
+        if not r.stopped:
+            return r
+        if limit is not None and not self.max_principal_strain(r.state) <= limit:
             self.edge_stops += 1
-            return result(st, False, True), None
-        n = max(1, int(np.ceil(np.degrees(np.abs(q_end - edge).max()) / WALK_STEP_DEG)))
-        st = self.robot.full_state(st)
-        for q in [edge] + [edge + (q_end - edge) * i / n for i in range(1, n + 1)]:
-            try:
-                st = solve_equilibrium(self.full.robot, q, state=st, linearizer=self.full.lz).state
-            except ConvergenceError:
-                return None, None
-            if not self.full.max_principal_strain(st) <= limit:
-                self.walk_stops += 1
-                return result(st, False, True), None
-        out = result(st, False, False)
-        if r.reached and out.error_mm <= tol_mm and (tol_deg is None or out.error_deg <= tol_deg):
-            self.full_checks += 1
-            return replace(out, reached=True), None
-        return None, st
+            return replace(r, left_domain=True)
+        self._fallback("reach", r.motors_deg)
+        return self._full_reach(goal, self._to_full(r.state), limit, **kw)
+
+    def _leaves_box(self, state) -> bool:
+        return not self.robot.in_box(state.angles)
+
+    def _full_reach(self, goal, state, limit, **kw):
+        """The full model's reach from the full ``state``; with a strain ``limit``, stopped at
+        the first control step beyond it, whose equilibrium is returned with ``left_domain``."""
+        from ..robot.equilibrium import solve_equilibrium
+        from .model import ReachResult
+
+        if limit is None:
+            return self.full.reach(goal, state=state, **kw)
+        fired = []
+
+        def beyond(st) -> bool:
+            if self.full.max_principal_strain(st) <= limit:
+                return False
+            fired.append(st)
+            return True
+
+        r = self.full.reach(goal, state=state, stop=beyond, **kw)
+        if not r.stopped:
+            return r
+        self.strain_stops += 1
+        try:
+            st = solve_equilibrium(self.full.robot, fired[-1].angles, state=fired[-1], linearizer=self.full.lz).state
+        except ConvergenceError:  # no equilibrium there: the last one within the limit
+            return replace(r, left_domain=True)
+        e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
+        return ReachResult(False, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True, left_domain=True)
 
     def equilibrium(self, motors_deg, *, state=None):
         """:meth:`FemRobot.equilibrium` on the reduced model, or the full one outside the training box."""
@@ -359,17 +305,6 @@ class ReducedFem(FemRobot):
             full_err, conv = nan, False
         ok = conv and full_err[0] <= tol_mm and (tol_deg is None or full_err[1] <= tol_deg)
         return PointCertificate(*red_err, *full_err, conv, bool(ok), self.robot.in_box(ang))
-
-
-def box_exit(q0, q1, lo, hi) -> np.ndarray:
-    """(na,) the point where the segment from ``q0`` (in the box [lo, hi]) to ``q1`` leaves the
-    box (``q1`` itself when it does not); all (na,) in the same unit."""
-    q0, q1, lo, hi = (np.asarray(a, float) for a in (q0, q1, lo, hi))
-    d = q1 - q0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        room = np.where(d > 0, (hi - q0) / d, np.where(d < 0, (lo - q0) / d, np.inf))
-    t = float(np.clip(room.min(initial=1.0), 0.0, 1.0))
-    return np.clip(q0 + t * d, lo, hi)  # the clip: round-off only
 
 
 @dataclass(frozen=True)
