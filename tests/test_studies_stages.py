@@ -234,3 +234,31 @@ def test_study_mesh_size_remeshes_the_orient_sheet(tmp_path):
     # uniform design: every carried-over constant is one of the orient mesh's
     assert ca2.shape == (len(a2.tets), 5) and np.allclose(ca2, ca[0])
     assert set(np.unique(a2.attach)) == {0, 1, 2, 3, 4}
+
+
+def test_workspace_within_the_strain_limit_counts_its_stops_in_the_csv_json_and_report(tmp_path):
+    import json
+
+    text = f"""[pipeline]
+name = "sl"
+stages = ["workspace", "report"]
+[workspace]
+model = "standin"
+continuity = false
+stop_beyond_strain = true
+strain_limit = 0.04
+{GRID}
+"""
+    run_pipeline(load_pipeline(project(tmp_path, text, "sl")))
+    out = tmp_path / "outputs" / "sl"
+    rows = read_csv(out / "workspace" / "workspace.csv")
+    w = json.loads((out / "workspace" / "workspace.json").read_text())
+    beyond = sum(int(r["rot_beyond_strain"]) for r in rows)
+    assert beyond > 0 and w["rotations_beyond_strain"] == beyond  # the stand-in's limit is low: some fail
+    # every reached point within the limit (at most the last of a ray beyond) and its failed tries
+    for r in rows:
+        if int(r["rot_beyond_strain"]):
+            assert r["reached"] in ("1", "True") and float(r["max_principal_strain"]) <= 0.04
+    text = (out / "report" / "report.md").read_text()
+    assert f"| rotation tries failed beyond the strain limit | {beyond} |" in text
+    assert "a rotation try counts only within it" in text

@@ -33,6 +33,14 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def _domain_rows(w: dict) -> list:
+    """The workspace table's rows on the strain limit's domain (only when the study stops there)."""
+    if not w.get("stop_beyond_strain"):
+        return []
+    return [("reaches stopped where the material left the strain limit", w.get("left_domain", 0)),
+            ("rotation tries failed beyond the strain limit", w.get("rotations_beyond_strain", 0))]
+
+
 def _rotation_test(t: Mapping | None) -> str:
     """One line for the workspace's rotation test (``workspace.json``'s ``rotation_test``)."""
     if not t:
@@ -124,6 +132,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                           ("equilibrium failures (counted unreachable)", w.get("solver_failures", 0)), *[(f"class: {k}", v) for k, v in w["counts"].items()],
                           ("max principal strain", w["max_strain"]),
                           (f"points beyond the strain limit {w['strain_limit']}", w["invalid_strain"]),
+                          *_domain_rows(w),
                           ("smallest Jacobian singular value", w["min_singular_value"]),
                           ("connected components", w["components"]),
                           ("continuity paths passed / tested", f"{w['edges_passed']} / {w['edges_tested']}"),
@@ -143,6 +152,10 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         elif w["reachable"] and full < 0.2 * w["reachable"]:
             diffs.append(f"Fig. 5: only {full} of {w['reachable']} reachable points allow all three +-rotations; "
                          "the paper shows full 6-DOF control in a whole area around the rest pose.")
+        if w.get("stop_beyond_strain"):
+            diffs.append(f"Fig. 5 (beyond the paper): the study stays within the strain limit {w['strain_limit']}: "
+                         "a ray ends at its first point beyond it and a rotation try counts only within it "
+                         f"({w.get('rotations_beyond_strain', 0)} tries failed there); the paper counts them all.")
         if w["invalid_strain"]:
             diffs.append(f"Fig. 5 (beyond the paper): {w['invalid_strain']} reachable points exceed the strain "
                          f"limit {w['strain_limit']}: the paper counts them, we flag them as outside the "
