@@ -162,8 +162,9 @@ def test_a_reach_leaving_the_box_stops_where_the_strain_passes_the_domain_limit(
     rm = mid.reach(goal, tol_mm=0.5, rot_weight=0.0)
     assert rm.left_domain and not rm.reached and hasattr(rm.state, "x") and not mid.in_box(rm.motors_deg)
     assert mid.strain_stops == 1 and mid.edge_stops == 0
-    pose_at, st_at = ref.equilibrium(rm.motors_deg)  # independent: beyond the limit there
-    assert ref.max_principal_strain(st_at) > limit and np.abs(pose_at - rm.pose).max() < 1e-6
+    assert ref.max_principal_strain(rm.state) > limit  # the control step that passed the limit
+    pose_at, st_at = ref.equilibrium(rm.motors_deg)  # independent: the equilibrium there, beyond it too
+    assert ref.max_principal_strain(st_at) > limit and np.abs(pose_at - rm.pose).max() < 0.1  # one Newton step off
     assert rm.steps < rh.steps  # it stopped on the way
     assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key)
     assert rspec.with_domain_strain(None).key == rspec.key
