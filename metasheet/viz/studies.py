@@ -38,22 +38,30 @@ def _depth_order(points: np.ndarray, h: int, v: int) -> np.ndarray:
     return np.argsort(points[:, d], kind="stable")
 
 
-def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: float, title: str = "") -> bytes:
+def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: float, title: str = "",
+                      tried=None) -> bytes:
     """Three rows (class, max principal strain, smallest singular value) x three views.
 
     points : (n, 3) [mm]; cls : (n,) int class (-1 unreachable); strain, sigma_min : (n,)
-    (NaN where unreachable); valid : (n,) bool, strain within ``strain_limit``.
+    (NaN where unreachable); valid : (n,) bool, strain within ``strain_limit``; tried : (n,)
+    bool or None: the unreachable points never tried (their ray ended before them) are drawn
+    apart, as "not tried".
     """
     plt = _plt()
     P = np.asarray(points, float)
     cls = np.asarray(cls, int)
     ok = cls >= 0
+    untried = np.zeros(len(cls), bool) if tried is None else (~np.asarray(tried, bool) & ~ok)
     fig, axes = plt.subplots(3, 3, figsize=(15, 14.5), squeeze=False)
     for j, (name, h, v) in enumerate(VIEWS):
         order = _depth_order(P, h, v)
         ax = axes[0, j]
+        far = order[untried[order]]
+        if len(far):
+            ax.scatter(P[far, h], P[far, v], s=4, c="#c8c8c8", lw=0, alpha=0.5,
+                       label=f"not tried: the ray ended before ({len(far)})")
         for c in (-1, 0, 1, 2, 3):
-            sel = order[cls[order] == c]
+            sel = order[(cls[order] == c) & ~untried[order]]
             if len(sel):
                 if c >= 0:
                     ax.scatter(P[sel, h], P[sel, v], s=10, c=CLASS_COLOURS[c], label=f"{CLASS_LABELS[c]} ({len(sel)})",

@@ -94,7 +94,7 @@ def run(ctx: StageContext) -> dict:
     title = (f"Workspace (paper Fig. 5): {len(grid)} goals, {int(r.reached.sum())} reachable, "
              f"{res.n_components} connected component(s) [{p.model}, {settings.test} rotation test]")
     ctx.path("workspace.png").write_bytes(workspace_picture(
-        res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title))
+        res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title, tried=r.tried))
     reached = r.reached
     summary = {
         "points": len(grid), "rays": int(len(grid.directions)), "counts": counts,
