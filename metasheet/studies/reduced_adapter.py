@@ -22,8 +22,9 @@ beyond the strain limit), a reach that stops at the box's edge with the material
 beyond the limit ends there: the goal lies outside the homogenised model's domain, and the
 reach returns that edge state with ``left_domain`` set (not reached), without the full model.
 Otherwise the full model's continuation stops at its first control step beyond the limit
-and returns that step's state, also with ``left_domain``: the study pays a few full steps past the box, not a full reach to
-angles where the material model no longer holds (minutes each on the converged mesh).
+and returns that step's state, also with ``left_domain``: the study pays a few full steps
+past the box, not a full reach to angles where the material model no longer holds (minutes
+each on the converged mesh).
 
 A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
 for one material): those return the full model's spec, with a logged warning, so a study that
