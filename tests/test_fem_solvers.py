@@ -150,6 +150,20 @@ def test_pardiso_is_the_pip_only_direct_solver(monkeypatch, have_cholmod):
     assert solvers.resolve("auto") == ("cholmod" if have_cholmod else "superlu")  # the robot's K_ff
 
 
+def test_auto_takes_a_direct_solver_only_when_its_factor_fits_in_memory(monkeypatch):
+    """The paper's Polyfoam cell (754k dofs: 7.5 GB peak with PARDISO) is factorised when half
+    the available memory holds it, and goes to AMG-CG on a small machine."""
+    _cholmod(monkeypatch, False, pardiso=True)
+    n = 754_407
+    need = solvers.FACTOR_GB_AT_1M["pardiso"] * (n / 1e6) ** (4 / 3)
+    assert 7.0 < need < 8.0
+    assert solvers.choose_solver("auto", n, free_gb=need / solvers.MEMORY_SHARE * 1.01) == "pardiso"
+    assert solvers.choose_solver("auto", n, free_gb=need / solvers.MEMORY_SHARE * 0.99) == "amg-cg"
+    assert solvers.choose_solver("auto", 5_000, free_gb=0.001) == "superlu"  # no estimate: small is cheap
+    assert solvers.choose_solver("direct", n, free_gb=0.001) == "pardiso"  # asked by name: no policy
+    assert solvers.available_gb() > 0
+
+
 @needs_pardiso
 def test_pardiso_solves_spd_exactly_and_agrees_with_superlu(monkeypatch):
     _cholmod(monkeypatch, False, pardiso=True)

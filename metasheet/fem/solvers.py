@@ -17,7 +17,8 @@ Two uses:
 - :func:`solve_spd`: ``A X = B`` for an SPD ``A`` and several right-hand sides
   (homogenisation's six corrector problems, one factorisation or AMG hierarchy for all).
   ``"auto"`` takes the first available direct back-end up to its size limit
-  (:data:`CHOLMOD_MAX_DOF`, :data:`SUPERLU_MAX_DOF`), AMG-CG above.
+  (:data:`PARDISO_MAX_DOF`, :data:`SUPERLU_MAX_DOF`, ...) whose factor fits in the memory
+  available (:func:`factor_fits`), AMG-CG otherwise.
 - :class:`SparseSolver`: repeated factorisations of the robot's free block ``K_ff``, one fixed
   structurally symmetric pattern, slightly non-symmetric values (see :mod:`metasheet.robot.kernels`).
   SuperLU factorises ``K_ff`` itself (every solve exact). CHOLMOD factorises the symmetric part
@@ -33,6 +34,7 @@ Two uses:
 from __future__ import annotations
 
 import importlib
+import os
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -48,15 +50,21 @@ from .assembly import transpose_map
 #: Largest SPD system SuperLU takes under "auto": its fill-in grows fast in 3D (P1 elasticity
 #: cubes, same machine: 0.18 s at 6k dofs, 4.5 s at 26k, 119 s / 6.5 GB at 105k).
 SUPERLU_MAX_DOF = 12_000
-#: Largest SPD system CHOLMOD takes under "auto". Measured on the open-cell 15 % foam
-#: (benchmarks/bench_homogenize.py, 2 shared cores, 1 BLAS thread): CHOLMOD 8 s at 105k
-#: dofs, 12 s / 1.5 GB at 215k, 103 s / 4.5 GB at 614k, where AMG-CG needs 40-100
-#: iterations per load case (thin voxel struts): 38 s, 57 s, 310 s (224k, 3:1 voxels).
-#: Above, the factor's memory (~ n^(4/3)) would pass 6 GB: AMG.
-CHOLMOD_MAX_DOF = 700_000
-#: Largest SPD system PARDISO (MKL, through pypardiso) takes under "auto": its factor's memory
-#: grows like CHOLMOD's (1.75 GB at 215k dofs against CHOLMOD's 1.62 GB).
-PARDISO_MAX_DOF = 700_000
+#: Largest SPD system CHOLMOD takes under "auto", memory permitting (:func:`factor_fits`).
+#: Measured on the open-cell 15 % foam (benchmarks/bench_homogenize.py, 2 shared cores, 1 BLAS
+#: thread): CHOLMOD 8 s at 105k dofs, 12 s / 1.5 GB at 215k, 103 s / 4.5 GB at 614k, where
+#: AMG-CG needs 40-100 iterations per load case (thin voxel struts): 38 s, 57 s, 310 s.
+CHOLMOD_MAX_DOF = 2_000_000
+#: Largest SPD system PARDISO (MKL, through pypardiso) takes under "auto", memory permitting.
+#: On the paper's Polyfoam cell (754k dofs, 3:1 voxels, 1 thread) PARDISO homogenises in 47 s
+#: in all (7.5 GB peak) where AMG-CG's six solves took 366 s: a direct solve wins at any size
+#: whose factor fits in memory.
+PARDISO_MAX_DOF = 2_000_000
+#: Peak memory of a whole homogenisation with the back-end [GB] at 1M dofs; it grows like the
+#: factor, ~ n^(4/3) on 3D meshes (PARDISO: 1.75 GB at 215k, 7.5 GB at 754k: exponent 1.33).
+FACTOR_GB_AT_1M = {"pardiso": 10.9, "cholmod": 8.6}
+#: Share of the available memory one factorisation may take under "auto": two workers fit.
+MEMORY_SHARE = 0.45
 
 
 @dataclass
@@ -229,9 +237,35 @@ class SolveReport:
     n_dof: int
 
 
-def choose_solver(solver: str, n_dof: int) -> str:
+def available_gb() -> float:
+    """Memory available to a new process [GB] (Linux ``MemAvailable``; elsewhere free pages)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024 / 1e9
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 1e9
+    except (ValueError, OSError, AttributeError):
+        return float("inf")  # unknown: the size limits alone decide
+
+
+def factor_fits(name: str, n_dof: int, free_gb: float | None = None) -> bool:
+    """True when the back-end ``name``'s estimated peak memory for ``n_dof`` unknowns
+    (:data:`FACTOR_GB_AT_1M` x (n / 1M)^(4/3)) is within :data:`MEMORY_SHARE` of ``free_gb``
+    (default: :func:`available_gb`). Back-ends without an estimate always fit."""
+    per = FACTOR_GB_AT_1M.get(name)
+    if per is None:
+        return True
+    need = per * (n_dof / 1e6) ** (4.0 / 3.0)
+    return need <= MEMORY_SHARE * (available_gb() if free_gb is None else free_gb)
+
+
+def choose_solver(solver: str, n_dof: int, free_gb: float | None = None) -> str:
     """The concrete solver (a key of :data:`BACKENDS` or "amg-cg") for a request in :data:`SPD_SOLVERS`
-    and a system size."""
+    and a system size; ``free_gb``: the memory to plan with (default: what is available now)."""
     if solver not in SPD_SOLVERS:
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(SPD_SOLVERS)}")
     if solver == "amg":
@@ -245,7 +279,7 @@ def choose_solver(solver: str, n_dof: int) -> str:
     if solver == "direct":
         return direct[0].name
     for b in direct:
-        if n_dof <= b.max_spd_dof:
+        if n_dof <= b.max_spd_dof and factor_fits(b.name, n_dof, free_gb):
             return b.name
     return "amg-cg"
 
