@@ -159,6 +159,11 @@ def test_maze_respects_limits_tracks_and_fails_with_silicone():
     assert foam.motors_deg.min() >= lo and foam.motors_deg.max() <= hi
     assert foam.segment_ok.all()
     assert np.nanmax(foam.track_mm) <= s.tol_mm and np.nanmax(foam.track_deg) <= s.tol_deg
+    # the strain along the path is the replayed equilibrium's: the stand-in's law at its motors
+    rest = MODELS.get(spec).rest_motors()
+    law = spec.strain_per_deg * np.abs(foam.motors_deg - rest).max(axis=1)
+    assert foam.strain.shape == (len(foam.commands.time),) and np.allclose(foam.strain, law, rtol=1e-9)
+    assert foam.strain.max() > 0
     sil = solve_maze(spec.with_alpha(0.0), path, s)
     # only the segment across the rod needs the rod rotation
     assert sil.segment_ok.tolist() == [True, False, True]

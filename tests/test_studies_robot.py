@@ -79,6 +79,10 @@ def test_maze_on_fem_tracks_and_needs_the_foam(spec):
     assert foam.motors_deg.min() >= lo and foam.motors_deg.max() <= hi
     assert foam.segment_ok.all()
     assert np.nanmax(foam.track_mm) <= s.tol_mm and np.nanmax(foam.track_deg) <= s.tol_deg
+    # the recorded strain is the equilibrium's at the sample's motors, solved again from rest
+    model, i = MODELS.get(spec), int(np.argmax(foam.strain))
+    _, st = model.equilibrium(foam.motors_deg[i])
+    assert foam.strain[i] > 0 and abs(model.max_principal_strain(st) - foam.strain[i]) < 1e-6 * foam.strain[i]
     sil = solve_maze(spec.with_material(Isotropic(0.25, 0.45)), path, s)
     # silicone: tilting across the rod needs the rod rotation, which isotropic sheets lack
     assert sil.segment_ok.tolist() == [True, False]

@@ -1,6 +1,7 @@
 """The study stages end to end through the pipeline runner (stand-in robot, and a coarse FEM robot)."""
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -113,6 +114,13 @@ def test_maze_and_anisotropy_csv(standin_run):
     q = np.array([[float(r[f"motor{k}_deg"]) for k in range(6)] for r in rows])
     assert q.min() >= 0 and q.max() <= 90
     assert list(rows[0])[:7] == ["time_s"] + [f"motor{k}_deg" for k in range(6)]
+    # csv, json and report agree on the strain along the path
+    strain = np.array([float(r["strain"]) for r in rows])
+    z = json.loads((standin_run / "maze" / "maze.json").read_text())
+    assert z["max_strain"] == pytest.approx(strain.max(), rel=1e-5)  # the csv keeps 6 digits
+    assert z["samples_beyond_strain"] == int((strain > z["strain_limit"]).sum())
+    report = (standin_run / "report" / "report.md").read_text()
+    assert f"| foam: samples beyond the strain limit {z['strain_limit']:g} | {z['samples_beyond_strain']} |" in report
     a = read_csv(standin_run / "anisotropy" / "anisotropy.csv")
     assert float(a[0]["alpha_percent"]) == 0 and abs(float(a[0]["push_rod_rotation_deg"])) < 1e-9
     assert abs(float(a[-1]["push_rod_rotation_deg"])) > 1.0

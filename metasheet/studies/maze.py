@@ -117,7 +117,8 @@ class SegmentTask:
 @dataclass(frozen=True)
 class SegmentResult:
     """motors_deg (k, 6); inverse errors error_mm, error_deg (k,); replay errors track_mm,
-    track_deg (k,) of the forward model's pose against the command; reached (k,) bool."""
+    track_deg (k,) of the forward model's pose against the command; reached (k,) bool;
+    strain (k,) the replayed equilibrium's largest principal strain [-] (NaN: not solved)."""
 
     motors_deg: np.ndarray
     error_mm: np.ndarray
@@ -125,6 +126,7 @@ class SegmentResult:
     track_mm: np.ndarray
     track_deg: np.ndarray
     reached: np.ndarray
+    strain: np.ndarray
 
 
 def solve_segment(task: SegmentTask) -> SegmentResult:
@@ -145,6 +147,7 @@ def solve_segment(task: SegmentTask) -> SegmentResult:
         q[i], state, conv[i] = r.motors_deg, r.state, r.converged
         e[i] = pose_errors(g, r.pose)
     tr = np.full((k, 2), np.nan)
+    strain = np.full(k, np.nan)
     q_prev, fstate = model.rest_motors(), None
     for i, g in enumerate(task.poses):
         # replay as the motors would move: from rest in ramps of at most 5 deg, then sample to sample
@@ -156,15 +159,17 @@ def solve_segment(task: SegmentTask) -> SegmentResult:
             continue
         q_prev = q[i]
         tr[i] = pose_errors(g, pose)
+        strain[i] = model.max_principal_strain(fstate)
     ok = (e[:, 0] <= s.tol_mm) & (e[:, 1] <= s.tol_deg) & np.isfinite(tr[:, 0]) & conv
-    return SegmentResult(q, e[:, 0], e[:, 1], tr[:, 0], tr[:, 1], ok)
+    return SegmentResult(q, e[:, 0], e[:, 1], tr[:, 0], tr[:, 1], ok, strain)
 
 
 @dataclass(frozen=True)
 class MazeResult:
     """commands : the :class:`MazeCommands`; motors_deg (T, 6); error_* and track_* (T,);
     reached (T,) bool; segment_ok (s,) bool: every held sample of the segment reached (the
-    marble rolls the right way); motor_range (lo, hi) [deg]."""
+    marble rolls the right way); motor_range (lo, hi) [deg]; strain (T,) the replayed
+    equilibria's largest principal strain [-] (NaN: not solved)."""
 
     commands: MazeCommands
     motors_deg: np.ndarray
@@ -175,6 +180,7 @@ class MazeResult:
     reached: np.ndarray
     segment_ok: np.ndarray
     motor_range: tuple[float, float]
+    strain: np.ndarray
 
 
 def solve_maze(
@@ -198,4 +204,4 @@ def solve_maze(
     reached = cat("reached")
     ok = np.array([bool(reached[(cmd.segment == i) & cmd.hold].all()) for i in range(n_seg)])
     return MazeResult(cmd, cat("motors_deg"), cat("error_mm"), cat("error_deg"), cat("track_mm"),
-                      cat("track_deg"), reached, ok, tuple(model.motor_range))
+                      cat("track_deg"), reached, ok, tuple(model.motor_range), cat("strain"))

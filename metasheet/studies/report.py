@@ -16,6 +16,14 @@ from .model_report import model_section
 from .reduce_report import reduce_section
 
 
+def _maze_strain_rows(z: dict) -> list:
+    """The maze's strain rows (absent from maze.json before the strain was recorded)."""
+    if "max_strain" not in z:
+        return []
+    return [("foam: largest principal strain, max [-]", z["max_strain"]),
+            (f"foam: samples beyond the strain limit {z['strain_limit']:g}", z["samples_beyond_strain"])]
+
+
 def _table(rows: list[tuple[str, object]]) -> str:
     out = ["| quantity | value |", "|---|---|"]
     for k, v in rows:
@@ -219,13 +227,17 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                           ("motor angles [deg]", f"{z['motor_min_deg']:.3g} to {z['motor_max_deg']:.3g}"),
                           ("within motor limits", z["within_motor_limits"]),
                           ("replay tracking error, max [mm]", z["max_track_mm"]),
-                          ("replay tracking error, max [deg]", z["max_track_deg"])]), ""]
+                          ("replay tracking error, max [deg]", z["max_track_deg"]),
+                          *_maze_strain_rows(z)]), ""]
         section, found = _reduced("maze", z)
         lines += section
         diffs += found
         if z["foam_impossible_segments"]:
             diffs.append(f"Maze: segments {z['foam_impossible_segments']} are infeasible even with the foam "
                          "(the paper solved its maze).")
+        if z.get("samples_beyond_strain"):
+            diffs.append(f"Maze: {z['samples_beyond_strain']} of {z['samples']} foam samples strain the sheets beyond "
+                         f"{z['strain_limit']:g}, where the homogenised constants no longer hold.")
         if not z["silicone_impossible_segments"]:
             diffs.append("Maze: silicone sheets solved every segment; the paper could not solve its maze with them.")
     standin = [k for k in ("workspace", "ranges", "anisotropy", "maze") if k in s and s[k].get("model") == "standin"]

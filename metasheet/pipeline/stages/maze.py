@@ -40,17 +40,24 @@ class MazeParams(CertifyParams):
     silicone_E: float = Field(0.25, gt=0, description="silicone Young's modulus [MPa]")
     silicone_nu: float = Field(0.45, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
     silicone_density: float = Field(1.07e-9, gt=0, le=1e-7, description="silicone density [t/mm^3]")
+    strain_limit: float = Field(0.3, gt=0, description="the foam's largest principal strain within which its "
+                                "homogenised constants hold [-] (reported: the samples beyond it)")
 
 
 def _rows(res):
     c = res.commands
     for i, t in enumerate(c.time):
         yield [t, *res.motors_deg[i], c.segment[i], c.hold[i], *np.degrees(c.poses[i, 3:]), res.reached[i],
-               res.error_mm[i], res.error_deg[i], res.track_mm[i], res.track_deg[i]]
+               res.error_mm[i], res.error_deg[i], res.track_mm[i], res.track_deg[i], res.strain[i]]
+
+
+def _finite_max(a) -> float | None:
+    a = np.asarray(a, float)
+    return float(np.nanmax(a)) if np.isfinite(a).any() else None
 
 
 HEADER = (["time_s"] + [f"motor{k}_deg" for k in range(6)] + ["segment", "hold", "cmd_rx_deg", "cmd_ry_deg",
-          "cmd_rz_deg", "reached", "error_mm", "error_deg", "track_mm", "track_deg"])
+          "cmd_rz_deg", "reached", "error_mm", "error_deg", "track_mm", "track_deg", "strain"])
 
 
 def run(ctx: StageContext) -> dict:
@@ -83,7 +90,10 @@ def run(ctx: StageContext) -> dict:
         "motor_min_deg": float(foam.motors_deg.min()), "motor_max_deg": float(foam.motors_deg.max()),
         "within_motor_limits": bool(foam.motors_deg.min() >= lo - 1e-9 and foam.motors_deg.max() <= hi + 1e-9),
         "max_track_mm": float(np.nanmax(foam.track_mm)), "max_track_deg": float(np.nanmax(foam.track_deg)),
-        "max_inverse_error_deg": float(np.nanmax(foam.error_deg)), "model": p.model,
+        "max_inverse_error_deg": float(np.nanmax(foam.error_deg)),
+        "max_strain": _finite_max(foam.strain), "strain_limit": p.strain_limit,
+        "samples_beyond_strain": int(np.sum(~(foam.strain <= p.strain_limit))),
+        "silicone_max_strain": _finite_max(sil.strain), "model": p.model,
         "model_info": model_record(spec), "silicone_model": model_record(sil_spec)["model"],
     }
     ids = np.flatnonzero(foam.reached)
