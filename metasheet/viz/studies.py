@@ -146,9 +146,10 @@ def anisotropy_picture(alpha, rod_rotation_deg, lateral_mm, *, pull_deg: float, 
 
 
 def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segment_ok_silicone,
-                 motor_range, *, title: str = "") -> bytes:
+                 motor_range, *, title: str = "", strain=None, strain_limit: float | None = None) -> bytes:
     """Maze path with feasible / impossible segments (foam vs silicone), the motor series and
-    the replay's tracking error. path (m, 2) [mm]; time (T,); motors_deg (T, 6)."""
+    the replay's tracking error (and the strain along the path, against its limit, when given).
+    path (m, 2) [mm]; time (T,); motors_deg (T, 6); strain (T,) [-]."""
     plt = _plt()
     P = np.asarray(path, float)
     fig, axes = plt.subplots(1, 3, figsize=(17, 5), squeeze=False)
@@ -186,8 +187,16 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
     ax.set_xlabel("time [s]")
     ax.set_ylabel("replay tracking error")
     ax.set_title("forward replay vs command (foam)")
-    ax.legend()
+    ax.legend(loc="upper left")
     ax.grid(alpha=0.3)
+    if strain is not None:
+        ax2 = ax.twinx()
+        ax2.plot(time, strain, color="#2ca02c", lw=1.2, label="largest principal strain [-]")
+        if strain_limit is not None:
+            ax2.axhline(strain_limit, color="#2ca02c", ls="--", lw=0.8, label=f"strain limit {strain_limit:g}")
+        ax2.set_ylim(0, 1.1 * max(np.nanmax(np.append(strain, 0)), strain_limit or 0))
+        ax2.set_ylabel("strain [-]")
+        ax2.legend(loc="upper right", fontsize=8)
     fig.suptitle(title or "Maze: tilt commands solved open loop")
     fig.tight_layout()
     return _png(fig)

@@ -79,7 +79,8 @@ def run(ctx: StageContext) -> dict:
     ctx.path("maze.png").write_bytes(maze_picture(
         np.asarray(p.path), foam.commands.time, foam.motors_deg, foam.track_mm, foam.track_deg, foam.segment_ok,
         sil.segment_ok, foam.motor_range,
-        title=f"Maze: tilt {p.tilt_deg:g} deg, foam vs silicone sheets [{p.model}]"))
+        title=f"Maze: tilt {p.tilt_deg:g} deg, foam vs silicone sheets [{p.model}]", strain=foam.strain,
+        strain_limit=p.strain_limit))
     lo, hi = foam.motor_range
     summary = {
         "segments": int(len(foam.segment_ok)), "samples": int(len(foam.commands.time)),
