@@ -4,6 +4,7 @@ Run (the pipeline's outputs must exist: ``metasheet run pipelines/quick.toml`` f
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_serve.py [pipelines/quick.toml] [--out ROOT]
         [--model full|reduced|both] [--settings live,default] [--repeats 1] [--seconds 6] [--browser]
+        [--scale 1.0]
 
 ``--model both`` (the pipeline needs the reduce stage) measures the full and the reduced
 model in the same process, their runs interleaved drag by drag and repeat by repeat (the
@@ -19,7 +20,8 @@ cores here, which a user's machine would not share with the solver.
 
 Drags (from the rest pose): "translate", a circle of radius 3 mm in the y-z plane, one turn in
 2 s (9.4 mm/s); "roll", +-5 deg about the rod (the 6th DOF) at 0.5 Hz; "tilt", +-5 deg about y
-at 0.5 Hz. Each runs with the page's live settings and with the inverse loop's defaults
+at 0.5 Hz; ``--scale`` multiplies every amplitude (on a foam whose strain limit is reached a few
+degrees of motor travel from rest, the drags that stay within it). Each runs with the page's live settings and with the inverse loop's defaults
 (``drift_tol`` 0.5 instead of 10, :mod:`metasheet.serve.session`).
 
 Prints one table: control steps per second (each one published), median and 90th-percentile
@@ -78,7 +80,7 @@ def open_browser(url: str):
     return driver
 
 
-def run_drag(session, page, drag, seconds: float) -> dict:
+def run_drag(session, page, drag, seconds: float, scale: float = 1.0) -> dict:
     """Stream the drag's goals for ``seconds``; the rates and times while it moves."""
     session.reset()
     session.wait_idle(120)
@@ -90,7 +92,7 @@ def run_drag(session, page, drag, seconds: float) -> dict:
     t0 = time.perf_counter()
     last = session.snapshot().version
     while (t := time.perf_counter() - t0) < seconds:
-        session.set_goal(rest + DRAGS[drag](t))
+        session.set_goal(rest + scale * DRAGS[drag](t))
         snap = session.wait(last, timeout=1 / 60)
         if snap is not None:
             last = snap.version
@@ -121,6 +123,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1, help="runs of each drag (medians over them)")
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--browser", action="store_true", help="keep the page open in headless chromium")
+    ap.add_argument("--scale", type=float, default=1.0, help="amplitude factor of every drag")
     args = ap.parse_args()
 
     import viser
@@ -147,7 +150,8 @@ def main() -> None:
         for _ in range(args.repeats):
             for drag in DRAGS:
                 for (model, name), (session, page, _) in pages.items():
-                    runs.setdefault((drag, name, model), []).append(run_drag(session, page, drag, args.seconds))
+                    runs.setdefault((drag, name, model), []).append(
+                        run_drag(session, page, drag, args.seconds, args.scale))
     finally:
         for d in drivers:
             d.quit()
@@ -158,7 +162,7 @@ def main() -> None:
     print(f"\nmetasheet serve, {outputs.directory}")
     for model in models:
         print(f"  {model}: {info[model].description}")
-    print(f"drags of {args.seconds:g} s, goal events at 60 Hz, medians of {args.repeats} run(s); browser connected: "
+    print(f"drags of {args.seconds:g} s at amplitude x {args.scale:g}, goal events at 60 Hz, medians of {args.repeats} run(s); browser connected: "
           f"{args.browser}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
           f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
     med = {k: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for k, rs in runs.items()}

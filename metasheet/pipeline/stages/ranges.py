@@ -41,7 +41,8 @@ def run(ctx: StageContext) -> dict:
 
     ctx.path("ranges.png").write_bytes(ranges_picture(
         res.goals, res.reached, res.ranges,
-        title=f"Reachable workspace per motor range (paper Fig. 6), nested: {res.nested} [{p.model}]"))
+        title=(f"Reachable workspace per motor range (paper Fig. 6), nested: {res.nested} [{p.model}"
+               + (f"; within the strain limit {p.strain_limit:g}]" if p.stop_beyond_strain else "]"))))
     summary = {"ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
                "points": len(grid), "nested": res.nested,
                "violations": [{"wide": names[a], "narrow": names[b], "points": len(pts)} for a, b, pts in res.violations],

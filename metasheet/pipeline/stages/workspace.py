@@ -92,7 +92,8 @@ def run(ctx: StageContext) -> dict:
 
     counts = res.counts()
     title = (f"Workspace (paper Fig. 5): {len(grid)} goals, {int(r.reached.sum())} reachable, "
-             f"{res.n_components} connected component(s) [{p.model}, {settings.test} rotation test]")
+             f"{res.n_components} connected component(s) [{p.model}, {settings.test} rotation test"
+             + (f", within the strain limit {p.strain_limit:g}]" if p.stop_beyond_strain else "]"))
     ctx.path("workspace.png").write_bytes(workspace_picture(
         res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title, tried=r.tried))
     reached = r.reached
