@@ -165,6 +165,22 @@ def test_auto_takes_a_direct_solver_only_when_its_factor_fits_in_memory(monkeypa
 
 
 @needs_pardiso
+def test_pardiso_frees_its_factor_after_the_solve(monkeypatch):
+    """MKL holds a factor until told: solve_spd frees it, or a worker keeps every cell's."""
+    import pypardiso
+
+    _cholmod(monkeypatch, False, pardiso=True)
+    freed = []
+    real = pypardiso.PyPardisoSolver.free_memory
+    monkeypatch.setattr(pypardiso.PyPardisoSolver, "free_memory",
+                        lambda self, everything=False: (freed.append(everything), real(self, everything))[1])
+    A = _nonsymmetric(seed=4)
+    A = (0.5 * (A + A.T)).tocsr()
+    X, report = solvers.solve_spd(A, np.ones((A.shape[0], 2)), solver="pardiso")
+    assert report.solver == "pardiso" and max(report.residuals) < 1e-12 and freed == [True]
+
+
+@needs_pardiso
 def test_pardiso_solves_spd_exactly_and_agrees_with_superlu(monkeypatch):
     _cholmod(monkeypatch, False, pardiso=True)
     A = _nonsymmetric(seed=3)

@@ -63,8 +63,9 @@ PARDISO_MAX_DOF = 2_000_000
 #: Peak memory of a whole homogenisation with the back-end [GB] at 1M dofs; it grows like the
 #: factor, ~ n^(4/3) on 3D meshes (PARDISO: 1.75 GB at 215k, 7.5 GB at 754k: exponent 1.33).
 FACTOR_GB_AT_1M = {"pardiso": 10.9, "cholmod": 8.6}
-#: Share of the available memory one factorisation may take under "auto": two workers fit.
-MEMORY_SHARE = 0.45
+#: Share of the available memory one factorisation may take under "auto" (decided when it
+#: starts: workers that factorise at the same moment share what each of them sees).
+MEMORY_SHARE = 0.8
 
 
 @dataclass
@@ -117,7 +118,16 @@ def _pardiso_spd(pypardiso, A: sp.csc_matrix) -> Callable:
     U = sp.triu(A, format="csr")
     U.sort_indices()
     solver.factorize(U)
-    return lambda B: solver.solve(U, np.asarray(B, float))
+
+    def solve_once(B):
+        # MKL keeps the factor until told (pypardiso frees nothing on garbage collection): a
+        # worker homogenising cell after cell would hold every factor (5 GB at 754k dofs)
+        try:
+            return solver.solve(U, np.asarray(B, float))
+        finally:
+            solver.free_memory(everything=True)
+
+    return solve_once
 
 
 def _cholmod_spd(cholmod, A: sp.csc_matrix) -> Callable:
@@ -159,7 +169,8 @@ class Backend:
     name : its name in reports and settings.
     module : what to import ("" for scipy's own); package, install : for the error when missing.
     max_spd_dof : largest SPD system :func:`solve_spd` gives it under "auto".
-    spd : (module, A csc SPD) -> solve(B), one factorisation for many right-hand sides.
+    spd : (module, A csc SPD) -> solve(B), one factorisation for many right-hand sides, solved
+        once (the factor may be freed after it).
     general : module -> factorise(A csr, structurally symmetric) -> :class:`Factor` or None
         (None: cannot, SuperLU takes over); called once per :class:`SparseSolver`, may cache.
         None when the back-end serves only SPD systems.
