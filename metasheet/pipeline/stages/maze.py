@@ -93,7 +93,7 @@ def run(ctx: StageContext) -> dict:
         "max_track_mm": float(np.nanmax(foam.track_mm)), "max_track_deg": float(np.nanmax(foam.track_deg)),
         "max_inverse_error_deg": float(np.nanmax(foam.error_deg)),
         "max_strain": _finite_max(foam.strain), "strain_limit": p.strain_limit,
-        "samples_beyond_strain": int(np.sum(~(foam.strain <= p.strain_limit))),
+        "samples_beyond_strain": int(np.sum(foam.strain > p.strain_limit)),  # NaN: not solved, not counted
         "silicone_max_strain": _finite_max(sil.strain), "model": p.model,
         "model_info": model_record(spec), "silicone_model": model_record(sil_spec)["model"],
     }
