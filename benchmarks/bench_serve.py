@@ -20,9 +20,10 @@ cores here, which a user's machine would not share with the solver.
 
 Drags (from the rest pose): "translate", a circle of radius 3 mm in the y-z plane, one turn in
 2 s (9.4 mm/s); "roll", +-5 deg about the rod (the 6th DOF) at 0.5 Hz; "tilt", +-5 deg about y
-at 0.5 Hz; ``--scale`` multiplies every amplitude (on a foam whose strain limit is reached a few
-degrees of motor travel from rest, the drags that stay within it). Each runs with the page's live settings and with the inverse loop's defaults
-(``drift_tol`` 0.5 instead of 10, :mod:`metasheet.serve.session`).
+at 0.5 Hz; ``--scale`` multiplies every amplitude (on a foam whose strain limit is reached a
+few degrees of motor travel from rest, the drags that stay within it). Each runs with the
+page's live settings and with the inverse loop's defaults (``drift_tol`` 0.5 instead of 10,
+:mod:`metasheet.serve.session`).
 
 Prints one table: control steps per second (each one published), median and 90th-percentile
 step time, page updates pushed per second, median draw time, the median tracking error
@@ -162,8 +163,8 @@ def main() -> None:
     print(f"\nmetasheet serve, {outputs.directory}")
     for model in models:
         print(f"  {model}: {info[model].description}")
-    print(f"drags of {args.seconds:g} s at amplitude x {args.scale:g}, goal events at 60 Hz, medians of {args.repeats} run(s); browser connected: "
-          f"{args.browser}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
+    print(f"drags of {args.seconds:g} s at amplitude x {args.scale:g}, goal events at 60 Hz, medians of "
+          f"{args.repeats} run(s); browser connected: {args.browser}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
           f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
     med = {k: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for k, rs in runs.items()}
     keys = list(next(iter(med.values())))

@@ -151,8 +151,8 @@ def test_pardiso_is_the_pip_only_direct_solver(monkeypatch, have_cholmod):
 
 
 def test_auto_takes_a_direct_solver_only_when_its_factor_fits_in_memory(monkeypatch):
-    """The paper's Polyfoam cell (754k dofs: 7.5 GB peak with PARDISO) is factorised when half
-    the available memory holds it, and goes to AMG-CG on a small machine."""
+    """The paper's Polyfoam cell (754k dofs: 7.5 GB peak with PARDISO) is factorised when its
+    share (MEMORY_SHARE) of the available memory holds it, and goes to AMG-CG on a small machine."""
     _cholmod(monkeypatch, False, pardiso=True)
     n = 754_407
     need = solvers.FACTOR_GB_AT_1M["pardiso"] * (n / 1e6) ** (4 / 3)
