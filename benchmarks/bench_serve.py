@@ -164,8 +164,8 @@ def main() -> None:
     for model in models:
         print(f"  {model}: {info[model].description}")
     print(f"drags of {args.seconds:g} s at amplitude x {args.scale:g}, goal events at 60 Hz, medians of "
-          f"{args.repeats} run(s); browser connected: {args.browser}; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
-          f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
+          f"{args.repeats} run(s); browser connected: {args.browser}; "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
     med = {k: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for k, rs in runs.items()}
     keys = list(next(iter(med.values())))
     print("| drag | settings | model | " + " | ".join(keys) + " |")
