@@ -121,7 +121,7 @@ def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="upper right", fontsize=8)
     fig.suptitle(title or "Reachable workspace for several motor ranges (paper Fig. 6)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.95))  # the equal-aspect panels otherwise meet the title
     return _png(fig)
 
 
