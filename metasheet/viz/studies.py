@@ -187,16 +187,20 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
     ax.set_xlabel("time [s]")
     ax.set_ylabel("replay tracking error")
     ax.set_title("forward replay vs command (foam)")
-    ax.legend(loc="upper left")
     ax.grid(alpha=0.3)
+    handles = ax.get_legend_handles_labels()
     if strain is not None:
         ax2 = ax.twinx()
         ax2.plot(time, strain, color="#2ca02c", lw=1.2, label="largest principal strain [-]")
         if strain_limit is not None:
             ax2.axhline(strain_limit, color="#2ca02c", ls="--", lw=0.8, label=f"strain limit {strain_limit:g}")
-        ax2.set_ylim(0, 1.1 * max(np.nanmax(np.append(strain, 0)), strain_limit or 0))
+        # headroom on both axes: the one legend sits above the curves
+        ax2.set_ylim(0, 1.45 * max(np.nanmax(np.append(strain, 0)), strain_limit or 0))
         ax2.set_ylabel("strain [-]")
-        ax2.legend(loc="upper right", fontsize=8)
+        ax.set_ylim(0, 1.45 * max(np.nanmax(np.append(track_mm, 0)), np.nanmax(np.append(track_deg, 0)), 1e-9))
+        h2 = ax2.get_legend_handles_labels()
+        handles = (handles[0] + h2[0], handles[1] + h2[1])
+    ax.legend(*handles, loc="upper center", fontsize=8, ncol=2)
     fig.suptitle(title or "Maze: tilt commands solved open loop")
     fig.tight_layout()
     return _png(fig)
