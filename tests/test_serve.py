@@ -14,6 +14,7 @@ import pytest
 from metasheet.errors import ConfigError
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
+from metasheet.rotations import rotation_vector
 from metasheet.serve import scene
 from metasheet.serve.app import SCALE, check_port
 from metasheet.serve.loading import find_outputs, load_robot
@@ -130,6 +131,35 @@ def test_goal_run_takes_gotos_steps(build):
         run.advance()
     assert run.status == ref.status == "reached" and run.steps == ref.steps
     np.testing.assert_array_equal(run.ctrl.state.angles, ref.state.angles)
+
+
+def test_track_steps_towards_a_goal_within_the_tolerances(build):
+    robot, _ = build("foam")
+    ctrl = InverseController(robot)
+    here = np.concatenate([ctrl.state.p, np.zeros(3)])  # the rest pose (rotation ~0 at rest)
+    run = GoalRun(ctrl, here + [0.06, 0.0, 0.0, 0.0, 0.0, 0.0])  # 0.06 mm: inside pos_tol 0.1
+    assert run.near()
+    before = run._errors(ctrl.state)[1]
+    p = run.track()
+    assert p is not None and not p.done and run.steps == 1
+    assert p.pos_error < 0.5 * before  # the step followed the goal
+    exact = GoalRun(ctrl, np.concatenate([ctrl.state.p, np.degrees(rotation_vector(ctrl.state.R))]))
+    assert exact.track() is None and exact.steps == 0  # nothing to follow
+
+
+def test_a_slow_drag_moves_the_robot_at_every_goal(session):
+    rest = session.snapshot()
+    goals = [rest.pose + [0.0, 0.0, -0.04 * k, 0.0, 0.0, 0.0] for k in range(1, 9)]  # 0.04 mm apart
+    poses = []
+    for g in goals:
+        last = session.snapshot().version
+        session.set_goal(g)
+        snap = session.wait(last, timeout=30)
+        assert snap is not None and snap.status == "moving"
+        poses.append(snap.pose[2])
+    assert np.all(np.diff(poses) < 0)  # one update per goal, each one lower: the robot follows
+    snap = session.wait_idle(60)
+    assert snap.status == "reached" and abs(snap.pose[2] - goals[-1][2]) <= 0.1
 
 
 def test_a_goal_moves_the_motors_as_goto_does(session, build):

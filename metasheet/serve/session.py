@@ -14,7 +14,10 @@ the :class:`Snapshot` s the session publishes; every tab of the page sees the sa
   eq. 8 at a time, each published): it ends "reached", or "unreachable" on the certified
   closest pose (goto's "stalled" or "max_steps"); never an exception. A pose near the goal
   is certified only once the goal has stayed :data:`SETTLE` s: while a drag streams goals
-  the loop only steps.
+  the loop only steps, and every new goal gets at least one control step
+  (:meth:`.tracking.GoalRun.track`), even one already within the tolerances of the pose:
+  the robot follows the pointer at the drag's event rate instead of in jumps of the
+  tolerance (0.1 mm, 0.2 deg), which a slow drag would otherwise show a few times a second.
 * Motor commands are the forward model: :func:`~metasheet.robot.equilibrium.solve_equilibrium`
   from the current state; when no newer command waits, a fresh linearisation then updates
   the Jacobian's singular values.
@@ -305,15 +308,22 @@ class Session:
             models.enter("reduced")  # back from the full model, well inside the training box
         run = GoalRun(models.ctrl, goal, self.settings, certify)
         born = time.perf_counter()
+        track = run.near()  # already within the tolerances: one step follows the drag all the same
         while True:
-            wait = SETTLE - (time.perf_counter() - born)
-            if wait > 0 and run.near():  # certify only once the drag pauses here
-                with self._cond:
-                    self._cond.wait_for(lambda: self._pending or self._stopping, wait)
-                if self._pending or self._stopping:
-                    return  # a newer goal: this one is dropped uncertified
             before = models.ctrl.state
-            p = run.advance()
+            if track:
+                track = False
+                p = run.track()
+                if p is None:
+                    continue
+            else:
+                wait = SETTLE - (time.perf_counter() - born)
+                if wait > 0 and run.near():  # certify only once the drag pauses here
+                    with self._cond:
+                        self._cond.wait_for(lambda: self._pending or self._stopping, wait)
+                    if self._pending or self._stopping:
+                        return  # a newer goal: this one is dropped uncertified
+                p = run.advance()
             if not p.done and models.step_left_box(before):  # undone: the full model drives on
                 run = GoalRun(models.ctrl, goal, self.settings, certify)
                 self._publish("inverse", "moving", "the goal leaves the reduced model's training box: "

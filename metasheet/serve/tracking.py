@@ -20,6 +20,9 @@ from ..errors import ConfigError
 from ..robot.qp import pose_error, weighted_norm
 from ..rotations import rotation_matrix, rotation_vector
 
+#: :meth:`GoalRun.track` takes no step when the pose error is below this share of the tolerances
+TRACK_FRACTION = 0.05
+
 
 def within(e, settings) -> bool:
     """Pose error ``e`` (6,) [mm, rad] inside ``pos_tol`` [mm] and ``rot_tol_deg`` [deg]
@@ -104,6 +107,24 @@ class GoalRun:
             self.since += 1
             if self.since >= s.stall_steps:
                 return self._finish("stalled")
+        return self._step()
+
+    def track(self) -> Progress | None:
+        """One control step towards the goal although the state may already be within the
+        tolerances (no reached test, no certificate): while a drag streams goals, each new
+        goal moves the robot, so it follows the pointer smoothly instead of in jumps of the
+        tolerance. None when the pose error is below :data:`TRACK_FRACTION` of the
+        tolerances (nothing to follow)."""
+        if self.done:
+            raise ConfigError("GoalRun.track: the run has ended; start a new one")
+        _, pe, re = self._errors(self.ctrl.state)
+        s = self.settings
+        if pe <= TRACK_FRACTION * s.pos_tol and re <= TRACK_FRACTION * s.rot_tol_deg:
+            return None
+        return self._step()
+
+    def _step(self) -> Progress:
+        c, s = self.ctrl, self.settings
         info = c.step(self.goal_p, self.goal_R, settings=s)
         self.steps += 1
         self.step_times.append(info.time)
