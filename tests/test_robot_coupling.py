@@ -104,7 +104,9 @@ def test_rest_angle_is_the_same_on_every_mesh():
 def test_gravity_sags_downwards_and_newton_converges(robot, rest):
     res = np.array(rest.residuals)
     assert res[-1] <= 1e-12 * rest.reference
-    assert rest.iterations <= 15  # chord steps included (7: the step-projected line search; 37 before it)
+    # chord steps included: 7 with the sphere-tied centre, 16 with the cylinder (chord steps
+    # contracting by ~0.2 each); 37 before the step-projected line search
+    assert rest.iterations <= 20
     assert rest.state.p[2] < -0.1  # the effector sinks [mm]
     assert abs(rest.state.p[0]) < 0.05 * abs(rest.state.p[2])
     dz = rest.state.x[robot.coupling.free, 2] - robot.coupling.rest[robot.coupling.free, 2]

@@ -58,8 +58,19 @@ def test_tagged_sets_at_the_arm_ends_and_centre(sheet):
         assert q.max() - q.min() == pytest.approx(p.arm_width, abs=1e-6)
     centre = sheet.points[sheet.attach == 4]
     assert len(centre) >= 10
-    assert np.hypot(centre[:, 0], centre[:, 1]).max() <= p.centre_radius
-    assert np.all(np.linalg.norm(sheet.points[sheet.attach == 0], axis=1) > p.centre_radius)
+    assert np.hypot(centre[:, 0], centre[:, 1]).max() <= p.centre_radius + 1e-9
+    assert np.all(np.hypot(*sheet.points[sheet.attach == 0][:, :2].T) > p.centre_radius)
+
+
+def test_the_centre_set_is_the_cylinder_the_mesh_conforms_to(sheet):
+    """Every node on the border circle is tied, on both faces too: a sphere (the authors'
+    wording) cuts the faces inside the circle, so its node set changes with the mesh."""
+    p, pts = sheet.params, sheet.points
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    on = np.abs(r - p.centre_radius) < 1e-6
+    faces = on & (np.abs(np.abs(pts[:, 2]) - 0.5 * p.thickness) < 1e-9)
+    assert on.sum() >= 20 and faces.sum() >= 10
+    assert np.all(sheet.attach[on] == 4)
 
 
 def test_mirror_is_the_reflection(sheet):

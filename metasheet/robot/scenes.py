@@ -70,7 +70,7 @@ class ScenePreset:
     arm_width, reach, thickness, hole_radius, fillet_radius : sheet geometry [mm]
         (:class:`~metasheet.sheet.geometry.SheetParams`; fillet 0 = sharp corners).
     tip_box : (along the arm, across, z) box of the nodes each horn holds [mm].
-    centre_radius : sphere of the centre nodes tied to the rod [mm].
+    centre_radius : cylinder (r_xy) of the centre nodes tied to the rod [mm].
     law, pitch_deg : fibre law and pitch [deg] (angle between fibre and circle,
         :mod:`metasheet.sheet.fibers`); the second sheet's field is the reflection.
     rod_length : distance between the two sheets' centres [mm].
@@ -158,7 +158,7 @@ METASHEET = ScenePreset(
         "hole_radius": "FACTS.md:42 (central hole radius 5 mm)",
         "fillet_radius": "metasheet's choice: smooth concave corners (module docstring)",
         "tip_box": "FACTS.md:47 (a box about 45 x 15 x 30 mm around the tip)",
-        "centre_radius": "FACTS.md:48 (sphere of radius 7.5 mm)",
+        "centre_radius": "FACTS.md:48 (a sphere of radius 7.5 mm there; here the cylinder of that radius the mesh conforms to, metasheet/sheet/geometry.py)",
         "law": "paper Fig. 3 (a spiral); log = constant angle to the circle",
         "pitch_deg": "metasheet's choice (module docstring)",
         "rod_length": "metasheet.paper.ROD_LENGTH (robot/robots.py docstring)",

@@ -48,7 +48,7 @@ def midside_tags(attach: np.ndarray, tets10: np.ndarray, n_vertices: int) -> np.
 
     A midside node belongs to a rigid set when both ends of its edge do: the coupled nodes
     are then exactly those of the element edges inside the set (every tip box and the centre
-    sphere are convex, so these midpoints lie inside the set too), and no coupled midside
+    cylinder are convex, so these midpoints lie inside the set too), and no coupled midside
     node hangs off a free vertex.
     """
     from ..fem.tet10 import TET10_EDGES
