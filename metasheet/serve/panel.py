@@ -21,9 +21,10 @@ STATUS_TEXT = {"moving": "moving", "reached": "reached", "unreachable": "unreach
 AT_LIMIT_DEG = 0.5
 #: the update rates benchmarks/bench_serve.py measured (--model both --repeats 3; the README's
 #: serve section has the table), shown on the page next to its own live rate
-MEASURED_RATE = ("measured (benchmarks/bench_serve.py, the quick pipeline's robot, 21k unknowns, 2 cores): "
-                 "full model 3.0-10 updates/s while the goal is dragged; reduced model 32 inside its training "
-                 "box, 6.5-9.6 on drags that leave it (the full model solves there)")
+MEASURED_RATE = ("measured (benchmarks/bench_serve.py --scale 0.3, the paper robot, 37k unknowns, 2 cores): "
+                 "reduced model 52-62 updates/s while the goal is dragged inside its training box (35-41 with "
+                 "the page open in headless chromium on the same cores), full model 26-32; 6.6-9.3 on drags "
+                 "that leave the box (the full model solves there)")
 
 
 def _vec(v, digits: int = 2) -> str:
