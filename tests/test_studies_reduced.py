@@ -95,6 +95,20 @@ def test_outside_the_box_warns_once_and_is_the_full_model(trained, caplog):
     assert model.max_principal_strain(st) == pytest.approx(ref.max_principal_strain(st_ref), abs=1e-12)
 
 
+def test_a_point_outside_the_box_is_certified_from_the_box_edge(trained):
+    """Outside the box the certificate's full solve starts from the reduced equilibrium at the
+    box's edge, not from the extrapolation at the point; its answer is the full model's own."""
+    spec, rspec, basis = trained
+    model, ref = ReducedFem(rspec), FemRobot(spec)
+    q = model.rest_motors() + np.array([16.0, 0, 0, 0, 0, -14.0])  # beyond rest +-10 deg
+    pose_ref, _ = ref.equilibrium(q)
+    c = model.certify(pose_ref, q, tol_mm=0.5, tol_deg=0.5)
+    assert not c.in_box and c.full_converged and c.agree
+    # the full equilibrium at q itself (the angle's arccos rounds at ~1e-6 deg)
+    assert c.full_error_mm < 1e-6 and c.full_error_deg < 1e-4
+    assert c.reduced_error_mm > 10 * c.full_error_mm  # the extrapolation, reported, is not the answer
+
+
 def test_a_stop_ends_the_controller_before_the_step_that_fires_it(trained):
     spec, _, _ = trained
     ref = FemRobot(spec)

@@ -285,25 +285,45 @@ class ReducedFem(FemRobot):
         The reduced equilibrium at ``motors_deg`` (na,) [deg] (from the reduced rest, the
         solver's motor increments), then the full equilibrium at the same angles started from
         its reconstruction (``full_state``); both poses' errors against ``goal`` (6,) [mm, rad].
+        Outside the training box the reduced equilibrium is an extrapolation (its error is
+        reported, ``in_box`` False) and a poor start: the full solve starts from the reduced
+        equilibrium at the angles clipped to the box instead (on the paper robot the
+        extrapolated start was 20 deg off and the full Newton solve failed from it), and
+        from the full rest if that fails.
         """
         from ..robot.equilibrium import solve_equilibrium
 
         goal = np.asarray(goal, float)
         ang = np.radians(np.asarray(motors_deg, float))
+        box = self.robot.basis
+        inside = self.robot.in_box(ang)
         nan = (np.nan, np.nan)
+        starts = []
         try:
             st = solve_equilibrium(self.robot, ang, state=self.rest, linearizer=self.lz).state
             red_err = pose_errors(goal, st.pose)
-            start = self.robot.full_state(st)
+            if inside:
+                starts.append(self.robot.full_state(st))
         except ConvergenceError:
-            red_err, start = nan, self.full.rest
-        try:
-            full = solve_equilibrium(self.full.robot, ang, state=start, linearizer=self.full.lz).state
-            full_err, conv = pose_errors(goal, full.pose), True
-        except ConvergenceError:
-            full_err, conv = nan, False
+            red_err = nan
+        if not inside:
+            try:
+                edge = np.clip(ang, box.box_lo, box.box_hi)
+                st = solve_equilibrium(self.robot, edge, state=self.rest, linearizer=self.lz).state
+                starts.append(self.robot.full_state(st))
+            except ConvergenceError:
+                pass
+        starts.append(self.full.rest)
+        full_err, conv = nan, False
+        for start in starts:
+            try:
+                full = solve_equilibrium(self.full.robot, ang, state=start, linearizer=self.full.lz).state
+                full_err, conv = pose_errors(goal, full.pose), True
+                break
+            except ConvergenceError:
+                continue
         ok = conv and full_err[0] <= tol_mm and (tol_deg is None or full_err[1] <= tol_deg)
-        return PointCertificate(*red_err, *full_err, conv, bool(ok), self.robot.in_box(ang))
+        return PointCertificate(*red_err, *full_err, conv, bool(ok), inside)
 
 
 @dataclass(frozen=True)
