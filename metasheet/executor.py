@@ -2,11 +2,17 @@
 
 The studies and the design chart hand their independent units (rays, sweep
 points, grid cells) to an :class:`Executor`; results come back in input order.
+
+A local pool's workers share the machine's cores: each limits its BLAS / OpenMP thread pools
+to cores // workers (:func:`threads_per_worker`). Left at their default (one thread per
+core each), two workers' OpenBLAS threads oversubscribed a 2-core machine and made the
+paper's workspace rays 2.5x slower (benchmarks/bench_executor.py).
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -28,14 +34,19 @@ class Executor:
     workers : number of local processes; 1 runs in this process.
     scheduler : address of a dask.distributed scheduler (``tcp://host:port``);
         when given, ``workers`` is ignored and the cluster's workers are used.
+    worker_threads : BLAS / OpenMP threads of each local worker; None: cores // workers
+        (:func:`threads_per_worker`).
     """
 
     workers: int = 1
     scheduler: str | None = None
+    worker_threads: int | None = None
 
     def __post_init__(self):
         if int(self.workers) < 1:
             raise ConfigError(f"workers: {self.workers!r}: allowed range is [1, inf)")
+        if self.worker_threads is not None and int(self.worker_threads) < 1:
+            raise ConfigError(f"worker_threads: {self.worker_threads!r}: allowed range is [1, inf) or None")
         if self.scheduler is not None and not str(self.scheduler).startswith(("tcp://", "tls://", "inproc://", "ws://")):
             raise ConfigError(
                 f"scheduler: {self.scheduler!r}: expected an address like tcp://HOST:PORT"
@@ -73,16 +84,39 @@ class Executor:
                 progress(i + 1, total)
             return out
         if self.kind == "processes":
-            return _map_pool(fn, items, self.workers, progress, on_result)
+            return _map_pool(fn, items, self.workers, progress, on_result, self.worker_threads)
         return _map_dask(fn, items, self.scheduler, progress, on_result)
 
 
-def _map_pool(fn, items: Sequence, workers: int, progress, on_result) -> list:
+#: The environment variables that size the thread pools of libraries a worker may load later
+#: (MKL through pypardiso, OpenMP), read when the library loads.
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def threads_per_worker(workers: int, cores: int | None = None) -> int:
+    """BLAS / OpenMP threads each of ``workers`` local processes gets: cores // workers, at least 1."""
+    cores = cores or os.cpu_count() or 1
+    return max(1, cores // max(1, workers))
+
+
+def _limit_threads(n: int) -> None:
+    """Pool initializer: at most ``n`` threads in this worker's BLAS and OpenMP pools, those
+    already loaded (threadpoolctl) and those loaded later (their environment variables)."""
+    from threadpoolctl import ThreadpoolController
+
+    for var in THREAD_VARS:
+        os.environ[var] = str(n)
+    ThreadpoolController().limit(limits=n)
+
+
+def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None) -> list:
     results: list = [None] * len(items)
     # "spawn", not fork: a forked child inherits the locks of BLAS, numba and gmsh threads
     # held at fork time and can hang forever (seen with the design chart).
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=ctx) as pool:
+    n = min(workers, len(items))
+    with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_limit_threads,
+                             initargs=(threads or threads_per_worker(n),)) as pool:
         futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
         for done, fut in enumerate(as_completed(futures), 1):
             i = futures[fut]

@@ -167,6 +167,28 @@ def test_maze_respects_limits_tracks_and_fails_with_silicone():
     sil = solve_maze(spec.with_alpha(0.0), path, s)
     # only the segment across the rod needs the rod rotation
     assert sil.segment_ok.tolist() == [True, False, True]
+    # while a command holds the motors hold, on a reached segment and on the impossible one
+    for res in (foam, sil):
+        for i in range(3):
+            held = res.motors_deg[(res.commands.segment == i) & res.commands.hold]
+            assert len(held) >= 2 and np.array_equal(held, np.broadcast_to(held[0], held.shape))
+
+
+def test_a_held_maze_command_is_solved_once(monkeypatch):
+    """The inverse model runs once per new command (plus the two moves from rest), not again
+    on every held sample: an impossible segment would spend max_steps on each."""
+    from metasheet.studies.standin import StandInRobot
+
+    calls = []
+    reach = StandInRobot.reach
+    monkeypatch.setattr(StandInRobot, "reach", lambda self, goal, **kw: calls.append(goal) or reach(self, goal, **kw))
+    path = [[0, 0], [20, 0], [20, 15]]
+    res = solve_maze(StandInSpec().with_alpha(0.0), path, MazeSettings(dt=0.2))
+    expected = 0
+    for i in range(len(path) - 1):
+        p = res.commands.poses[res.commands.segment == i]
+        expected += 2 + 1 + int(np.any(p[1:] != p[:-1], axis=1).sum())  # two moves from rest, new commands
+    assert res.commands.hold.sum() >= 4 and len(calls) == expected
 
 
 def test_resume_after_interruption_gives_same_result(tmp_path):

@@ -121,6 +121,14 @@ def test_a_stop_ends_the_controller_before_the_step_that_fires_it(trained):
     assert r.stopped and not r.reached and r.steps >= 1 and np.abs(r.motors_deg - q0).max() <= 3.0
     pose, _ = ref.equilibrium(r.motors_deg)  # the stopped state is an equilibrium (certified)
     assert np.abs(pose - r.pose).max() < 1e-6
+    # not certified: the same run's last control state (one Newton step from that equilibrium),
+    # and no certification run
+    stop = lambda st: np.abs(np.degrees(st.angles) - q0).max() > 3.0  # noqa: E731
+    before = dict(ref.ctrl.certified)
+    u = ref.reach(goal, tol_mm=0.5, rot_weight=0.0, stop=stop, certify_stop=False)
+    assert ref.ctrl.certified == before
+    assert u.stopped and u.steps == r.steps and np.array_equal(u.motors_deg, r.motors_deg)
+    assert np.abs(u.pose - r.pose).max() < 0.05
 
 
 def test_a_reach_leaving_the_box_is_carried_on_by_the_full_model_from_the_edge(trained, caplog):

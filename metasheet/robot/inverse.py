@@ -158,7 +158,8 @@ class InverseResult:
     steps : control steps taken. step_times : [s] each. residuals : [N] before each step.
     residual : reduced residual at ``state`` [N]; reference : the force scale [N] it is
         relative to (``residual <= eq_tol * reference`` certifies ``state`` as an equilibrium).
-    certified : "chord" (kept-tangent corrections) or "newton" (full solve) certified it.
+    certified : "chord" (kept-tangent corrections) or "newton" (full solve) certified it; "none"
+        for a stopped run asked not to (``certify_stop``): ``state`` is then its last control state.
     """
 
     status: str
@@ -351,7 +352,7 @@ class InverseController:
         return good
 
     def goto(self, pose, state: RobotState | None = None, *,
-             settings: InverseSettings | None = None, stop=None) -> InverseResult:
+             settings: InverseSettings | None = None, stop=None, certify_stop: bool = True) -> InverseResult:
         """Drive the effector to ``pose`` (6,) = (x, y, z [mm], rotation vector [deg]).
 
         ``state`` : where to start (default: the current state); a state this controller
@@ -360,6 +361,9 @@ class InverseController:
         ``stop`` : ``stop(state) -> bool`` asked after each step; True ends the run at the
         state before that step (status "stopped"): a caller's domain (a reduced model's box,
         a strain limit) is not crossed.
+        ``certify_stop`` : False returns a stopped run's last control state as it is (one
+        Newton step from equilibrium; ``residual`` NaN, ``certified`` "none"), for a caller that
+        discards it: certifying it costs more than the run on the converged robot.
         """
         pose = np.asarray(pose, dtype=float).reshape(-1)
         if pose.shape != (6,) or not np.all(np.isfinite(pose)):
@@ -396,7 +400,9 @@ class InverseController:
             if stop is not None and stop(self.state):
                 self.state, status = before, "stopped"
                 break
-        if status != "reached":
+        if status == "stopped" and not certify_stop:
+            cert = (self.state, float("nan"), float("nan"), "none")
+        elif status != "reached":
             if status == "stalled":
                 self.state = best_state
             cert = self.certify(start, settings=s)

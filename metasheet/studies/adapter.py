@@ -199,9 +199,10 @@ class FemRobot:
         return np.degrees(self.rest.angles)
 
     def reach(self, goal, *, state=None, tol_mm=1.0, tol_deg=None, max_steps=50, rot_weight=None,
-              stop=None) -> ReachResult:
+              stop=None, certify_stop: bool = True) -> ReachResult:
         """The inverse controller's run towards ``goal`` (6,) [mm, rad] from ``state`` (None: rest);
-        ``stop(state) -> bool`` ends it before a step that makes it True (``stopped``)."""
+        ``stop(state) -> bool`` ends it before a step that makes it True (``stopped``; its state
+        certified as an equilibrium unless ``certify_stop`` is False)."""
         goal = np.asarray(goal, float)
         # rot_weight 0 (position only) becomes a tiny weight: the controller needs w > 0
         rw = self.settings.rot_weight if rot_weight is None else max(float(rot_weight), 1e-6)
@@ -214,7 +215,8 @@ class FemRobot:
         try:
             # continuation: a state this controller produced (the previous point on a ray, the
             # point a rotation is tried from) keeps its tangent; the loop still checks it
-            r = self.ctrl.goto(goal_deg, state=self.rest if state is None else state, settings=settings, stop=stop)
+            r = self.ctrl.goto(goal_deg, state=self.rest if state is None else state, settings=settings, stop=stop,
+                               certify_stop=certify_stop)
             st, steps, stopped = r.state, r.steps, r.status == "stopped"
         except ConvergenceError:  # the final equilibrium failed: report the last control state
             st, steps, converged, stopped = self.ctrl.state, self.ctrl.total_steps - steps0, False, False

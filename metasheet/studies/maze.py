@@ -11,7 +11,10 @@ Each segment is one work unit: the maze ramps from the previous tilt to the segm
 (``ramp_s``), holds it while the marble rolls (length / ``speed``), and the last segment
 ramps back to level. The unit reaches its first command from rest, then every sample by
 continuation (open loop, the inverse model alone), and replays the motor angles through the
-forward model to measure the tracking error. A segment is impossible when a held sample
+forward model to measure the tracking error. While the command holds, the motors hold: a
+sample whose command is the previous one's keeps its motor angles (on an impossible segment
+the inverse loop would otherwise spend its ``max_steps`` again on every held sample, and the
+motors would wander about the unreachable goal). A segment is impossible when a held sample
 misses its pose by more than ``tol_mm`` or ``tol_deg``.
 """
 
@@ -143,6 +146,9 @@ def solve_segment(task: SegmentTask) -> SegmentResult:
     e = np.zeros((k, 2))
     conv = np.ones(k, bool)
     for i, g in enumerate(task.poses):
+        if i and np.array_equal(g, task.poses[i - 1]):  # a held command holds the motors
+            q[i], e[i], conv[i] = q[i - 1], e[i - 1], conv[i - 1]
+            continue
         r = model.reach(g, state=state, tol_mm=s.tol_mm, tol_deg=s.tol_deg, max_steps=s.max_steps)
         q[i], state, conv[i] = r.motors_deg, r.state, r.converged
         e[i] = pose_errors(g, r.pose)

@@ -235,8 +235,9 @@ class ReducedFem(FemRobot):
     def _full_reach(self, goal, state, limit, **kw):
         """The full model's reach from the full ``state``; with a strain ``limit``, stopped at
         the first control step beyond it, returned with ``left_domain`` (that control state:
-        one Newton step from equilibrium, as every step of the loop; certifying it as an
-        equilibrium cost more than the reach on the paper robot, for a point not reached)."""
+        one Newton step from equilibrium, as every step of the loop). Neither it nor the state
+        before it is certified as an equilibrium: on the paper robot that cost more than the
+        reach, for a point not reached."""
         from .model import ReachResult
 
         if limit is None:
@@ -249,7 +250,7 @@ class ReducedFem(FemRobot):
             fired.append(st)
             return True
 
-        r = self.full.reach(goal, state=state, stop=beyond, **kw)
+        r = self.full.reach(goal, state=state, stop=beyond, certify_stop=False, **kw)
         if not r.stopped:
             return r
         self.strain_stops += 1
