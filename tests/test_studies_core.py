@@ -261,7 +261,8 @@ def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria():
                     return pose, (None, np.asarray(q, float))
             return Wrapped()
 
-    out = an.sweep_point(an.SweepTask(Picky(), pull_deg=10.0, push_deg=30.0, ramp_deg=5.0))
+    out = np.array([an.sweep_point(an.SweepTask(Picky(), pull_deg=10.0, push_deg=30.0, ramp_deg=5.0, case=c))
+                    for c in (0, 1)])
     assert np.all(np.isfinite(out[0])) and out[0, 6] == pytest.approx(-10.0)  # pull: 5 deg steps halved
     assert np.all(np.isnan(out[1, :6])) and out[1, 6] == pytest.approx(20.0)  # push: lost beyond 20 deg
     with pytest.raises(ConvergenceError):

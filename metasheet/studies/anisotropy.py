@@ -23,10 +23,13 @@ from .resume import UnitCache
 
 @dataclass(frozen=True)
 class SweepTask:
+    """One work unit: ``case`` 0 pulls all motors by ``pull_deg``, 1 pushes them by ``push_deg``."""
+
     spec: ModelSpec
     pull_deg: float
     push_deg: float
     ramp_deg: float
+    case: int = 0
 
 
 #: Halvings of a ramp step that fails to converge before the case is given up (reported).
@@ -47,29 +50,28 @@ def _reach(model, q_from, q_to, state, cuts: int = 0):
 
 
 def sweep_point(task: SweepTask) -> np.ndarray:
-    """Work unit: (2, 7) for (pull, push) of all motors: the pose change from rest (6,)
-    [mm, rad] and the mean motor change actually applied [deg] (targets are clipped to the
-    motor range). A case whose equilibrium cannot be followed to its target (after
-    :data:`MAX_CUTS` halvings of a ramp step) has a NaN pose change and the motor change it
-    reached: reported as not converged, never as a result."""
+    """Work unit: (7,) for the task's case (pull or push of all motors, from rest): the pose
+    change from rest (6,) [mm, rad] and the mean motor change actually applied [deg] (targets
+    are clipped to the motor range). A case whose equilibrium cannot be followed to its
+    target (after :data:`MAX_CUTS` halvings of a ramp step) has a NaN pose change and the motor
+    change it reached: reported as not converged, never as a result."""
     model = MODELS.get(task.spec)
     q0 = model.rest_motors()
     lo, hi = model.motor_range
-    rest = model.rest_pose()
-    out = np.zeros((2, 7))
+    out = np.zeros(7)
     sign = getattr(model, "pull_sign", -1.0)
-    for j, delta in enumerate((sign * task.pull_deg, -sign * task.push_deg)):
-        target = np.clip(q0 + delta, lo, hi)
-        n = max(1, int(np.ceil(np.abs(target - q0).max() / task.ramp_deg)))
-        state, q = None, q0
-        try:
-            for t in np.arange(1, n + 1) / n:
-                pose, state = _reach(model, q, q0 + t * (target - q0), state)
-                q = q0 + t * (target - q0)
-            out[j, :6] = pose - rest
-        except ConvergenceError:
-            out[j, :6] = np.nan
-        out[j, 6] = float(np.mean(q - q0))
+    delta = sign * task.pull_deg if task.case == 0 else -sign * task.push_deg
+    target = np.clip(q0 + delta, lo, hi)
+    n = max(1, int(np.ceil(np.abs(target - q0).max() / task.ramp_deg)))
+    state, q = None, q0
+    try:
+        for t in np.arange(1, n + 1) / n:
+            pose, state = _reach(model, q, q0 + t * (target - q0), state)
+            q = q0 + t * (target - q0)
+        out[:6] = pose - model.rest_pose()
+    except ConvergenceError:
+        out[:6] = np.nan
+    out[6] = float(np.mean(q - q0))
     return out
 
 
@@ -117,8 +119,11 @@ def anisotropy_sweep(
     check_range("ramp_deg", ramp_deg, 0.0, 90.0, lo_open=True)
     model = MODELS.get(spec)
     cache = cache or UnitCache(None)
-    tasks = [SweepTask(spec.with_alpha(float(a)), float(pull_deg), float(push_deg), float(ramp_deg)) for a in alphas]
+    # pull and push start from rest each: two units per alpha, so that both run at once
+    tasks = [SweepTask(spec.with_alpha(float(a)), float(pull_deg), float(push_deg), float(ramp_deg), case)
+             for a in alphas for case in (0, 1)]
     out = np.array(cache.map(executor, sweep_point, tasks, progress=lambda d, n: progress("anisotropy", d, n)))
+    out = out.reshape(len(alphas), 2, 7)
     delta, applied = out[:, :, :6], out[:, :, 6]
     ax = model.rod_axis
     lateral = np.linalg.norm(np.delete(delta[:, :, :3], ax, axis=2), axis=2)
