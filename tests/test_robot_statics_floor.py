@@ -81,3 +81,30 @@ def test_genuine_failures_above_the_floor_still_raise(robot, rest, monkeypatch):
     with pytest.raises(ConvergenceError, match="line search failed.*above the round-off floor") as exc:
         solve_equilibrium(robot, rest.state.angles + np.radians(MOVE_DEG), state=rest.state, tol=1e-8)
     assert exc.value.history[-1] > 1e3 * robot.body.force_floor
+
+
+def test_a_cut_that_repeats_the_failed_solve_is_skipped(monkeypatch):
+    """A motion shorter than the halved step takes the same single increment: retrying it would
+    repeat the failed solve exactly. Each distinct increment count is tried once, and the last
+    error is raised."""
+    from types import SimpleNamespace
+
+    from metasheet.robot import equilibrium as eqm
+
+    steps = []
+
+    def failing(robot, angles, *, state=None, max_angle_step, **kw):
+        steps.append(round(float(np.degrees(max_angle_step)), 6))
+        raise ConvergenceError(f"attempt {len(steps)}", [1.0])
+
+    monkeypatch.setattr(eqm, "solve_increments", failing)
+    fake = SimpleNamespace(coupling=SimpleNamespace(n_act=2, rest_angles=np.zeros(2)))
+    with pytest.raises(ConvergenceError, match="attempt 3"):
+        eqm.solve_equilibrium(fake, np.radians([5.0, -1.0]))  # 10 deg steps, 3 cuts: 1, 1, 2, 4 increments
+    assert steps == [10.0, 2.5, 1.25]
+    steps.clear()
+    with pytest.raises(ConvergenceError, match="attempt 1"):
+        eqm.solve_equilibrium(fake, np.zeros(2))  # no motion: one increment however it is cut
+    assert steps == [10.0]
+    with pytest.raises(Exception, match="angles: shape"):
+        eqm.solve_equilibrium(fake, np.zeros(3))

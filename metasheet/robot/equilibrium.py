@@ -106,13 +106,34 @@ def solve_equilibrium(robot, angles, *, state=None, max_angle_step: float = np.r
     """Static equilibrium at motor ``angles`` (na,) [rad] (:func:`solve_increments`); when an
     increment fails, the solve starts again from ``state`` with increments half as large, up
     to ``max_cuts`` times (a large motion whose Newton path crosses a snap of the sheets
-    converges in smaller steps), then raises the last :class:`ConvergenceError`."""
+    converges in smaller steps), then raises the last :class:`ConvergenceError`. A cut that
+    leaves the number of increments unchanged (a motion shorter than the smaller step) would
+    repeat the failed solve exactly, so it is skipped."""
+    target = np.asarray(angles, dtype=float).reshape(-1)
+    if target.shape != (robot.coupling.n_act,):
+        raise ConfigError(f"angles: shape {target.shape}: expected ({robot.coupling.n_act},) [rad]")
+    if max_cuts < 0:
+        raise ConfigError(f"max_cuts: {max_cuts!r}: need max_cuts >= 0")
+    start = state.angles if state is not None else robot.coupling.rest_angles
+    jump = float(np.max(np.abs(target - start), initial=0.0))
+    tried, error = set(), None
     for cut in range(max_cuts + 1):
+        step = max_angle_step / 2**cut
+        n = n_increments(jump, step)
+        if n in tried:
+            continue
+        tried.add(n)
         try:
-            return solve_increments(robot, angles, state=state, max_angle_step=max_angle_step / 2**cut, **kw)
-        except ConvergenceError:
-            if cut == max_cuts:
-                raise
+            return solve_increments(robot, angles, state=state, max_angle_step=step, **kw)
+        except ConvergenceError as e:
+            error = e
+    raise error
+
+
+def n_increments(jump: float, step: float) -> int:
+    """Increments of at most ``step`` that a motor motion of largest component ``jump`` takes
+    [rad, rad]: at least one (a solve at fixed motors is one increment)."""
+    return max(1, int(np.ceil(jump / step - 1e-12)))
 
 
 def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: int = 50,
@@ -158,7 +179,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     lz = linearizer or robot.linearizer()
     st = state if state is not None else lz.robot.rest_state()
     jump = target - st.angles
-    n_inc = max(1, int(np.ceil(np.max(np.abs(jump), initial=0.0) / max_angle_step - 1e-12)))
+    n_inc = n_increments(float(np.max(np.abs(jump), initial=0.0)), max_angle_step)
     history, iters, ref, floor = [], 0, 0.0, 0.0
     for inc in range(n_inc):
         dq_a = jump / n_inc if np.any(jump) else None
