@@ -8,7 +8,9 @@ in memory, then times, on the same held-out motor angles and goals, in the same 
   :mod:`metasheet.robot.rom_tangents`) after one warm-up pass over the same angles;
 * the inverse control step (:meth:`~metasheet.robot.inverse.InverseController.step`),
   median, mean and p99 over a goal sequence, with the fresh tangents taken; the reduced
-  model with its library computing missing tangents in the background.
+  model with its library computing missing tangents in the background;
+* the same on the equilibrium surface (:mod:`metasheet.robot.rom_surface`): the reduce
+  stage's ``surface.npz``, or (without ``--pipeline``) one fitted here on reduced equilibria.
 
     python benchmarks/bench_reduced.py --mesh-size 14 --element p1 --box 12 --snapshots 24
 
@@ -59,13 +61,16 @@ def _from_pipeline(pipeline: str, out: str | None):
     from metasheet.serve.loading import find_outputs, load_robot
 
     outputs = find_outputs(pipeline, out)
+    from metasheet.robot.rom_surface_robot import load_surface
+
     rob, _ = load_robot(outputs, "full")
     red, _ = load_robot(outputs, "reduced")
+    surf = load_surface(outputs.directory / "reduce" / "surface.npz", red)
     lz = rob.linearizer()
     rest = solve_equilibrium(rob, rob.coupling.rest_angles, linearizer=lz).state
     box = np.degrees(red.basis.box_hi - red.basis.box_lo).max() / 2
     timings = json.loads((outputs.directory / "reduce" / "manifest.json").read_text()).get("timings_s", {})
-    return rob, red, lz, rest, (f"{pipeline}'s reduce stage, box rest +- {box:.3g} deg; "
+    return rob, red, surf, lz, rest, (f"{pipeline}'s reduce stage, box rest +- {box:.3g} deg; "
                                 f"training (manifest timings_s): {timings}")
 
 
@@ -76,11 +81,12 @@ def main() -> None:
     ap.add_argument("--box", type=float, default=12.0, help="training box: rest +- this [deg]")
     ap.add_argument("--snapshots", type=int, default=24)
     ap.add_argument("--repeats", type=int, default=8)
+    ap.add_argument("--surface", type=int, default=64, help="reduced equilibria the surface is fitted on")
     ap.add_argument("--pipeline", default=None, help="a pipeline whose robot and reduce stages have run")
     ap.add_argument("--out", default=None, help="its outputs folder (default: the pipeline's)")
     a = ap.parse_args()
     if a.pipeline:
-        rob, red, lz, rest, what = _from_pipeline(a.pipeline, a.out)
+        rob, red, surf, lz, rest, what = _from_pipeline(a.pipeline, a.out)
         basis, c = red.basis, rob.coupling
         lo, hi = basis.box_lo, basis.box_hi
     else:
@@ -96,11 +102,16 @@ def main() -> None:
         basis = train(rob, snaps, rest, sensitivities=np.hstack([sensitivity(lz, s) for s in snaps]), box=(lo, hi))
         t_train = time.perf_counter() - t0
         red = ReducedRobot(rob, basis)
+        t0 = time.perf_counter()
+        surf = _fit_surface(red, lo, hi, a.surface)
+        t_surf = time.perf_counter() - t0
         what = (f"{a.element} {a.mesh_size:g} mm; box rest +- {a.box:g} deg\n"
-                f"training: {len(snaps)} full equilibria {t_snap:.1f} s, basis + sample + fit {t_train:.1f} s")
+                f"training: {len(snaps)} full equilibria {t_snap:.1f} s, basis + sample + fit {t_train:.1f} s, "
+                f"surface ({a.surface} reduced equilibria, degree {surf.surface.info['degree']}) {t_surf:.1f} s")
     angles = motor_design(lo, hi, a.repeats, 5, corners=False) * 0.8 + 0.2 * c.rest_angles
     rows = []
-    for name, robot, exact in (("full", rob, True), ("reduced", red, True), ("reduced+lib", red, False)):
+    for name, robot, exact in (("full", rob, True), ("reduced", red, True), ("reduced+lib", red, False),
+                               ("surface", surf, True)):
         lzr = robot.linearizer()
         for _ in range(1 if exact else 2):  # the library's warm-up pass, then the timed one
             ts = []
@@ -113,7 +124,8 @@ def main() -> None:
     goals = [np.concatenate([p[:3], np.degrees(p[3:])]) for p in poses]
     live = red.with_limits(red.angle_min, red.angle_max)
     live.background_tangents = True
-    ctl = {name: _control(robot, goals, 10) for name, robot in (("full", rob), ("reduced", red), ("reduced+lib", live))}
+    ctl = {name: _control(robot, goals, 10)
+           for name, robot in (("full", rob), ("reduced", red), ("reduced+lib", live), ("surface", surf))}
     print(f"robot: {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
           f"reduced: k = {basis.k}, {len(basis.elements)} elements; {what}")
     print(f"{'model':12s} {'equilibrium from rest [ms]':>26s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
@@ -123,6 +135,24 @@ def main() -> None:
         print(f"{name:12s} {eq:26.2f} {m:12.2f} {mean:8.2f} {p99:8.2f} {fresh:6d} {n:6d}")
     print(f"ratio full / reduced+lib: equilibrium {rows[0][1] / rows[2][1]:.2f}, "
           f"step median {ctl['full'][0] / ctl['reduced+lib'][0]:.2f}, p99 {ctl['full'][2] / ctl['reduced+lib'][2]:.2f}")
+    print(f"ratio full / surface: equilibrium {rows[0][1] / rows[3][1]:.0f}, "
+          f"step median {ctl['full'][0] / ctl['surface'][0]:.0f}, p99 {ctl['full'][2] / ctl['surface'][2]:.0f}")
+
+
+def _fit_surface(red, lo, hi, n: int):
+    """The equilibrium surface of ``red`` on the box [lo, hi], fitted on ``n`` reduced equilibria
+    (its degree chosen on n / 4 more), as the reduce stage does."""
+    from metasheet.robot.rom_certificate import TARGETS
+    from metasheet.robot.rom_surface import choose_degree
+    from metasheet.robot.rom_surface_robot import SurfaceRobot, equilibrium_data
+
+    lz = red.linearizer()
+    rest = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz).state
+    data = [equilibrium_data(red, q, linearizer=lz, start=rest)
+            for q in (motor_design(lo, hi, n, 2), motor_design(lo, hi, max(8, n // 4), 3, corners=False))]
+    rest_data = equilibrium_data(red, red.coupling.rest_angles[None], linearizer=lz, start=rest)
+    surface = choose_degree(data[0], data[1], rest_data, lo, hi, TARGETS)
+    return SurfaceRobot(surface, red, force_scale=lz.force_scale(lz.linearize(rest)))
 
 
 if __name__ == "__main__":

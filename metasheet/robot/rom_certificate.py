@@ -53,29 +53,50 @@ def held_out_angles(lo, hi, n: int, seed: int) -> np.ndarray:
     return np.vstack([*sobol, *mixed])
 
 
-def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_elements=None) -> Comparison:
-    """Reduced vs full at the full model's equilibrium ``full_state``; its strain over
-    ``strain_elements`` (m,) bool (:mod:`.validity`; None: every element)."""
+def full_strain(full_robot, full_state, strain_elements=None) -> float:
+    """The full equilibrium's largest principal strain over ``strain_elements`` (m,) bool
+    (:mod:`.validity`; None: every element) [-]."""
     from .validity import validity_strain
 
-    nan = float("nan")
-    deg = tuple(np.degrees(full_state.angles).round(4).tolist())
     if strain_elements is None:
         strain_elements = np.ones(len(full_robot.body.tets), bool)
-    strain = validity_strain(full_robot.body, full_state.x, strain_elements)
+    return validity_strain(full_robot.body, full_state.x, strain_elements)
+
+
+def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_elements=None, *,
+            full_jacobian=None) -> Comparison:
+    """Reduced vs full at the full model's equilibrium ``full_state``; its strain over
+    ``strain_elements`` (:func:`full_strain`); ``full_jacobian`` (6, na): the full model's
+    Jacobian there, when already computed."""
+    nan = float("nan")
+    deg = tuple(np.degrees(full_state.angles).round(4).tolist())
+    strain = full_strain(full_robot, full_state, strain_elements)
     try:
         r = solve_equilibrium(reduced, full_state.angles, linearizer=reduced_lz).state
     except ConvergenceError:
         return Comparison(deg, nan, nan, nan, nan, strain)
-    pos = float(np.linalg.norm(r.p - full_state.p))
-    rot = float(np.degrees(np.linalg.norm(rotation_vector(r.R @ full_state.R.T))))
-    Jf = kinematics(full_lz.linearize(full_state)).J
+    Jf = kinematics(full_lz.linearize(full_state)).J if full_jacobian is None else full_jacobian
     Jr = kinematics(reduced_lz.linearize(r)).J
-    jrel = float(np.linalg.norm(Jr - Jf) / np.linalg.norm(Jf))
+    return _comparison(deg, r, Jr, full_state, Jf, reduced, strain)
+
+
+def compare_surface(surface_robot, full_state, full_jacobian, strain: float) -> Comparison:
+    """The equilibrium surface (:mod:`.rom_surface_robot`) vs the full model at ``full_state``
+    (its Jacobian (6, na) and strain given), as :func:`compare`."""
+    deg = tuple(np.degrees(full_state.angles).round(4).tolist())
+    st = surface_robot.equilibrium(full_state.angles)
+    J = surface_robot.surface.evaluate(full_state.angles)[2]
+    return _comparison(deg, st, J, full_state, full_jacobian, surface_robot, strain)
+
+
+def _comparison(deg, st, J, full_state, Jf, robot, strain) -> Comparison:
+    pos = float(np.linalg.norm(st.p - full_state.p))
+    rot = float(np.degrees(np.linalg.norm(rotation_vector(st.R @ full_state.R.T))))
+    jrel = float(np.linalg.norm(J - Jf) / np.linalg.norm(Jf))
     goal = np.concatenate([full_state.p, np.degrees(full_state.pose[3:])])
     settings = InverseSettings(pos_tol=0.01, rot_tol_deg=0.01, max_steps=400, stall_steps=30)
-    inv = InverseController(reduced, settings=settings).goto(goal)
-    motors = float(np.abs(inv.angles_deg - np.degrees(full_state.angles)).max()) if inv.reached else nan
+    inv = InverseController(robot, settings=settings).goto(goal)
+    motors = float(np.abs(inv.angles_deg - np.degrees(full_state.angles)).max()) if inv.reached else float("nan")
     return Comparison(deg, pos, rot, jrel, motors, strain)
 
 

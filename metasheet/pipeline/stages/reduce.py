@@ -9,7 +9,11 @@ targets (:mod:`metasheet.robot.rom_training`) and certifies the result on held-o
 
 * ``basis.npz``: the basis, the sampled elements and weights, the training box, the robot's key;
 * ``reduce.json``: sizes, targets, training record and the certificate (worst and p95 of the
-  position, orientation, Jacobian and inverse-model errors), and the rows of the held-out set.
+  position, orientation, Jacobian and inverse-model errors), and the rows of the held-out set;
+* ``surface.npz``: the equilibrium surface (:mod:`metasheet.robot.rom_surface`, the real-time
+  loop's model), fitted on reduced-model equilibria over the same box, its degree chosen on
+  equilibria not fitted, and certified against the full model on the same held-out poses
+  (``reduce.json`` ``surface``).
 
 Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
 """
@@ -17,12 +21,15 @@ Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 from pydantic import Field
 
 from ...errors import ConfigError, ConvergenceError
-from ...robot.rom_certificate import TARGETS, compare, held_out_angles, summarize
+from ...robot.equilibrium import solve_equilibrium
+from ...robot.kinematics import kinematics
+from ...robot.rom_certificate import TARGETS, compare, compare_surface, held_out_angles, summarize
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
 from ._studies import StudyRobotParams, build_spec, drop_cache, unit_cache
@@ -47,6 +54,8 @@ class ReduceParams(StudyRobotParams):
     strain_limit: float | None = Field(0.3, gt=0, description="the certificate's targets apply to held-out poses "
                                        "within this max principal strain [-] (the material model's domain; the "
                                        "others are reported apart); None: to all")
+    surface_equilibria: int = Field(64, ge=16, le=5000, description="reduced-model equilibria the equilibrium "
+                                    "surface (the real-time model) is fitted on; a quarter more choose its degree")
 
 
 def _snapshot(unit):
@@ -67,8 +76,6 @@ def _snapshot(unit):
 
 
 def solve_from_rest(fem, angles):
-    from ...robot.equilibrium import solve_equilibrium
-
     return solve_equilibrium(fem.robot, angles, state=fem.rest, linearizer=fem.lz).state
 
 
@@ -83,6 +90,46 @@ def _states(fem, rows):
             p, R, ang, u, _ = r
             out.append(RobotState(p, R, ang, c.positions(p, R, ang, c.rest[c.free] + u.reshape(-1, 3))))
     return out
+
+
+def _surface_unit(unit):
+    """Work unit: the reduced model's equilibria (:class:`~metasheet.robot.rom_surface.
+    EquilibriumData`) at motor angles (s, na) [rad], by continuation from its rest equilibrium."""
+    from ...robot.reduced import ReducedRobot
+    from ...robot.rom_surface_robot import equilibrium_data
+    from ...studies.model import MODELS
+
+    spec, basis, angles = unit
+    red = ReducedRobot(MODELS.get(spec).robot, basis)
+    lz = red.linearizer()
+    rest = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz).state
+    return equilibrium_data(red, angles, linearizer=lz, start=rest)
+
+
+def fit_stage_surface(ctx, spec, red, basis, lo, hi, p):
+    """The :class:`~metasheet.robot.rom_surface_robot.SurfaceRobot` of the reduced robot ``red``
+    on the box [lo, hi]: ``p.surface_equilibria`` Sobol points (seed + 2) to fit, a quarter as
+    many (seed + 3) to choose the degree, solved through the executor in four chunks."""
+    from ...robot.rom_surface import EquilibriumData, choose_degree
+    from ...robot.rom_surface_robot import SurfaceRobot, equilibrium_data
+    from ...robot.rom_training import motor_design
+
+    fit_angles = motor_design(lo, hi, p.surface_equilibria, p.seed + 2)
+    check_angles = motor_design(lo, hi, max(8, p.surface_equilibria // 4), p.seed + 3, corners=False)
+    chunks = np.array_split(np.vstack([fit_angles, check_angles]), 4)
+    parts = unit_cache(ctx).map(ctx.executor, _surface_unit, [(spec, basis, c) for c in chunks if len(c)],
+                                progress=lambda d, n: ctx.progress("surface equilibria (reduced model)", d, n))
+    data = EquilibriumData(*(np.concatenate([getattr(d, f) for d in parts]) for f in ("angles", "pose", "J", "S")))
+    n = len(fit_angles)
+    train, check = (EquilibriumData(*(getattr(data, f)[sl] for f in ("angles", "pose", "J", "S")))
+                    for sl in (slice(0, n), slice(n, None)))
+    lz = red.linearizer()
+    rest_eq = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz)
+    rest = equilibrium_data(red, red.coupling.rest_angles[None], linearizer=lz, start=rest_eq.state)
+    surface = choose_degree(train, check, rest, lo, hi, TARGETS)
+    ref = lz.force_scale(lz.linearize(rest_eq.state))
+    surface = replace(surface, info={**surface.info, "force_scale_N": ref})
+    return SurfaceRobot(surface, red, force_scale=ref)
 
 
 def training_box(robot, box_deg: float | None):
@@ -129,26 +176,37 @@ def run(ctx: StageContext) -> dict:
                           progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
     held = _states(fem, held_rows)
     rl, fl = red.linearizer(), rob.linearizer()
-    comps = [compare(rob, s, red, rl, fl, fem.strain_elements) for s in held]
+    full_J = [kinematics(fl.linearize(s)).J for s in held]
+    comps = [compare(rob, s, red, rl, fl, fem.strain_elements, full_jacobian=J) for s, J in zip(held, full_J)]
     cert = summarize(comps, p.strain_limit)
     cert["held_out_failed_full"] = int(sum(r is None for r in held_rows))
     ctx.timings["certificate"] = time.perf_counter() - t2
+    ctx.progress("equilibrium surface", 2, 3)
+    t3 = time.perf_counter()
+    surf = fit_stage_surface(ctx, spec, red, basis, lo, hi, p)
+    surf_comps = [compare_surface(surf, s, J, c.strain) for s, J, c in zip(held, full_J, comps)]
+    surface_out = {**surf.surface.info, "certificate": summarize(surf_comps, p.strain_limit),
+                   "held_out": [c.__dict__ for c in surf_comps]}
+    ctx.timings["surface"] = time.perf_counter() - t3
+    surf.surface.save(ctx.path("surface.npz"))
     basis.save(ctx.path("basis.npz"))
     info = {k: v for k, v in basis.info.items() if k != "seconds"}
     out = {"box_deg": [np.degrees(lo).round(4).tolist(), np.degrees(hi).round(4).tolist()],
            "k": basis.k, "elements": int(len(basis.elements)), "elements_total": int(rob.body.n_elements),
            "free_dofs": int(basis.V.shape[0]), "training": info,
            "snapshots_failed": int(sum(r is None for r in rows)), "targets": TARGETS, "certificate": cert,
-           "held_out": [c.__dict__ for c in comps], "strain_band_mm": p.strain_band_mm, "robot_key": basis.robot_key}
+           "held_out": [c.__dict__ for c in comps], "strain_band_mm": p.strain_band_mm, "robot_key": basis.robot_key,
+           "surface": surface_out}
     write_json_atomic(ctx.path("reduce.json"), out)
     drop_cache(ctx)
     ctx.progress("done", 3, 3)
     return {"k": basis.k, "elements": out["elements"], "certified": cert["met"],
+            "surface_degree": surface_out["degree"], "surface_certified": surface_out["certificate"]["met"],
             "position_mm_worst": cert["position_mm"]["worst"], "jacobian_rel_worst": cert["jacobian_rel"]["worst"]}
 
 
 register(Stage(
     name="reduce", params=ReduceParams, run=run, requires=("orient", "material"), optional=("robot",),
-    outputs=("basis.npz", "reduce.json"),
+    outputs=("basis.npz", "reduce.json", "surface.npz"),
     doc="reduced-order robot: POD basis + ECSW element sample, certified on held-out poses",
 ))
