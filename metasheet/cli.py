@@ -243,8 +243,9 @@ def robot_goto(
                                                      "run it first)")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="output root the pipeline ran with (default: "
                                                 "outputs/ of the project)")] = None,
-    model: Annotated[str, typer.Option("--model", help="robot model with --pipeline: 'full' (FEM) or 'reduced' (the "
-                                       "reduce stage's; outside its training box the full model solves)")] = "full",
+    model: Annotated[str, typer.Option("--model", help="robot model with --pipeline: 'full' (FEM), 'reduced' (the "
+                                       "reduce stage's) or 'surface' (its equilibrium surface, the real-time "
+                                       "model); outside their training box the full model solves")] = "full",
     orient: Annotated[Optional[Path], typer.Option("--orient", help="without --pipeline: an orient stage's output "
                                                    "directory (the paper's scene and foam density)")] = None,
     mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no "
@@ -258,12 +259,12 @@ def robot_goto(
     and the remaining error.
     """
     from .errors import ConfigError, UnreachableError
-    from .serve.loading import MODELS
+    from .serve.loading import GOTO_MODELS
     from .serve.models import goto
 
     goal = parse_pose(pose)
-    if model not in MODELS:
-        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
+    if model not in GOTO_MODELS:
+        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(GOTO_MODELS)}")
     if pipeline is not None:
         if orient is not None:
             raise ConfigError("--orient: give either --pipeline (the pipeline's robot) or --orient, not both")

@@ -206,3 +206,25 @@ def scene_horns(session, snap):
     from metasheet.serve import scene
 
     return scene.horn_segments(session.robot_of(snap.material)[1].geometry, snap.x)
+
+
+def test_robot_goto_surface_matches_full(outputs, capsys):
+    """The reduce stage's equilibrium surface drives ``robot goto`` (the real-time model):
+    same motor angles as the full model within the reduced model's tolerance; outside the
+    box the full model's own answer, said so."""
+    _, full = _goto(capsys, outputs, "full", GOAL_IN)
+    out_s, surf = _goto(capsys, outputs, "surface", GOAL_IN)
+    assert out_s.startswith("model: surface\n")
+    np.testing.assert_allclose(surf, full, atol=ANGLE_TOL)
+    out_o, beyond = _goto(capsys, outputs, "surface", GOAL_OUT)
+    _, beyond_full = _goto(capsys, outputs, "full", GOAL_OUT)
+    assert out_o.startswith(f"model: full ({OUTSIDE_BOX})")
+    np.testing.assert_array_equal(beyond, beyond_full)
+
+
+def test_surface_model_names_its_fit_and_certificate(build):
+    surf, info = build("foam", "surface")
+    assert info.model == "surface" and "equilibrium surface: degree " in info.description
+    assert "; certificate " in info.description  # reduce.json's surface section
+    with pytest.raises(ConfigError, match="the surface holds within its box"):
+        surf.equilibrium(np.radians([40.0] * 6))

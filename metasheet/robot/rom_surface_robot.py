@@ -53,6 +53,7 @@ class SurfaceRobot:
         if not force_scale > 0:
             raise ConfigError(f"force_scale: {force_scale!r}: must be > 0 [N]")
         self.surface, self.coupling = surface, robot.coupling
+        self.full = getattr(robot, "full", robot)  # the model that solves outside the box
         lo, hi = surface.box
         self.angle_min = np.maximum(np.asarray(robot.angle_min, float), lo)
         self.angle_max = np.minimum(np.asarray(robot.angle_max, float), hi)

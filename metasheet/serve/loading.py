@@ -38,6 +38,9 @@ from ..errors import ConfigError
 
 #: the robot models ``--model`` accepts
 MODELS = ("full", "reduced")
+#: the models ``robot goto`` accepts: the page's, and the equilibrium surface (it has no
+#: sheets to draw: the page cannot show it)
+GOTO_MODELS = MODELS + ("surface",)
 #: the sheet materials the page switches between
 MATERIALS = ("foam", "silicone")
 #: the artefacts the page needs, per stage
@@ -154,30 +157,54 @@ def robot_geometry(robot, fibers_local: tuple[np.ndarray, np.ndarray]) -> RobotG
 def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     """The robot of ``outputs`` as the robot stage built it: ``(robot, RobotInfo)``.
 
-    ``model`` : "full" (the FEM robot) or "reduced" (the reduce stage's
-    :class:`~metasheet.robot.reduced.ReducedRobot` on it; silicone: the full robot, with
-    ``info.note`` saying why); ``material`` : "foam" (the sheets' own constants) or
+    ``model`` : "full" (the FEM robot), "reduced" (the reduce stage's
+    :class:`~metasheet.robot.reduced.ReducedRobot` on it) or "surface" (the reduce stage's
+    :class:`~metasheet.robot.rom_surface_robot.SurfaceRobot`); silicone: the full robot, with
+    ``info.note`` saying why; ``material`` : "foam" (the sheets' own constants) or
     "silicone" (the robot stage's silicone case). Raises :class:`ConfigError` for a missing
     artefact (see :func:`check_outputs`), an unknown model or material, a basis trained on
     another robot.
     """
-    if model not in MODELS:
-        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(MODELS)}")
+    if model not in GOTO_MODELS:
+        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(GOTO_MODELS)}")
     if material not in MATERIALS:
         raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
     check_outputs(outputs)
     basis_file = outputs.directory / "reduce" / "basis.npz"
-    if model == "reduced" and not basis_file.is_file():
-        raise ConfigError(f"--model reduced: needs the reduce stage's outputs ({basis_file}), which are "
+    needs = {"reduced": basis_file, "surface": basis_file.with_name("surface.npz")}.get(model)
+    if needs is not None and not needs.is_file():
+        raise ConfigError(f"--model {model}: needs the reduce stage's outputs ({needs}), which are "
                           "missing: run a pipeline with the reduce stage, or use --model full")
     robot, info = _full_robot(outputs, material)
     if model == "full":
         return robot, info
     if material != "foam":
-        note = ("the reduced model was trained on the foam and does not fit silicone: "
+        note = (f"the {model} model was trained on the foam and does not fit silicone: "
                 "silicone runs on the full model")
         return robot, replace(info, note=note)
-    return reduced_robot(robot, info, basis_file, outputs.run_command)
+    red, info = reduced_robot(robot, info, basis_file, outputs.run_command)
+    if model == "reduced":
+        return red, info
+    return surface_robot(red, info, needs)
+
+
+def surface_robot(red, info: RobotInfo, surface_file: Path):
+    """``(SurfaceRobot, RobotInfo)`` of the reduce stage's ``surface.npz`` on its reduced robot."""
+    import json
+
+    from ..robot.rom_surface_robot import load_surface
+
+    surf = load_surface(surface_file, red)
+    cert = ""
+    try:
+        c = json.loads(surface_file.with_name("reduce.json").read_text())["surface"]["certificate"]
+        cert = (f"; certificate {'met' if c['met'] else 'NOT met'}: held-out errors up to "
+                f"{c['position_mm']['worst']:.2g} mm, Jacobian {100 * c['jacobian_rel']['worst']:.2g} %")
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    what = (f"equilibrium surface: degree {surf.surface.info.get('degree')} in the motor angles, fitted on "
+            f"{surf.surface.info.get('equilibria')} reduced equilibria{cert}; ")
+    return surf, replace(info, model="surface", description=what + info.description)
 
 
 def reduced_robot(full, info: RobotInfo, basis_file: Path, run_command: str):

@@ -183,21 +183,27 @@ def goto(robot, pose, settings: InverseSettings | None = None):
     (x, y, z [mm], rotation vector [deg]) on ``robot``; returns (InverseResult, note).
 
     On a reduced robot the loop runs with the motor limits cut to the training box, so it
-    never evaluates the model outside it; when it does not reach the goal and ends with a
-    motor on a bound of the box that is not the stroke's (the goal needs angles outside the
-    box), the full model solves the goal from its own rest, and ``note`` says so
-    (:data:`OUTSIDE_BOX`); otherwise ``note`` is "".
+    never evaluates the model outside it (the equilibrium surface's limits are its box
+    already); when it does not reach the goal and ends with a motor on a bound of the box
+    that is not the stroke's (the goal needs angles outside the box), the full model solves
+    the goal from its own rest, and ``note`` says so (:data:`OUTSIDE_BOX`); otherwise
+    ``note`` is "".
     """
     s = settings if settings is not None else InverseSettings()
-    if not is_reduced(robot):
+    full = getattr(robot, "full", None)
+    if full is None:
         return InverseController(robot, settings=s).goto(pose), ""
-    b = robot.basis
-    lo, hi = np.maximum(robot.angle_min, b.box_lo), np.minimum(robot.angle_max, b.box_hi)
-    res = InverseController(robot.with_limits(lo, hi), settings=s).goto(pose)
+    if is_reduced(robot):
+        b = robot.basis
+        lo, hi = np.maximum(robot.angle_min, b.box_lo), np.minimum(robot.angle_max, b.box_hi)
+        boxed = robot.with_limits(lo, hi)
+    else:
+        lo, hi, boxed = robot.angle_min, robot.angle_max, robot
+    res = InverseController(boxed, settings=s).goto(pose)
     if res.reached:
         return res, ""
     a, tol = np.radians(res.angles_deg), np.radians(0.01)
-    pressed = ((a <= lo + tol) & (lo > robot.angle_min)) | ((a >= hi - tol) & (hi < robot.angle_max))
+    pressed = ((a <= lo + tol) & (lo > full.angle_min)) | ((a >= hi - tol) & (hi < full.angle_max))
     if not np.any(pressed):
         return res, ""
-    return InverseController(robot.full, settings=s).goto(pose), OUTSIDE_BOX
+    return InverseController(full, settings=s).goto(pose), OUTSIDE_BOX
