@@ -98,6 +98,26 @@ def test_a_polynomial_map_is_reproduced_and_its_tangent_has_the_fitted_jacobian(
         fit_surface(_data(_sobol(4, 1)), rest, LO, HI, 4)
 
 
+def test_the_degree_is_chosen_on_check_equilibria_within_the_strain_limit():
+    """A check equilibrium beyond the strain limit (here: one whose pose is off by 1 mm, as a
+    model outside its domain would be) does not count when the limit is given."""
+    train, rest = _data(_sobol(40, 1)), _data([REST])
+    check = _data(_sobol(10, 2))
+    pose = check.pose.copy()
+    pose[0, 0] += 1.0
+    strain = np.full(10, 0.1)
+    strain[0] = 0.5
+    check = EquilibriumData(check.angles, pose, check.J, check.S, strain)
+    targets = {"position_mm": 1e-6, "orientation_deg": 1e-6, "jacobian_rel": 1e-6}
+    within = choose_degree(train, check, rest, LO, HI, targets, strain_limit=0.3)
+    assert within.info["degree"] == 3 and within.info["met"] and within.info["check_equilibria"] == 9
+    every = choose_degree(train, check, rest, LO, HI, targets)
+    assert not every.info["met"] and every.info["check_equilibria"] == 10
+    assert every.info["check_worst"]["position_mm"] == pytest.approx(1.0, abs=1e-6)
+    none_within = EquilibriumData(check.angles, pose, check.J, check.S, np.full(10, 0.5))
+    assert choose_degree(train, none_within, rest, LO, HI, targets, strain_limit=0.3).info["check_strain_limit"] is None
+
+
 def _robot(surface):
     coupling = SimpleNamespace(n_act=NA, rest_angles=REST.copy(), length_scale=50.0)
     full = SimpleNamespace(coupling=coupling, angle_min=np.radians([-90.0] * NA), angle_max=np.radians([90.0] * NA),

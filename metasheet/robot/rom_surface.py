@@ -88,12 +88,26 @@ def _sym(v: np.ndarray, n: int) -> np.ndarray:
 @dataclass(frozen=True)
 class EquilibriumData:
     """Equilibria of one robot: angles (s, na) [rad], pose (s, 6) (position [mm], rotation vector
-    [rad]), J (s, 6, na) the direct Jacobian (eq. 7), S (s, 6 + na, 6 + na) the condensed tangent."""
+    [rad]), J (s, 6, na) the direct Jacobian (eq. 7), S (s, 6 + na, 6 + na) the condensed tangent;
+    strain (s,) or None."""
 
     angles: np.ndarray
     pose: np.ndarray
     J: np.ndarray
     S: np.ndarray
+    strain: np.ndarray | None = None  # (s,) the largest principal strain [-], when known
+
+    def take(self, rows) -> "EquilibriumData":
+        """The equilibria ``rows`` (a slice, index array or bool mask)."""
+        return EquilibriumData(self.angles[rows], self.pose[rows], self.J[rows], self.S[rows],
+                               None if self.strain is None else self.strain[rows])
+
+    @staticmethod
+    def concat(parts) -> "EquilibriumData":
+        parts = list(parts)
+        strain = None if any(p.strain is None for p in parts) else np.concatenate([p.strain for p in parts])
+        return EquilibriumData(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("angles", "pose", "J", "S")),
+                               strain)
 
 
 @dataclass(frozen=True)
@@ -228,11 +242,17 @@ def errors(surface: Surface, data: EquilibriumData) -> dict:
 
 
 def choose_degree(train: EquilibriumData, check: EquilibriumData, rest: EquilibriumData, box_lo, box_hi,
-                  targets: dict, *, fraction: float = 0.5, degrees=(2, 3, 4, 5)) -> Surface:
-    """The lowest degree in ``degrees`` whose worst error on ``check`` (equilibria not fitted)
-    is within ``fraction`` of each of ``targets`` ({"position_mm", "orientation_deg",
-    "jacobian_rel"}); if none is, the one with the smallest worst position error, its record
-    saying so (``info["met"]`` False)."""
+                  targets: dict, *, fraction: float = 0.5, degrees=(2, 3, 4, 5),
+                  strain_limit: float | None = None) -> Surface:
+    """The lowest degree in ``degrees`` whose worst error on ``check`` (equilibria not fitted;
+    with ``strain_limit`` and the check's strains, those within it, where the certificate's
+    targets apply, if any is) is within ``fraction`` of each of ``targets`` ({"position_mm",
+    "orientation_deg", "jacobian_rel"}); if none is, the one with the smallest worst error
+    relative to its target, its record saying so (``info["met"]`` False)."""
+    if strain_limit is not None and check.strain is not None and np.any(check.strain <= strain_limit):
+        check = check.take(check.strain <= strain_limit)
+    else:  # no strains, or none within: every check equilibrium counts
+        strain_limit = None
     best, tried = None, []
     for d in degrees:
         try:
@@ -250,6 +270,6 @@ def choose_degree(train: EquilibriumData, check: EquilibriumData, rest: Equilibr
     if best is None:
         raise ConfigError(f"surface: {len(train.angles)} equilibria are too few for degree {degrees[0]}")
     _, s, err, met = best
-    info = {**s.info, "check_equilibria": int(len(check.angles)), "check_worst": err, "met": bool(met),
-            "fraction_of_targets": fraction, "tried": tried}
+    info = {**s.info, "check_equilibria": int(len(check.angles)), "check_strain_limit": strain_limit,
+            "check_worst": err, "met": bool(met), "fraction_of_targets": fraction, "tried": tried}
     return Surface(s.centre, s.half, s.p0, s.R0, s.E, s.pose_coef, s.see_coef, s.m_coef, info)

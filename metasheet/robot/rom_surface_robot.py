@@ -122,10 +122,10 @@ class SurfaceLinearizer:
         return float(10 * eps * np.abs(lin.S[:6, :6]).max() * max(float(np.abs(lin.state.p).max()), 1.0))
 
 
-def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None) -> EquilibriumData:
+def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None, strain=None) -> EquilibriumData:
     """Equilibria of ``robot`` at motor ``angles`` (s, na) [rad], each solved by continuation
     from the nearest one already solved (the first from ``start``, default the rest state),
-    with its Jacobian and condensed tangent. Raises :class:`~metasheet.errors.ConvergenceError`
+    with its Jacobian, condensed tangent and, given ``strain`` (state -> [-]), strain. Raises :class:`~metasheet.errors.ConvergenceError`
     naming the angles where no equilibrium is found."""
     from .equilibrium import solve_equilibrium
     from .kinematics import jacobian_from_schur
@@ -149,7 +149,8 @@ def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None) 
         poses.append(eq.state.pose)
         Js.append(jacobian_from_schur(lin.S)[1])
         Ss.append(lin.S)
-    return EquilibriumData(angles, np.array(poses), np.array(Js), np.array(Ss))
+    strains = None if strain is None else np.array([strain(s) for s in states])
+    return EquilibriumData(angles, np.array(poses), np.array(Js), np.array(Ss), strains)
 
 
 def load_surface(path, robot) -> SurfaceRobot:

@@ -55,7 +55,7 @@ class ReduceParams(StudyRobotParams):
                                        "within this max principal strain [-] (the material model's domain; the "
                                        "others are reported apart); None: to all")
     surface_equilibria: int = Field(64, ge=16, le=5000, description="reduced-model equilibria the equilibrium "
-                                    "surface (the real-time model) is fitted on; a quarter more choose its degree")
+                                    "surface (the real-time model) is fitted on; half as many more choose its degree")
 
 
 def _snapshot(unit):
@@ -99,34 +99,38 @@ def _surface_unit(unit):
     from ...robot.rom_surface_robot import equilibrium_data
     from ...studies.model import MODELS
 
+    from ...robot.validity import validity_strain
+
     spec, basis, angles = unit
-    red = ReducedRobot(MODELS.get(spec).robot, basis)
+    fem = MODELS.get(spec)
+    red = ReducedRobot(fem.robot, basis)
     lz = red.linearizer()
     rest = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz).state
-    return equilibrium_data(red, angles, linearizer=lz, start=rest)
+    return equilibrium_data(red, angles, linearizer=lz, start=rest,
+                            strain=lambda s: validity_strain(fem.robot.body, red.positions(s), fem.strain_elements))
 
 
 def fit_stage_surface(ctx, spec, red, basis, lo, hi, p):
     """The :class:`~metasheet.robot.rom_surface_robot.SurfaceRobot` of the reduced robot ``red``
-    on the box [lo, hi]: ``p.surface_equilibria`` Sobol points (seed + 2) to fit, a quarter as
-    many (seed + 3) to choose the degree, solved through the executor in four chunks."""
+    on the box [lo, hi]: ``p.surface_equilibria`` Sobol points (seed + 2) to fit, half as many
+    (seed + 3) to choose the degree on those within the strain limit, solved through the
+    executor in four chunks."""
     from ...robot.rom_surface import EquilibriumData, choose_degree
     from ...robot.rom_surface_robot import SurfaceRobot, equilibrium_data
     from ...robot.rom_training import motor_design
 
     fit_angles = motor_design(lo, hi, p.surface_equilibria, p.seed + 2)
-    check_angles = motor_design(lo, hi, max(8, p.surface_equilibria // 4), p.seed + 3, corners=False)
+    check_angles = motor_design(lo, hi, p.surface_equilibria // 2, p.seed + 3, corners=False)
     chunks = np.array_split(np.vstack([fit_angles, check_angles]), 4)
     parts = unit_cache(ctx).map(ctx.executor, _surface_unit, [(spec, basis, c) for c in chunks if len(c)],
                                 progress=lambda d, n: ctx.progress("surface equilibria (reduced model)", d, n))
-    data = EquilibriumData(*(np.concatenate([getattr(d, f) for d in parts]) for f in ("angles", "pose", "J", "S")))
+    data = EquilibriumData.concat(parts)
     n = len(fit_angles)
-    train, check = (EquilibriumData(*(getattr(data, f)[sl] for f in ("angles", "pose", "J", "S")))
-                    for sl in (slice(0, n), slice(n, None)))
+    train, check = data.take(slice(0, n)), data.take(slice(n, None))
     lz = red.linearizer()
     rest_eq = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz)
     rest = equilibrium_data(red, red.coupling.rest_angles[None], linearizer=lz, start=rest_eq.state)
-    surface = choose_degree(train, check, rest, lo, hi, TARGETS)
+    surface = choose_degree(train, check, rest, lo, hi, TARGETS, strain_limit=p.strain_limit)
     ref = lz.force_scale(lz.linearize(rest_eq.state))
     surface = replace(surface, info={**surface.info, "force_scale_N": ref})
     return SurfaceRobot(surface, red, force_scale=ref)
