@@ -32,3 +32,16 @@ def test_the_report_carries_the_section():
     rows = [Comparison((0.0,), 0.01, 0.004, 0.011, 0.02, 0.2)]
     text = build_report({"reduce_json": _reduce_json(rows)}, {})
     assert "## Reduced-order robot and its certificate (issue 16)" in text
+
+
+def test_the_surface_has_its_own_certificate_and_difference():
+    rows = [Comparison((0.0,), 0.01, 0.004, 0.011, 0.02, 0.2)]
+    red = _reduce_json(rows)
+    surf_rows = [Comparison((0.0,), 0.036, 0.016, 0.042, 0.06, 0.2)]  # Jacobian 4.2 %: beyond 2 %
+    red["surface"] = {"degree": 4, "coefficients": 210, "equilibria": 66, "check_equilibria": 15,
+                      "certificate": summarize(surf_rows, 0.3)}
+    lines, diffs = reduce_section(red)
+    text = "\n".join(lines)
+    assert "### Equilibrium surface (the real-time model)" in text and "degree 4 in the motor angles" in text
+    assert "| Jacobian [relative Frobenius] | 0.042 | 0.042 | 0 | 0.02 | NOT met |" in text
+    assert len(diffs) == 1 and diffs[0].startswith("equilibrium surface (issue 16)")

@@ -59,4 +59,21 @@ def reduce_section(red: Mapping | None, seconds: float | None = None) -> tuple[l
                   "", "| measure | worst | p95 | failed |", "|---|---|---|---|", *_rows(cert["beyond_strain"], False)]
     diffs = [] if cert.get("met") else [
         f"reduced model (issue 16): the certificate is not met on the held-out poses {where} (see its section)."]
-    return [*lines, ""], diffs
+    surf_lines, surf_diffs = _surface(red.get("surface"), where)
+    return [*lines, "", *surf_lines], diffs + surf_diffs
+
+
+def _surface(surf: Mapping | None, where: str) -> tuple[list[str], list[str]]:
+    """The equilibrium surface's subsection (``reduce.json`` ``surface``), or nothing."""
+    if not surf or "certificate" not in surf:
+        return [], []
+    cert = surf["certificate"]
+    lines = ["### Equilibrium surface (the real-time model)", "",
+             f"Polynomials of degree {surf.get('degree')} in the motor angles ({surf.get('coefficients')} "
+             f"coefficients), fitted on {surf.get('equilibria')} reduced-model equilibria, the degree chosen on "
+             f"{surf.get('check_equilibria')} others; against the full model on the same held-out poses ({where}):",
+             "", "| measure | worst | p95 | failed | target | verdict |", "|---|---|---|---|---|---|",
+             *_rows(cert, True), "", f"Certificate: **{'met' if cert.get('met') else 'NOT met'}**.", ""]
+    diffs = [] if cert.get("met") else [
+        f"equilibrium surface (issue 16): the certificate is not met on the held-out poses {where} (see its section)."]
+    return lines, diffs
