@@ -242,7 +242,7 @@ def errors(surface: Surface, data: EquilibriumData) -> dict:
 
 
 def choose_degree(train: EquilibriumData, check: EquilibriumData, rest: EquilibriumData, box_lo, box_hi,
-                  targets: dict, *, fraction: float = 0.5, degrees=(2, 3, 4, 5),
+                  targets: dict, *, fraction: float = 0.5, degrees=(2, 3, 4, 5, 6),
                   strain_limit: float | None = None) -> Surface:
     """The lowest degree in ``degrees`` whose worst error on ``check`` (equilibria not fitted;
     with ``strain_limit`` and the check's strains, those within it, where the certificate's
