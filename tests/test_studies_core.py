@@ -191,6 +191,27 @@ def test_a_held_maze_command_is_solved_once(monkeypatch):
     assert res.commands.hold.sum() >= 4 and len(calls) == expected
 
 
+def test_continuity_paths_from_one_point_share_its_equilibrium(monkeypatch):
+    """Paths from the same start solve its equilibrium once, with the same verdicts as paths
+    tested one by one."""
+    from metasheet.studies.standin import StandInRobot
+    from metasheet.studies.workspace import EdgeTask, test_paths
+
+    spec, s = StandInSpec(), WorkspaceSettings(substeps=2)
+    m = MODELS.get(spec)
+    rest = m.rest_pose()
+    motors = np.array([m.rest_motors()] * 3)
+    starts = np.array([rest] * 3)
+    goals = rest + np.array([[3.0, 0, 0, 0, 0, 0], [0, 4.0, 0, 0, 0, 0], [0, 0, 900.0, 0, 0, 0]])  # the last: too far
+    calls = []
+    eq = StandInRobot.equilibrium
+    monkeypatch.setattr(StandInRobot, "equilibrium", lambda self, q, **kw: calls.append(q) or eq(self, q, **kw))
+    together = test_paths(EdgeTask(spec, s, motors, starts, goals))
+    assert len(calls) == 1
+    one_by_one = [test_paths(EdgeTask(spec, s, motors[i:i + 1], starts[i:i + 1], goals[i:i + 1]))[0] for i in range(3)]
+    assert together.tolist() == one_by_one == [True, True, False]
+
+
 def test_resume_after_interruption_gives_same_result(tmp_path):
     spec, grid = StandInSpec(), star_grid(**SMALL)
     settings = WorkspaceSettings(continuity=False)

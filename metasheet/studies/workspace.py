@@ -296,11 +296,17 @@ def test_paths(task: EdgeTask) -> np.ndarray:
     model = MODELS.get(task.spec)
     s = task.settings
     out = np.zeros(len(task.goals), bool)
+    starts: dict[bytes, tuple | None] = {}  # a point starts ~2 paths: its equilibrium is solved once
     for e, (q, a, b) in enumerate(zip(task.starts_motors, task.starts_pose, task.goals)):
-        try:
-            pose, state = model.equilibrium(q)
-        except ConvergenceError:  # no equilibrium found there: the path is not proven
+        key = np.asarray(q, float).tobytes()
+        if key not in starts:
+            try:
+                starts[key] = model.equilibrium(q)
+            except ConvergenceError:  # no equilibrium found there: the path is not proven
+                starts[key] = None
+        if starts[key] is None:
             continue
+        pose, state = starts[key]
         if pose_errors(a, pose)[0] > s.tol_mm:  # the forward model lands elsewhere (another branch)
             continue
         ok = True
@@ -390,6 +396,7 @@ def explore_workspace(
                 b = int(ib[grid.index[ib] == step][0])
                 if records.reached[a] and records.reached[b]:
                     pairs.append((a, b))
+        pairs.sort()  # the paths from one point in the same unit: its equilibrium is solved once
         pose = lambda i: np.concatenate([goals[i], rest[3:]])  # noqa: E731
         edge_tasks = [
             EdgeTask(spec, settings, records.motors_deg[[a for a, _ in ch]], np.array([pose(a) for a, _ in ch]),
