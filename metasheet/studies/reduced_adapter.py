@@ -227,7 +227,9 @@ class ReducedFem(FemRobot):
             self.edge_stops += 1
             return replace(r, left_domain=True)
         self._fallback("reach", r.motors_deg)
-        return self._full_reach(goal, self._to_full(r.state), limit, **kw)
+        # the edge state lifted to the full mesh starts the full loop as it is: its first
+        # linearisation corrects the reduced model's small residual along with the step
+        return self._full_reach(goal, self.robot.full_state(r.state), limit, **kw)
 
     def _leaves_box(self, state) -> bool:
         return not self.robot.in_box(state.angles)
