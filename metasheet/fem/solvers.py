@@ -47,6 +47,12 @@ from ..errors import ConfigError, ConvergenceError
 from .amg import amg_cg
 from .assembly import transpose_map
 
+# MKL's threaded sums otherwise vary run to run: the homogenised constants differed in the 13th
+# digit between two runs of one pipeline, and the reduced model's element sample then by two
+# elements. AUTO keeps the machine's code path (measured: no slower, 192k dofs); MKL reads it
+# when pypardiso first loads it, which is after this import. A user's own setting wins.
+os.environ.setdefault("MKL_CBWR", "AUTO")
+
 #: Largest SPD system SuperLU takes under "auto": its fill-in grows fast in 3D (P1 elasticity
 #: cubes, same machine: 0.18 s at 6k dofs, 4.5 s at 26k, 119 s / 6.5 GB at 105k).
 SUPERLU_MAX_DOF = 12_000
