@@ -143,16 +143,13 @@ def _fit_surface(red, lo, hi, n: int):
     """The equilibrium surface of ``red`` on the box [lo, hi], fitted on ``n`` reduced equilibria
     (its degree chosen on n / 2 more), as the reduce stage does (without its strain limit)."""
     from metasheet.robot.rom_certificate import TARGETS
-    from metasheet.robot.rom_surface import choose_degree
-    from metasheet.robot.rom_surface_robot import SurfaceRobot, equilibrium_data
+    from metasheet.robot.rom_surface_robot import equilibrium_data, fit_surface_robot
 
     lz = red.linearizer()
     rest = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz).state
-    data = [equilibrium_data(red, q, linearizer=lz, start=rest)
-            for q in (motor_design(lo, hi, n, 2), motor_design(lo, hi, n // 2, 3, corners=False))]
-    rest_data = equilibrium_data(red, red.coupling.rest_angles[None], linearizer=lz, start=rest)
-    surface = choose_degree(data[0], data[1], rest_data, lo, hi, TARGETS)
-    return SurfaceRobot(surface, red, force_scale=lz.force_scale(lz.linearize(rest)))
+    train, check = (equilibrium_data(red, q, linearizer=lz, start=rest)
+                    for q in (motor_design(lo, hi, n, 2), motor_design(lo, hi, n // 2, 3, corners=False)))
+    return fit_surface_robot(red, train, check, lo, hi, TARGETS)
 
 
 if __name__ == "__main__":

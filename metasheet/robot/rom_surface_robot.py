@@ -153,6 +153,24 @@ def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None, 
     return EquilibriumData(angles, np.array(poses), np.array(Js), np.array(Ss), strains)
 
 
+def fit_surface_robot(robot, train: EquilibriumData, check: EquilibriumData, box_lo, box_hi, targets: dict, *,
+                      strain_limit: float | None = None) -> SurfaceRobot:
+    """The :class:`SurfaceRobot` of ``robot`` fitted on ``train``, its degree chosen on ``check``
+    (:func:`.rom_surface.choose_degree`) over the box [lo, hi] (na,) [rad]; its rest equilibrium's
+    force scale, the equilibrium tolerance's reference, goes into the surface's record."""
+    from dataclasses import replace
+
+    from .equilibrium import solve_equilibrium
+    from .rom_surface import choose_degree
+
+    lz = robot.linearizer()
+    rest = solve_equilibrium(robot, robot.coupling.rest_angles, linearizer=lz).state
+    rest_data = equilibrium_data(robot, robot.coupling.rest_angles[None], linearizer=lz, start=rest)
+    surface = choose_degree(train, check, rest_data, box_lo, box_hi, targets, strain_limit=strain_limit)
+    ref = lz.force_scale(lz.linearize(rest))
+    return SurfaceRobot(replace(surface, info={**surface.info, "force_scale_N": ref}), robot, force_scale=ref)
+
+
 def load_surface(path, robot) -> SurfaceRobot:
     """The :class:`SurfaceRobot` of a reduce stage's ``surface.npz`` on ``robot`` (the robot it
     was fitted for: its coupling and motor range)."""

@@ -21,8 +21,6 @@ Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
-
 import numpy as np
 from pydantic import Field
 
@@ -97,9 +95,8 @@ def _surface_unit(unit):
     EquilibriumData`) at motor angles (s, na) [rad], by continuation from its rest equilibrium."""
     from ...robot.reduced import ReducedRobot
     from ...robot.rom_surface_robot import equilibrium_data
-    from ...studies.model import MODELS
-
     from ...robot.validity import validity_strain
+    from ...studies.model import MODELS
 
     spec, basis, angles = unit
     fem = MODELS.get(spec)
@@ -115,8 +112,8 @@ def fit_stage_surface(ctx, spec, red, basis, lo, hi, p):
     on the box [lo, hi]: ``p.surface_equilibria`` Sobol points (seed + 2) to fit, half as many
     (seed + 3) to choose the degree on those within the strain limit, solved through the
     executor in four chunks."""
-    from ...robot.rom_surface import EquilibriumData, choose_degree
-    from ...robot.rom_surface_robot import SurfaceRobot, equilibrium_data
+    from ...robot.rom_surface import EquilibriumData
+    from ...robot.rom_surface_robot import fit_surface_robot
     from ...robot.rom_training import motor_design
 
     fit_angles = motor_design(lo, hi, p.surface_equilibria, p.seed + 2)
@@ -126,14 +123,8 @@ def fit_stage_surface(ctx, spec, red, basis, lo, hi, p):
                                 progress=lambda d, n: ctx.progress("surface equilibria (reduced model)", d, n))
     data = EquilibriumData.concat(parts)
     n = len(fit_angles)
-    train, check = data.take(slice(0, n)), data.take(slice(n, None))
-    lz = red.linearizer()
-    rest_eq = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz)
-    rest = equilibrium_data(red, red.coupling.rest_angles[None], linearizer=lz, start=rest_eq.state)
-    surface = choose_degree(train, check, rest, lo, hi, TARGETS, strain_limit=p.strain_limit)
-    ref = lz.force_scale(lz.linearize(rest_eq.state))
-    surface = replace(surface, info={**surface.info, "force_scale_N": ref})
-    return SurfaceRobot(surface, red, force_scale=ref)
+    return fit_surface_robot(red, data.take(slice(0, n)), data.take(slice(n, None)), lo, hi, TARGETS,
+                             strain_limit=p.strain_limit)
 
 
 def training_box(robot, box_deg: float | None):
