@@ -6,9 +6,9 @@ from scipy.spatial.transform import Rotation
 
 from metasheet.errors import ConfigError
 from metasheet.executor import Executor
-from metasheet.studies.anisotropy import anisotropy_sweep
+from metasheet.studies.anisotropy import anisotropy_sweep, anisotropy_sweeps
 from metasheet.studies.grid import star_grid
-from metasheet.studies.maze import MazeSettings, maze_commands, solve_maze
+from metasheet.studies.maze import MazeSettings, maze_commands, solve_maze, solve_mazes
 from metasheet.studies.model import MODELS, ModelCache, RobotModel, pose_errors
 from metasheet.studies.ranges import motor_range_study
 from metasheet.studies.resume import UnitCache, unit_key
@@ -132,6 +132,29 @@ def test_anisotropy_sweep_zero_at_isotropic_and_growing():
     assert small.rod_rotation_deg[0, 1] == pytest.approx(np.degrees(6 * 0.01 * 0.5 * 0.01), rel=1e-3)
     with pytest.raises(ConfigError, match="alphas"):
         anisotropy_sweep(spec, [120.0])
+
+
+def test_sweeps_in_one_map_equal_the_sweeps_one_by_one():
+    spec = StandInSpec()
+    alphas = [np.linspace(0, spec.design_alpha, 3), [spec.design_alpha / 2]]
+    specs = [spec, spec.with_alpha(spec.design_alpha / 2)]
+    both = anisotropy_sweeps(list(zip(specs, alphas)), pull_deg=10.0)
+    for res, sp, a in zip(both, specs, alphas):
+        one = anisotropy_sweep(sp, a, pull_deg=10.0)
+        for f in ("alpha", "delta", "rod_rotation_deg", "lateral_mm", "axial_mm", "applied_deg"):
+            assert np.array_equal(getattr(res, f), getattr(one, f)), f
+    assert len(both[1].alpha) == 1 and np.abs(both[0].rod_rotation_deg[-1]).min() > 0
+
+
+def test_mazes_in_one_map_equal_the_mazes_one_by_one():
+    path = [[0, 0], [20, 0], [20, 15]]
+    spec, s = StandInSpec(), MazeSettings(dt=0.25)
+    sil, foam = solve_mazes([spec.with_alpha(0.0), spec], path, s)
+    for res, sp in ((sil, spec.with_alpha(0.0)), (foam, spec)):
+        one = solve_maze(sp, path, s)
+        for f in ("motors_deg", "error_mm", "track_mm", "reached", "segment_ok", "strain"):
+            np.testing.assert_array_equal(getattr(res, f), getattr(one, f), err_msg=f)
+    assert foam.segment_ok.all() and not sil.segment_ok.all()
 
 
 def test_maze_commands_tilt_the_segment_downhill():

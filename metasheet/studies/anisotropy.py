@@ -109,23 +109,56 @@ def anisotropy_sweep(
     larger angles), pushing by ``push_deg`` the other way [deg]; targets are clipped to the
     motor range and the applied amplitude is reported.
     """
+    return anisotropy_sweeps([(spec, alphas)], pull_deg=pull_deg, push_deg=push_deg, ramp_deg=ramp_deg,
+                             executor=executor, progress=progress, cache=cache)[0]
+
+
+def anisotropy_sweeps(
+    sweeps: Sequence[tuple[ModelSpec, Sequence[float]]],
+    *,
+    pull_deg: float = 15.0,
+    push_deg: float = 35.0,
+    ramp_deg: float = 5.0,
+    executor: Executor = Executor(),
+    progress: Callable[[str, int, int], None] = lambda d, i, n: None,
+    cache: UnitCache | None = None,
+) -> list[AnisotropyResult]:
+    """:func:`anisotropy_sweep` of each (spec, alphas) of ``sweeps``, their units in one map:
+    a long unit of one sweep (a push near a limit point) runs beside the others' units instead
+    of leaving a worker idle at the end of each map. Units go longest first (pushes, then the
+    most anisotropic), the results come back in order."""
+    check_range("pull_deg", pull_deg, 0.0, 90.0)
+    check_range("push_deg", push_deg, 0.0, 90.0)
+    check_range("ramp_deg", ramp_deg, 0.0, 90.0, lo_open=True)
+    sweeps = [(spec, _alphas(spec, alphas)) for spec, alphas in sweeps]
+    # pull and push start from rest each: two units per alpha, so that both run at once
+    tasks = [SweepTask(spec.with_alpha(float(a)), float(pull_deg), float(push_deg), float(ramp_deg), case)
+             for spec, alphas in sweeps for a in alphas for case in (0, 1)]
+    order = sorted(range(len(tasks)), key=lambda i: (-tasks[i].case, -tasks[i].spec.design_alpha))
+    done = (cache or UnitCache(None)).map(executor, sweep_point, [tasks[i] for i in order],
+                                          progress=lambda d, n: progress("anisotropy", d, n))
+    out = np.empty((len(tasks), 7))
+    out[order] = np.array(done)
+    results, start = [], 0
+    for spec, alphas in sweeps:
+        block = out[start:start + 2 * len(alphas)].reshape(len(alphas), 2, 7)
+        start += 2 * len(alphas)
+        results.append(_result(MODELS.get(spec).rod_axis, alphas, block, pull_deg, push_deg))
+    return results
+
+
+def _alphas(spec: ModelSpec, alphas) -> np.ndarray:
     alphas = np.asarray(alphas, float)
     if alphas.ndim != 1 or len(alphas) == 0:
         raise ConfigError(f"alphas: shape {alphas.shape}: expected a non-empty list of percentages")
     for i, a in enumerate(alphas):
         check_range(f"alphas[{i}]", a, 0.0, spec.design_alpha + 1e-9)
-    check_range("pull_deg", pull_deg, 0.0, 90.0)
-    check_range("push_deg", push_deg, 0.0, 90.0)
-    check_range("ramp_deg", ramp_deg, 0.0, 90.0, lo_open=True)
-    model = MODELS.get(spec)
-    cache = cache or UnitCache(None)
-    # pull and push start from rest each: two units per alpha, so that both run at once
-    tasks = [SweepTask(spec.with_alpha(float(a)), float(pull_deg), float(push_deg), float(ramp_deg), case)
-             for a in alphas for case in (0, 1)]
-    out = np.array(cache.map(executor, sweep_point, tasks, progress=lambda d, n: progress("anisotropy", d, n)))
-    out = out.reshape(len(alphas), 2, 7)
+    return alphas
+
+
+def _result(ax: int, alphas: np.ndarray, out: np.ndarray, pull_deg: float, push_deg: float) -> AnisotropyResult:
+    """The :class:`AnisotropyResult` of the units' rows ``out`` (a, 2, 7) (pose change, applied)."""
     delta, applied = out[:, :, :6], out[:, :, 6]
-    ax = model.rod_axis
     lateral = np.linalg.norm(np.delete(delta[:, :, :3], ax, axis=2), axis=2)
     return AnisotropyResult(alphas, delta, np.degrees(delta[:, :, 3 + ax]), lateral, delta[:, :, ax], applied, ax,
                             float(pull_deg), float(push_deg))

@@ -200,14 +200,33 @@ def solve_maze(
     cache: UnitCache | None = None,
 ) -> MazeResult:
     """Commands, open-loop motor series and replay of ``path`` (m, 2) [mm] on ``spec``'s robot."""
-    model = MODELS.get(spec)
-    cmd = maze_commands(path, model.rest_pose(), settings, plane_axes=plane_axes)
-    n_seg = len(cmd.directions)
-    cache = cache or UnitCache(None)
-    tasks = [SegmentTask(spec, settings, cmd.poses[cmd.segment == i]) for i in range(n_seg)]
-    parts = cache.map(executor, solve_segment, tasks, progress=lambda d, n: progress("maze segments", d, n))
+    return solve_mazes([spec], path, settings, plane_axes=plane_axes, executor=executor, progress=progress,
+                       cache=cache)[0]
+
+
+def solve_mazes(specs, path, settings: MazeSettings = MazeSettings(), *, plane_axes=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
+                executor: Executor = Executor(), progress: Callable[[str, int, int], None] = lambda d, i, n: None,
+                cache: UnitCache | None = None) -> list[MazeResult]:
+    """:func:`solve_maze` on each of ``specs`` (robots, materials), every segment of every robot
+    in one map: a robot's impossible segment (its inverse loop runs to ``max_steps``) runs
+    beside the others' segments. Put the slowest robot first: its units are submitted first."""
+    models = [MODELS.get(spec) for spec in specs]
+    cmds = [maze_commands(path, m.rest_pose(), settings, plane_axes=plane_axes) for m in models]
+    tasks = [SegmentTask(spec, settings, cmd.poses[cmd.segment == i])
+             for spec, cmd in zip(specs, cmds) for i in range(len(cmd.directions))]
+    parts = (cache or UnitCache(None)).map(executor, solve_segment, tasks,
+                                           progress=lambda d, n: progress("maze segments", d, n))
+    out, start = [], 0
+    for model, cmd in zip(models, cmds):
+        n_seg = len(cmd.directions)
+        out.append(_maze_result(model, cmd, parts[start:start + n_seg]))
+        start += n_seg
+    return out
+
+
+def _maze_result(model, cmd: MazeCommands, parts: list[SegmentResult]) -> MazeResult:
     cat = lambda f: np.concatenate([getattr(p, f) for p in parts])  # noqa: E731
     reached = cat("reached")
-    ok = np.array([bool(reached[(cmd.segment == i) & cmd.hold].all()) for i in range(n_seg)])
+    ok = np.array([bool(reached[(cmd.segment == i) & cmd.hold].all()) for i in range(len(parts))])
     return MazeResult(cmd, cat("motors_deg"), cat("error_mm"), cat("error_deg"), cat("track_mm"),
                       cat("track_deg"), reached, ok, tuple(model.motor_range), cat("strain"))

@@ -25,10 +25,11 @@ from ... import paper
 from ...errors import ConfigError
 from ...material import TransverseIsotropic
 from ...material_model import model_stiffness, other_model
-from ...studies.anisotropy import anisotropy_sweep
+from ...studies.anisotropy import anisotropy_sweeps
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import StudyRobotParams, build_spec, drop_cache, model_record, progress, unit_cache, write_csv
+from ._studies import (StudyRobotParams, build_spec, drop_cache, model_record, progress, study_reads, unit_cache,
+                       write_csv)
 
 
 class AnisotropyParams(StudyRobotParams):
@@ -51,8 +52,15 @@ def run(ctx: StageContext) -> dict:
                 "every alpha; the reduced basis was trained for the design material only"}
         spec = spec.full
     alphas = np.linspace(0.0, spec.design_alpha, p.n_alpha)
-    res = anisotropy_sweep(spec, alphas, pull_deg=p.pull_deg, push_deg=p.push_deg, ramp_deg=p.ramp_deg,
-                           executor=ctx.executor, progress=progress(ctx), cache=unit_cache(ctx))
+    published = _published_spec(ctx, spec) if p.compare_published else None
+    ends, skipped = _end_point_specs(spec, published) if p.compare_models and hasattr(spec, "model") else ({}, {})
+    if published is not None:
+        ends = {"published": published, **ends}
+    # the sweep and every end point in one map: their long units overlap
+    res, *end_res = anisotropy_sweeps([(spec, alphas)] + [(sp, [sp.design_alpha]) for sp in ends.values()],
+                                      pull_deg=p.pull_deg, push_deg=p.push_deg, ramp_deg=p.ramp_deg,
+                                      executor=ctx.executor, progress=progress(ctx), cache=unit_cache(ctx))
+    end_points = {name: _end_point(r) for name, r in zip(ends, end_res)}
     header = ["alpha_percent"]
     for case in ("pull", "push"):
         header += [f"{case}_applied_deg", f"{case}_rod_rotation_deg", f"{case}_lateral_mm", f"{case}_axial_mm",
@@ -83,32 +91,36 @@ def run(ctx: StageContext) -> dict:
         "applied_deg": {"pull": float(applied[0]), "push": float(applied[1])},
         "requested_deg": {"pull": p.pull_deg, "push": p.push_deg}, "model": p.model, "model_info": info,
     }
-    published = _published_spec(ctx, spec) if p.compare_published else None
-    if published is not None:
-        summary["published_end_point"] = _end_point(ctx, published)
+    if "published" in end_points:
+        summary["published_end_point"] = end_points.pop("published")
     if p.compare_models and hasattr(spec, "model"):  # the FEM robot: the other material model's end points
-        other = other_model(spec.model)
-        summary["material_model"], summary["model_end_points"] = spec.model, {}
-        for name, sp in ((other, spec), (f"published_{other}", published)):
-            if sp is None:
-                continue
-            try:  # the authors' tensor may be indefinite for these constants: say so, skip it
-                model_stiffness(TransverseIsotropic(*sp.design), other)
-            except ConfigError as exc:
-                summary["model_end_points"][name] = {"skipped": str(exc)}
-                continue
-            summary["model_end_points"][name] = _end_point(ctx, replace(sp, model=other))
+        summary["material_model"], summary["model_end_points"] = spec.model, {**end_points, **skipped}
     write_json_atomic(ctx.path("anisotropy.json"), summary)
     drop_cache(ctx)
     return summary
 
 
-def _end_point(ctx: StageContext, spec) -> dict:
-    """The sweep's end point (alpha = the spec's design alpha) of ``spec``: alpha [%], rod
-    rotation [deg] and lateral translation [mm] for pull and push (None: not converged)."""
-    p = ctx.params
-    end = anisotropy_sweep(spec, [spec.design_alpha], pull_deg=p.pull_deg, push_deg=p.push_deg, ramp_deg=p.ramp_deg,
-                           executor=ctx.executor, progress=progress(ctx), cache=unit_cache(ctx))
+def _end_point_specs(spec, published) -> tuple[dict, dict]:
+    """The other material model's specs ({name: spec}) for the pipeline's constants (``<other>``)
+    and the published ones (``published_<other>``), and the ones skipped ({name: {"skipped": why}}):
+    the authors' tensor may be indefinite for some constants."""
+    other = other_model(spec.model)
+    specs, skipped = {}, {}
+    for name, sp in ((other, spec), (f"published_{other}", published)):
+        if sp is None:
+            continue
+        try:
+            model_stiffness(TransverseIsotropic(*sp.design), other)
+        except ConfigError as exc:
+            skipped[name] = {"skipped": str(exc)}
+            continue
+        specs[name] = replace(sp, model=other)
+    return specs, skipped
+
+
+def _end_point(end) -> dict:
+    """A one-alpha sweep's end point: alpha [%], rod rotation [deg] and lateral translation [mm]
+    for pull and push (None: not converged)."""
     return {"alpha_percent": round(float(end.alpha[0]), 4),
             "rod_rotation_deg": {"pull": _listed(end.rod_rotation_deg[:, 0])[0],
                                  "push": _listed(end.rod_rotation_deg[:, 1])[0]},
@@ -139,6 +151,7 @@ def _published_spec(ctx: StageContext, spec):
 
 register(Stage(
     name="anisotropy", params=AnisotropyParams, run=run, optional=("orient", "material", "robot", "reduce"),
+    reads=study_reads,
     outputs=("anisotropy.csv", "anisotropy.png", "anisotropy.json"),
     doc="rod rotation and lateral translation vs anisotropy alpha (Fig. 7)",
 ))

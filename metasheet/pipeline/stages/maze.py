@@ -16,11 +16,11 @@ import numpy as np
 from pydantic import Field
 
 from ...material import Isotropic
-from ...studies.maze import MazeSettings, solve_maze
+from ...studies.maze import MazeSettings, solve_mazes
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
 from ._studies import (CertifyParams, build_spec, certification, drop_cache, model_record, progress, scene_of,
-                       unit_cache, write_csv)
+                       study_reads, unit_cache, write_csv)
 
 #: a small maze walked once round and back to the start: along the rod, across it, diagonals
 DEFAULT_PATH = [(0.0, 0.0), (30.0, 0.0), (30.0, 25.0), (-20.0, 25.0), (-20.0, -20.0), (15.0, -20.0),
@@ -65,13 +65,12 @@ def run(ctx: StageContext) -> dict:
     spec = build_spec(ctx)
     s = MazeSettings(tilt_deg=p.tilt_deg, speed=p.speed, dt=p.dt, ramp_s=p.ramp_s, tol_mm=p.tol_mm,
                      tol_deg=p.tol_deg, max_steps=p.max_steps)
-    cache = unit_cache(ctx)
-    foam = solve_maze(spec, p.path, s, executor=ctx.executor, progress=progress(ctx), cache=cache)
     # a scene with a sheet mass (the authors': 32 g) keeps it for the silicone sheets too
     sil_density = None if getattr(scene_of(ctx), "sheet_mass_g", None) else p.silicone_density
     sil_spec = spec.with_material(Isotropic(p.silicone_E, p.silicone_nu), density=sil_density)
-    sil = solve_maze(sil_spec, p.path, s, executor=ctx.executor,
-                     progress=lambda d, i, n: ctx.progress("maze (silicone)", i, n), cache=cache)
+    # one map, silicone first: its impossible segments are the longest units
+    sil, foam = solve_mazes([sil_spec, spec], p.path, s, executor=ctx.executor, progress=progress(ctx),
+                            cache=unit_cache(ctx))
     write_csv(ctx.path("maze.csv"), list(HEADER), _rows(foam))
     write_csv(ctx.path("maze_silicone.csv"), list(HEADER), _rows(sil))
     from ...viz.studies import maze_picture
@@ -109,6 +108,7 @@ def run(ctx: StageContext) -> dict:
 
 register(Stage(
     name="maze", params=MazeParams, run=run, optional=("orient", "material", "robot", "reduce"),
+    reads=study_reads,
     outputs=("maze.csv", "maze_silicone.csv", "maze.png", "maze.json"),
     doc="maze path solved open loop into motor angles, replayed; foam vs silicone",
 ))
