@@ -36,15 +36,19 @@ def _tree(root: Path) -> dict[str, bytes]:
 
 
 def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
-    """Not marked slow: CI runs it (two quick runs, about 30 s on 2 shared cores)."""
-    project = tmp_path / "project"
-    project.mkdir()
-    for d in ("cells", "pipelines"):
-        shutil.copytree(ROOT / d, project / d)
+    """Not marked slow: CI runs it (two quick runs, about 30 s on 2 shared cores). The second
+    runs its independent stages at once (``stages_at_once = 2``: printmap beside robot, both
+    drawing pictures): the same bytes."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}  # cold, as on a fresh clone
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     trees, seconds = [], []
     for run in ("a", "b"):
+        project = tmp_path / f"project_{run}"
+        for d in ("cells", "pipelines"):
+            shutil.copytree(ROOT / d, project / d)
+        if run == "b":
+            toml = project / "pipelines" / "quick.toml"
+            toml.write_text(toml.read_text().replace("[pipeline]\n", "[pipeline]\nstages_at_once = 2\n", 1))
         t0 = time.perf_counter()
         r = subprocess.run([sys.executable, "-m", "metasheet.cli", "run", "pipelines/quick.toml",
                             "--out", str(tmp_path / run)], cwd=project, env=env, capture_output=True,

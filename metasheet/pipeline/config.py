@@ -35,6 +35,8 @@ class PipelineSection(Params):
     description: str = ""
     workers: int = Field(1, ge=1, le=256, description="local worker processes for sweeps")
     scheduler: str | None = Field(None, description="dask.distributed scheduler address")
+    stages_at_once: int = Field(1, ge=1, le=16, description="stages whose inputs are ready that run at once "
+                                "(each in a thread of the run, its work units on the workers); 1: one after another")
 
 
 @dataclass(frozen=True)
@@ -178,4 +180,5 @@ def resolve_order(names: list[str], registry: dict[str, Stage], source: str) -> 
 def upstream(pipeline: Pipeline, name: str) -> tuple[str, ...]:
     """The stages of ``pipeline`` that stage ``name`` reads (required and optional)."""
     st = stages()[name]
-    return tuple(u for u in (*st.requires, *st.optional) if u in pipeline.params)
+    optional = st.optional if st.reads is None else tuple(u for u in st.optional if u in st.reads(pipeline.params[name]))
+    return tuple(u for u in (*st.requires, *optional) if u in pipeline.params)

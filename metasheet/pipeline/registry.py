@@ -74,6 +74,8 @@ class Stage:
     run : the stage function.
     requires : upstream stages whose outputs it reads (must be in the pipeline).
     optional : upstream stages it reads when they are in the pipeline.
+    reads : params -> the ``optional`` stages it reads with these parameters (None: all of them):
+        a stage that does not read one does not wait for it, and runs beside it.
     outputs : files it writes (documentation and a post-run check).
     doc : one line for ``metasheet stages``.
     """
@@ -83,6 +85,7 @@ class Stage:
     run: Callable[[StageContext], dict]
     requires: tuple[str, ...] = ()
     optional: tuple[str, ...] = ()
+    reads: Callable[[Params], tuple[str, ...]] | None = None
     outputs: tuple[str, ...] = ()
     doc: str = ""
 

@@ -42,6 +42,7 @@ from ..executor import Executor
 from . import manifest as mf
 from .config import Pipeline, upstream
 from .registry import StageContext, stages
+from .schedule import run_graph
 
 #: errno values of a write that failed because of the output folder, not of the stage's logic.
 WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS}
@@ -291,6 +292,9 @@ def run_pipeline(
 ) -> list[StageOutcome]:
     """Run ``pipeline``; return one :class:`StageOutcome` per visited stage.
 
+    Stages whose upstream stages are done run at once, up to ``[pipeline] stages_at_once``
+    (:mod:`.schedule`).
+
     ``only`` runs one stage (and what it needs, from cache when fresh); ``force``
     reruns the selected stage (or every stage when ``only`` is None). The output folder's
     lock is held for the whole run; ``wait=False`` raises :class:`~metasheet.errors.LockedError`
@@ -307,8 +311,11 @@ def run_pipeline(
         except OSError as exc:
             raise output_error(exc, str(base)) from exc
         remove_debris(base, report)
-        return [_run_stage(pipeline, registry[name], base, force and (only is None or only == name), executor,
-                           report, progress_factory) for name in names]
+        done = run_graph(names, {n: upstream(pipeline, n) for n in names},
+                         lambda name: _run_stage(pipeline, registry[name], base, force and (only is None or only == name),
+                                                 executor, report, progress_factory),
+                         at_once=pipeline.section.stages_at_once)
+        return [done[n] for n in names]
 
 
 def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Executor, report: Reporter,

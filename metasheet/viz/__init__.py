@@ -2,7 +2,14 @@
 
 VTK logs a harmless "bad X server connection" warning when it falls back to
 off-screen (EGL) rendering on a machine with no screen; only its errors are shown.
+
+Pictures are made one at a time in a process (:func:`one_at_a_time`): pyplot's figure
+registry and VTK's render windows are process-wide, and a pipeline may run independent
+stages in threads at once.
 """
+
+import functools
+import threading
 
 try:
     from vtkmodules.vtkCommonCore import vtkLogger
@@ -10,3 +17,16 @@ try:
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
 except ImportError:  # pragma: no cover - pyvista brings vtk; without it no 3D picture is made
     pass
+
+_PICTURES = threading.RLock()
+
+
+def one_at_a_time(fn):
+    """Decorator: ``fn`` (a picture maker) runs under the process's picture lock."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with _PICTURES:
+            return fn(*args, **kwargs)
+
+    return wrapper

@@ -9,6 +9,7 @@ import io
 import itertools
 
 import numpy as np
+from . import one_at_a_time
 
 #: Colours of phases 1, 2, ... (void is not drawn), and their names for the captions.
 PHASE_COLOURS = ("#d9a441", "#4a7fb5", "#8fb54a", "#b54a6d")
@@ -61,6 +62,7 @@ def _render(meshes, size: np.ndarray, tiles: int, title: str, window: tuple[int,
     return _png(image)
 
 
+@one_at_a_time
 def surface_picture(vertices: np.ndarray, faces: np.ndarray, size, *, tiles: int = 2, title: str = "",
                     window: tuple[int, int] = (900, 900)) -> bytes:
     """A triangle surface of one cell, repeated ``tiles`` times along x, y and z.
@@ -82,6 +84,7 @@ def surface_picture(vertices: np.ndarray, faces: np.ndarray, size, *, tiles: int
     return _render([(tiled, kwargs)], size, tiles, title, window)
 
 
+@one_at_a_time
 def voxel_picture(phases: np.ndarray, size, *, tiles: int = 2, title: str = "",
                   labels: dict[int, str] | None = None, window: tuple[int, int] = (900, 900)) -> bytes:
     """The voxels of a phase grid (void hidden), coloured by phase, tiled ``tiles`` times.

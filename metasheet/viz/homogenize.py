@@ -13,6 +13,7 @@ import io
 import numpy as np
 
 from ..homogenize.result import LOAD_CASES, HomogenizationResult
+from . import one_at_a_time
 
 #: VTK hexahedron order of our local nodes a = ax + 2 ay + 4 az.
 _VTK_HEX = [0, 1, 3, 2, 4, 5, 7, 6]
@@ -67,6 +68,7 @@ def tet_field_mesh(result: HomogenizationResult, points, tets):
     return meshio.Mesh(np.asarray(points, float), [("tetra", np.asarray(tets)[result.element_ids])], cell_data=data)
 
 
+@one_at_a_time
 def summary_picture(result: HomogenizationResult, title: str = "") -> bytes:
     """PNG: C (6 x 6) heat map, fitted constants, localisation curves per load case."""
     import matplotlib
@@ -121,6 +123,7 @@ def summary_picture(result: HomogenizationResult, title: str = "") -> bytes:
     return buf.getvalue()
 
 
+@one_at_a_time
 def chart_picture(rows, title: str = "") -> bytes:
     """PNG with one panel per constant (E_t, E_l, nu_t, nu_tl, mu_l, alpha) against the
     achieved relative density, one line per value of the family's second setting (stretch,

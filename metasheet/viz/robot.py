@@ -13,6 +13,7 @@ import io
 import numpy as np
 
 from ..rotations import rotation_vector
+from . import one_at_a_time
 
 
 def _grid(points, tets, disp=None):
@@ -43,6 +44,7 @@ def _maze(p, R, axis, size=36.0, thick=2.0):
     return out
 
 
+@one_at_a_time
 def robot_picture(cases, *, window=(1600, 1200)) -> bytes:
     """PNG bytes: for each ``(title, robot, rest_state, moved_state)`` a side and an end view."""
     import pyvista as pv

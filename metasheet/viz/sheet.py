@@ -9,6 +9,7 @@ import io
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from . import one_at_a_time
 
 
 def _figure(ncols: int, nrows: int = 1, size: float = 5.0):
@@ -31,6 +32,7 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
+@one_at_a_time
 def sheet_picture(
     outline: np.ndarray,
     hole_radius: float,
@@ -81,6 +83,7 @@ def sheet_picture(
     return _png(fig)
 
 
+@one_at_a_time
 def printmap_picture(
     slices: Sequence[tuple[str, dict[str, np.ndarray], np.ndarray, np.ndarray, tuple]],
     values: dict[str, float] | None = None,

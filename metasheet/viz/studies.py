@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 
 import numpy as np
+from . import one_at_a_time
 
 CLASS_COLOURS = {3: "#1f5fbf", 2: "#2ca02c", 1: "#ff7f0e", 0: "#d62728", -1: "#c8c8c8"}
 CLASS_LABELS = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
@@ -38,6 +39,7 @@ def _depth_order(points: np.ndarray, h: int, v: int) -> np.ndarray:
     return np.argsort(points[:, d], kind="stable")
 
 
+@one_at_a_time
 def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: float, title: str = "",
                       tried=None) -> bytes:
     """Three rows (class, max principal strain, smallest singular value) x three views.
@@ -96,6 +98,7 @@ def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: fl
     return _png(fig)
 
 
+@one_at_a_time
 def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
     """Nested reachable sets for each motor range (Fig. 6): points (n, 3), reached (r, n), ranges (r, 2)."""
     plt = _plt()
@@ -125,6 +128,7 @@ def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
     return _png(fig)
 
 
+@one_at_a_time
 def anisotropy_picture(alpha, rod_rotation_deg, lateral_mm, *, pull_deg: float, push_deg: float,
                        title: str = "") -> bytes:
     """Rod rotation and lateral translation against alpha (Fig. 7); (a,) and (a, 2) arrays."""
@@ -145,6 +149,7 @@ def anisotropy_picture(alpha, rod_rotation_deg, lateral_mm, *, pull_deg: float, 
     return _png(fig)
 
 
+@one_at_a_time
 def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segment_ok_silicone,
                  motor_range, *, title: str = "", strain=None, strain_limit: float | None = None) -> bytes:
     """Maze path with feasible / impossible segments (foam vs silicone), the motor series and

@@ -123,6 +123,11 @@ def build_spec(ctx: StageContext):
     return spec
 
 
+def study_reads(params) -> tuple[str, ...]:
+    """The upstream stages a study reads: the reduce stage's basis only on the reduced model."""
+    return ("orient", "material", "robot", "reduce") if params.model == "reduced" else ("orient", "material", "robot")
+
+
 def model_record(spec) -> dict:
     """Which model a study ran on, for its JSON: {"model": "reduced", k, elements (sampled of
     total), basis_key (basis.npz's hash), robot_key, box_deg (the training box, lo and hi)},

@@ -127,6 +127,13 @@ def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
     return TransverseIsotropic(c.E_t, c.E_l, c.nu_t, c.nu_tl, c.mu_l), "orient.constants"
 
 
+def _reads(p) -> tuple[str, ...]:
+    """The material always; the chart (and the cell and constants it is calibrated on) for a
+    graded design only: a uniform one need not wait for the chart."""
+    g = p.grading
+    return ("material", "chart", "cell", "homogenize") if (g.table or g.density_expr or g.alpha_expr) else ("material",)
+
+
 def _chart_lookup(ctx: StageContext):
     """The design chart's inverse look-up as (rho [-], alpha [%]) -> TransverseIsotropic, or None.
 
@@ -239,6 +246,7 @@ register(
         run=run,
         requires=(),
         optional=("material", "chart", "cell", "homogenize"),
+        reads=_reads,
         outputs=(*SHEET_FILES.values(), "sheet.json", "sheet.png"),
         doc="tripod sheet mesh + spiral fibre field (normal and mirrored) -> sheet.vtu, sheet.png",
     )

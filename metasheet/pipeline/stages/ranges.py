@@ -17,7 +17,7 @@ from ...studies.workspace import WorkspaceSettings
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
 from ._studies import (GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
-                       unit_cache, write_csv)
+                       study_reads, unit_cache, write_csv)
 
 class RangesParams(GridParams):
     ranges: list[tuple[float, float]] = Field(
@@ -60,6 +60,7 @@ def run(ctx: StageContext) -> dict:
 
 register(Stage(
     name="ranges", params=RangesParams, run=run, optional=("orient", "material", "robot", "reduce"),
+    reads=study_reads,
     outputs=("ranges.csv", "ranges.png", "ranges.json"),
     doc="reachable workspace for several motor ranges (Fig. 6), nesting checked",
 ))

@@ -24,7 +24,7 @@ from ...studies.workspace import CLASS_NAMES, WorkspaceSettings, explore_workspa
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
 from ._studies import (GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
-                       unit_cache, write_csv)
+                       study_reads, unit_cache, write_csv)
 
 ROT_COLS = ("+x", "-x", "+y", "-y", "+z", "-z")
 
@@ -127,6 +127,7 @@ def run(ctx: StageContext) -> dict:
 
 register(Stage(
     name="workspace", params=WorkspaceParams, run=run, optional=("orient", "material", "robot", "reduce"),
+    reads=study_reads,
     outputs=("workspace.csv", "workspace.vtp", "workspace.png", "workspace.json"),
     doc="workspace exploration (Fig. 5) with strain validity, loss of control and continuity",
 ))
