@@ -207,3 +207,23 @@ def test_quick_pipeline_prints_what_it_models(tmp_path, as_value):
     mat = json.loads((tmp_path / "quick/material/material.json").read_text())
     cons = json.loads((tmp_path / "quick/homogenize/constants.json").read_text())
     assert mat["constants"]["E_l"] == pytest.approx(cons["E_l"], rel=1e-12)
+
+
+def test_a_stage_waits_only_for_the_optional_stages_it_reads(tmp_path):
+    """The paper pipeline's anisotropy sweep runs the full model: it does not wait for the
+    reduce stage (it runs beside it); its reduced studies do. A uniform orient does not wait
+    for the design chart; a graded one reads it."""
+    from metasheet.pipeline.config import upstream
+
+    root = Path(__file__).resolve().parents[1]
+    paper = load_pipeline(root / "pipelines" / "paper.toml")
+    assert "reduce" not in upstream(paper, "anisotropy") and "robot" in upstream(paper, "anisotropy")
+    assert all("reduce" in upstream(paper, s) for s in ("workspace", "ranges", "maze"))
+    assert "chart" not in upstream(paper, "orient") and "chart" in upstream(paper, "printmap")
+    text = (root / "pipelines" / "paper.toml").read_text()
+    graded = text.replace('scene = "authors"\n', 'scene = "authors"\ngrading = { density_expr = "0.15" }\n', 1)
+    assert graded != text
+    (tmp_path / "pipelines").mkdir()
+    (tmp_path / "cells").symlink_to(root / "cells")
+    (tmp_path / "pipelines" / "paper.toml").write_text(graded)
+    assert "chart" in upstream(load_pipeline(tmp_path / "pipelines" / "paper.toml"), "orient")
