@@ -7,15 +7,21 @@ A local pool's workers share the machine's cores: each limits its BLAS / OpenMP 
 to cores // workers (:func:`threads_per_worker`). Left at their default (one thread per
 core each), two workers' OpenBLAS threads oversubscribed a 2-core machine and made the
 paper's workspace rays 2.5x slower (benchmarks/bench_executor.py).
+
+Inside :meth:`Executor.session` every map goes to one pool kept for the block: a pipeline run
+starts its workers once, not once per map (a spawned worker imports the package and builds
+its robot models again: a few CPU seconds each time), and stages running at once share the
+workers instead of oversubscribing the cores.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .errors import ConfigError
@@ -41,6 +47,7 @@ class Executor:
     workers: int = 1
     scheduler: str | None = None
     worker_threads: int | None = None
+    pool: ProcessPoolExecutor | None = field(default=None, compare=False, repr=False)  # set by session()
 
     def __post_init__(self):
         if int(self.workers) < 1:
@@ -58,6 +65,19 @@ class Executor:
         if self.scheduler:
             return "dask"
         return "processes" if self.workers > 1 else "serial"
+
+    @contextlib.contextmanager
+    def session(self) -> Iterator["Executor"]:
+        """This executor, its maps sharing one pool of local workers until the block ends (the
+        pool is shut down then); a serial or dask executor, or one already in a session, as it is."""
+        if self.kind != "processes" or self.pool is not None:
+            yield self
+            return
+        pool = _pool(self.workers, self.worker_threads or threads_per_worker(self.workers))
+        try:
+            yield replace(self, pool=pool)
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
 
     def map(
         self,
@@ -84,6 +104,8 @@ class Executor:
                 progress(i + 1, total)
             return out
         if self.kind == "processes":
+            if self.pool is not None:
+                return _collect(self.pool, fn, items, progress, on_result)
             return _map_pool(fn, items, self.workers, progress, on_result, self.worker_threads)
         return _map_dask(fn, items, self.scheduler, progress, on_result)
 
@@ -109,20 +131,32 @@ def _limit_threads(n: int) -> None:
     ThreadpoolController().limit(limits=n)
 
 
-def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None) -> list:
-    results: list = [None] * len(items)
+def _pool(workers: int, threads: int) -> ProcessPoolExecutor:
     # "spawn", not fork: a forked child inherits the locks of BLAS, numba and gmsh threads
     # held at fork time and can hang forever (seen with the design chart).
-    ctx = multiprocessing.get_context("spawn")
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_limit_threads, initargs=(threads,))
+
+
+def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None) -> list:
     n = min(workers, len(items))
-    with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_limit_threads,
-                             initargs=(threads or threads_per_worker(n),)) as pool:
-        futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
+    with _pool(n, threads or threads_per_worker(n)) as pool:
+        return _collect(pool, fn, items, progress, on_result)
+
+
+def _collect(pool: ProcessPoolExecutor, fn, items: Sequence, progress, on_result) -> list:
+    results: list = [None] * len(items)
+    futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
+    try:
         for done, fut in enumerate(as_completed(futures), 1):
             i = futures[fut]
             results[i] = fut.result()
             on_result(i, results[i])
             progress(done, len(items))
+    except BaseException:  # a unit failed: the others of this map are not wanted any more
+        for fut in futures:
+            fut.cancel()
+        raise
     return results
 
 

@@ -37,3 +37,34 @@ def test_pool_workers_limit_their_blas_threads():
 def test_worker_threads_is_validated():
     with pytest.raises(ConfigError, match="worker_threads"):
         Executor(workers=2, worker_threads=0)
+
+
+def worker_pid(x):
+    """(x, the worker's pid); a unit that waits a little so that both workers take some."""
+    import time
+
+    time.sleep(0.05)
+    return x, os.getpid()
+
+
+def failing_unit(x):
+    if x == 2:
+        raise ValueError("unit 2 fails")
+    return x
+
+
+def test_a_session_keeps_one_pool_for_every_map():
+    plain = [{pid for _, pid in Executor(workers=2).map(worker_pid, range(6))} for _ in range(2)]
+    assert not plain[0] & plain[1]  # without a session each map starts its own workers
+    with Executor(workers=2).session() as ex:
+        assert ex.pool is not None and ex == Executor(workers=2)
+        runs = [ex.map(worker_pid, range(6)) for _ in range(2)]
+        with pytest.raises(ValueError, match="unit 2"):
+            ex.map(failing_unit, range(4))
+        after = ex.map(worker_pid, range(4))  # a failed unit leaves the pool usable
+    assert [x for x, _ in runs[0]] == list(range(6))  # input order
+    pids = {pid for run in (*runs, after) for _, pid in run}
+    assert 1 <= len(pids) <= 2
+    serial = Executor(workers=1)
+    with serial.session() as same:
+        assert same is serial  # nothing to keep

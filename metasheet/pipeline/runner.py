@@ -311,10 +311,12 @@ def run_pipeline(
         except OSError as exc:
             raise output_error(exc, str(base)) from exc
         remove_debris(base, report)
-        done = run_graph(names, {n: upstream(pipeline, n) for n in names},
-                         lambda name: _run_stage(pipeline, registry[name], base, force and (only is None or only == name),
-                                                 executor, report, progress_factory),
-                         at_once=pipeline.section.stages_at_once)
+        with executor.session() as ex:  # one pool of workers for the whole run
+            done = run_graph(names, {n: upstream(pipeline, n) for n in names},
+                             lambda name: _run_stage(pipeline, registry[name], base,
+                                                     force and (only is None or only == name), ex, report,
+                                                     progress_factory),
+                             at_once=pipeline.section.stages_at_once)
         return [done[n] for n in names]
 
 

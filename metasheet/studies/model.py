@@ -154,8 +154,9 @@ class ModelCache:
 
 
 #: This process's models (a worker process has its own): the studies' work units build
-#: through it. A worker may see a few specs (motor ranges, alphas), hence 4.
-MODELS = ModelCache(max_size=4)
+#: through it. A worker may see a few specs (motor ranges, alphas), and a pipeline run's
+#: workers serve its stages in turn (:meth:`~metasheet.executor.Executor.session`), hence 8.
+MODELS = ModelCache(max_size=8)
 
 
 def check_motor_range(field: str, lo: float, hi: float) -> tuple[float, float]:

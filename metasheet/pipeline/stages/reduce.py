@@ -21,6 +21,8 @@ Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from pydantic import Field
 
@@ -107,13 +109,12 @@ def _surface_unit(unit):
                             strain=lambda s: validity_strain(fem.robot.body, red.positions(s), fem.strain_elements))
 
 
-def fit_stage_surface(ctx, spec, red, basis, lo, hi, p):
-    """The :class:`~metasheet.robot.rom_surface_robot.SurfaceRobot` of the reduced robot ``red``
-    on the box [lo, hi]: ``p.surface_equilibria`` Sobol points (seed + 2) to fit, half as many
-    (seed + 3) to choose the degree on those within the strain limit, solved through the
-    executor in four chunks."""
+def surface_equilibria(ctx, spec, basis, lo, hi, p):
+    """(fit, check) :class:`~metasheet.robot.rom_surface.EquilibriumData` of the reduced model
+    for the equilibrium surface on the box [lo, hi]: ``p.surface_equilibria`` Sobol points
+    (seed + 2) to fit, half as many (seed + 3) to choose the degree on (those within the strain
+    limit), solved through the executor in four chunks."""
     from ...robot.rom_surface import EquilibriumData
-    from ...robot.rom_surface_robot import fit_surface_robot
     from ...robot.rom_training import motor_design
 
     fit_angles = motor_design(lo, hi, p.surface_equilibria, p.seed + 2)
@@ -123,8 +124,7 @@ def fit_stage_surface(ctx, spec, red, basis, lo, hi, p):
                                 progress=lambda d, n: ctx.progress("surface equilibria (reduced model)", d, n))
     data = EquilibriumData.concat(parts)
     n = len(fit_angles)
-    return fit_surface_robot(red, data.take(slice(0, n)), data.take(slice(n, None)), lo, hi, TARGETS,
-                             strain_limit=p.strain_limit)
+    return data.take(slice(0, n)), data.take(slice(n, None))
 
 
 def training_box(robot, box_deg: float | None):
@@ -138,6 +138,7 @@ def training_box(robot, box_deg: float | None):
 
 def run(ctx: StageContext) -> dict:
     from ...robot.reduced import ReducedRobot
+    from ...robot.rom_surface_robot import fit_surface_robot
     from ...robot.rom_training import motor_design, train
 
     p: ReduceParams = ctx.params
@@ -158,27 +159,31 @@ def run(ctx: StageContext) -> dict:
         raise ConvergenceError(f"reduce: only {len(snaps)} of {len(angles)} training equilibria converged")
     ctx.timings["snapshots"] = time.perf_counter() - t0
     ctx.progress("basis and element sample", 1, 3)
-    t1 = time.perf_counter()
-    sens = np.hstack([r[4] for r in rows if r is not None])
-    basis = train(rob, snaps, fem.rest, sensitivities=sens, basis_tol_mm=p.basis_tol_mm, tangent_tol=p.tangent_tol,
-                  ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm, box=(lo, hi))
-    ctx.timings["training"] = time.perf_counter() - t1
-    red = ReducedRobot(rob, basis)
-    ctx.progress("certificate (held-out poses)", 2, 3)
-    t2 = time.perf_counter()
     held_angles = held_out_angles(lo, hi, p.held_out, p.seed + 1)
-    held_rows = cache.map(ctx.executor, _snapshot, [(spec, a, False) for a in held_angles],
-                          progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
-    held = _states(fem, held_rows)
-    rl, fl = red.linearizer(), rob.linearizer()
-    full_J = [kinematics(fl.linearize(s)).J for s in held]
-    comps = [compare(rob, s, red, rl, fl, fem.strain_elements, full_jacobian=J) for s, J in zip(held, full_J)]
-    cert = summarize(comps, p.strain_limit)
-    cert["held_out_failed_full"] = int(sum(r is None for r in held_rows))
-    ctx.timings["certificate"] = time.perf_counter() - t2
-    ctx.progress("equilibrium surface", 2, 3)
-    t3 = time.perf_counter()
-    surf = fit_stage_surface(ctx, spec, red, basis, lo, hi, p)
+    with ThreadPoolExecutor(1) as beside:  # the workers' share while this process trains or compares
+        # the held-out equilibria need no basis: the workers solve them while the basis trains
+        held_job = beside.submit(cache.map, ctx.executor, _snapshot, [(spec, a, False) for a in held_angles],
+                                 progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
+        t1 = time.perf_counter()
+        sens = np.hstack([r[4] for r in rows if r is not None])
+        basis = train(rob, snaps, fem.rest, sensitivities=sens, basis_tol_mm=p.basis_tol_mm,
+                      tangent_tol=p.tangent_tol, ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm, box=(lo, hi))
+        ctx.timings["training"] = time.perf_counter() - t1
+        red = ReducedRobot(rob, basis)
+        ctx.progress("certificate (held-out poses)", 2, 3)
+        t2 = time.perf_counter()
+        held_rows = held_job.result()
+        # the surface's equilibria (reduced model) go to the workers while the certificate compares
+        surf_job = beside.submit(surface_equilibria, ctx, spec, basis, lo, hi, p)
+        held = _states(fem, held_rows)
+        rl, fl = red.linearizer(), rob.linearizer()
+        full_J = [kinematics(fl.linearize(s)).J for s in held]
+        comps = [compare(rob, s, red, rl, fl, fem.strain_elements, full_jacobian=J) for s, J in zip(held, full_J)]
+        cert = summarize(comps, p.strain_limit)
+        cert["held_out_failed_full"] = int(sum(r is None for r in held_rows))
+        ctx.timings["certificate"] = time.perf_counter() - t2
+        t3 = time.perf_counter()
+        surf = fit_surface_robot(red, *surf_job.result(), lo, hi, TARGETS, strain_limit=p.strain_limit)
     surf_comps = [compare_surface(surf, s, J, c.strain) for s, J, c in zip(held, full_J, comps)]
     surface_out = {**surf.surface.info, "certificate": summarize(surf_comps, p.strain_limit),
                    "held_out": [c.__dict__ for c in surf_comps]}
