@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .errors import ConfigError
+from .priority_pool import PriorityPool
 
 
 def _noop(done: int, total: int) -> None:
@@ -42,12 +43,15 @@ class Executor:
         when given, ``workers`` is ignored and the cluster's workers are used.
     worker_threads : BLAS / OpenMP threads of each local worker; None: cores // workers
         (:func:`threads_per_worker`).
+    pool : the shared pool of a :meth:`session` (set by it, not by hand).
+    priority : in a session, this executor's units start before those of higher numbers.
     """
 
     workers: int = 1
     scheduler: str | None = None
     worker_threads: int | None = None
-    pool: ProcessPoolExecutor | None = field(default=None, compare=False, repr=False)  # set by session()
+    pool: PriorityPool | None = field(default=None, compare=False, repr=False)
+    priority: int = field(default=0, compare=False)
 
     def __post_init__(self):
         if int(self.workers) < 1:
@@ -73,11 +77,12 @@ class Executor:
         if self.kind != "processes" or self.pool is not None:
             yield self
             return
-        pool = _pool(self.workers, self.worker_threads or threads_per_worker(self.workers))
+        pool = PriorityPool(_pool(self.workers, self.worker_threads or threads_per_worker(self.workers)),
+                            self.workers)
         try:
             yield replace(self, pool=pool)
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+            pool.shutdown()
 
     def map(
         self,
@@ -105,7 +110,7 @@ class Executor:
             return out
         if self.kind == "processes":
             if self.pool is not None:
-                return _collect(self.pool, fn, items, progress, on_result)
+                return _collect(lambda f, x: self.pool.submit(self.priority, f, x), fn, items, progress, on_result)
             return _map_pool(fn, items, self.workers, progress, on_result, self.worker_threads)
         return _map_dask(fn, items, self.scheduler, progress, on_result)
 
@@ -121,14 +126,23 @@ def threads_per_worker(workers: int, cores: int | None = None) -> int:
     return max(1, cores // max(1, workers))
 
 
+#: How much lower a local worker's scheduling priority is than its parent's (Unix ``nice``).
+WORKER_NICENESS = 5
+
+
 def _limit_threads(n: int) -> None:
     """Pool initializer: at most ``n`` threads in this worker's BLAS and OpenMP pools, those
-    already loaded (threadpoolctl) and those loaded later (their environment variables)."""
+    already loaded (threadpoolctl) and those loaded later (their environment variables); a
+    niceness :data:`WORKER_NICENESS` above the parent's."""
     from threadpoolctl import ThreadpoolController
 
     for var in THREAD_VARS:
         os.environ[var] = str(n)
     ThreadpoolController().limit(limits=n)
+    # below the process that waits for them: when it has serial work (training a basis, the
+    # next stage's set-up) it is the run's critical path, and the workers take what is left
+    if hasattr(os, "nice"):
+        os.nice(WORKER_NICENESS)
 
 
 def _pool(workers: int, threads: int) -> ProcessPoolExecutor:
@@ -141,12 +155,12 @@ def _pool(workers: int, threads: int) -> ProcessPoolExecutor:
 def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None) -> list:
     n = min(workers, len(items))
     with _pool(n, threads or threads_per_worker(n)) as pool:
-        return _collect(pool, fn, items, progress, on_result)
+        return _collect(pool.submit, fn, items, progress, on_result)
 
 
-def _collect(pool: ProcessPoolExecutor, fn, items: Sequence, progress, on_result) -> list:
+def _collect(submit: Callable, fn, items: Sequence, progress, on_result) -> list:
     results: list = [None] * len(items)
-    futures = {pool.submit(fn, x): i for i, x in enumerate(items)}
+    futures = {submit(fn, x): i for i, x in enumerate(items)}
     try:
         for done, fut in enumerate(as_completed(futures), 1):
             i = futures[fut]

@@ -68,3 +68,13 @@ def test_a_session_keeps_one_pool_for_every_map():
     serial = Executor(workers=1)
     with serial.session() as same:
         assert same is serial  # nothing to keep
+
+
+def niceness(_):
+    return os.nice(0)
+
+
+def test_workers_run_below_their_parent():
+    from metasheet.executor import WORKER_NICENESS
+
+    assert Executor(workers=2).map(niceness, range(2)) == [os.nice(0) + WORKER_NICENESS] * 2

@@ -33,7 +33,7 @@ import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -314,7 +314,8 @@ def run_pipeline(
         with executor.session() as ex:  # one pool of workers for the whole run
             done = run_graph(names, {n: upstream(pipeline, n) for n in names},
                              lambda name: _run_stage(pipeline, registry[name], base,
-                                                     force and (only is None or only == name), ex, report,
+                                                     force and (only is None or only == name),
+                                                     replace(ex, priority=names.index(name)), report,
                                                      progress_factory),
                              at_once=pipeline.section.stages_at_once)
         return [done[n] for n in names]
