@@ -45,3 +45,8 @@ def test_the_surface_has_its_own_certificate_and_difference():
     assert "### Equilibrium surface (the real-time model)" in text and "degree 4 in the motor angles" in text
     assert "| Jacobian [relative Frobenius] | 0.042 | 0.042 | 0 | 0.02 | NOT met |" in text
     assert len(diffs) == 1 and diffs[0].startswith("equilibrium surface (issue 16)")
+    assert "check equilibria" not in text  # none recorded: no line
+    red["surface"]["check_worst"] = {"position_mm": 0.137, "orientation_deg": 0.0687, "jacobian_rel": 0.0435}
+    text = "\n".join(reduce_section(red)[0])
+    assert ("on the 15 check equilibria within the strain limit (not fitted), worst: position 0.137 mm, "
+            "orientation 0.0687 deg, Jacobian 4.35 %.") in text
