@@ -73,14 +73,19 @@ class Executor:
     @contextlib.contextmanager
     def session(self) -> Iterator["Executor"]:
         """This executor, its maps sharing one pool of local workers until the block ends (the
-        pool is shut down then); a serial or dask executor, or one already in a session, as it is."""
+        pool is shut down then); a serial or dask executor, or one already in a session, as it is.
+
+        For the block this process's BLAS / OpenMP pools get a worker's share of the cores too
+        (:func:`own_threads`): the workers keep every core busy, and the idle threads of a
+        library's default pool spin (measured on the paper pipeline: 1,660 CPU s against 1,820)."""
         if self.kind != "processes" or self.pool is not None:
             yield self
             return
-        pool = PriorityPool(_pool(self.workers, self.worker_threads or threads_per_worker(self.workers)),
-                            self.workers)
+        threads = self.worker_threads or threads_per_worker(self.workers)
+        pool = PriorityPool(_pool(self.workers, threads), self.workers)
         try:
-            yield replace(self, pool=pool)
+            with own_threads(threads):
+                yield replace(self, pool=pool)
         finally:
             pool.shutdown()
 
@@ -128,6 +133,25 @@ def threads_per_worker(workers: int, cores: int | None = None) -> int:
 
 #: How much lower a local worker's scheduling priority is than its parent's (Unix ``nice``).
 WORKER_NICENESS = 5
+
+
+@contextlib.contextmanager
+def own_threads(n: int) -> Iterator[None]:
+    """At most ``n`` threads in this process's BLAS and OpenMP pools for the block, those loaded
+    (threadpoolctl) and those loaded during it (:data:`THREAD_VARS`); restored afterwards."""
+    from threadpoolctl import ThreadpoolController
+
+    saved = {var: os.environ.get(var) for var in THREAD_VARS}
+    os.environ.update({var: str(n) for var in THREAD_VARS})
+    try:
+        with ThreadpoolController().limit(limits=n):
+            yield
+    finally:
+        for var, value in saved.items():
+            if value is None:
+                os.environ.pop(var, None)
+            else:
+                os.environ[var] = value
 
 
 def _limit_threads(n: int) -> None:

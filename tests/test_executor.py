@@ -78,3 +78,21 @@ def test_workers_run_below_their_parent():
     from metasheet.executor import WORKER_NICENESS
 
     assert Executor(workers=2).map(niceness, range(2)) == [os.nice(0) + WORKER_NICENESS] * 2
+
+
+def test_a_session_gives_this_process_a_workers_share_of_the_cores(monkeypatch):
+    """In a session the workers take the cores: this process's BLAS pools are cut to a worker's
+    share (and libraries loaded meanwhile are told so), and restored when the session ends."""
+    import numpy  # noqa: F401 - loads OpenBLAS
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "7")
+    with threadpool_limits(limits=2):
+        before = [i["num_threads"] for i in threadpool_info()]
+        assert max(before) == 2
+        with Executor(workers=2, worker_threads=1).session():
+            assert blas_threads(None)[1] == ["1"] * len(THREAD_VARS)
+            assert [i["num_threads"] for i in threadpool_info()] == [1] * len(before)
+        assert [i["num_threads"] for i in threadpool_info()] == before
+    assert "OMP_NUM_THREADS" not in os.environ and os.environ["MKL_NUM_THREADS"] == "7"

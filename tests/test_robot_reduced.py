@@ -178,15 +178,46 @@ def test_sensitivities_make_the_jacobian_exact_where_they_were_taken(full):
 
 
 @pytest.fixture(scope="module")
-def trained(full):
+def training(full):
+    """(box, snapshots, their static responses) over rest +- 8 deg."""
     rob, lz, rest = full
     c = rob.coupling
     lo, hi = c.rest_angles - np.radians(8), c.rest_angles + np.radians(8)
     snaps = [solve_equilibrium(rob, a, state=rest, linearizer=lz).state for a in motor_design(lo, hi, 10, 1)]
-    sens = np.hstack([sensitivity(lz, s) for s in snaps])
-    basis = train(rob, snaps, rest, sensitivities=sens, box=(lo, hi), basis_tol_mm=0.005, fit_tol_mm=0.01)
+    return (lo, hi), snaps, np.hstack([sensitivity(lz, s) for s in snaps])
+
+
+@pytest.fixture(scope="module")
+def trained(full, training):
+    rob, lz, rest = full
+    box, snaps, sens = training
+    basis = train(rob, snaps, rest, sensitivities=sens, box=box, basis_tol_mm=0.005, fit_tol_mm=0.01)
     assert basis.info["sensitivity_modes"] > 0
     return ReducedRobot(rob, basis), snaps
+
+
+def test_the_element_sample_meets_its_jacobian_target_against_the_basis_with_every_element(full, training):
+    """With the positions' test loose, the Jacobian's alone chooses the sample: ECSW tolerances
+    halved until the sampled model's Jacobians at the fit snapshots are within the target of
+    the same basis's model with every element (computed here on its own)."""
+    rob, lz, rest = full
+    box, snaps, sens = training
+    jacs = [kinematics(lz.linearize(s)).J for s in snaps]
+    target = 0.003
+    basis = train(rob, snaps, rest, sensitivities=sens, jacobians=jacs, box=box, basis_tol_mm=0.005,
+                  fit_tol_mm=1.0, fit_jacobian_tol=target, fit_count=4)
+    rounds = basis.info["ecsw_rounds"]
+    assert [r["ecsw_tol"] for r in rounds] == [1e-3 / 2**i for i in range(len(rounds))]
+    assert len(rounds) > 1 and all(r["fit_jacobian_rel"] > target for r in rounds[:-1])
+    assert rounds[-1]["fit_jacobian_rel"] <= target
+    everything = ReducedRobot(rob, _basis(rob, basis.V))
+    sampled = ReducedRobot(rob, basis)
+    for s in snaps[:4]:
+        Js = [kinematics(m.linearizer().linearize(solve_equilibrium(m, s.angles, state=m.project(s)).state)).J
+              for m in (sampled, everything)]
+        assert np.linalg.norm(Js[0] - Js[1]) <= target * np.linalg.norm(Js[1])
+    # the basis's own share, against the full model, is recorded: not zero, well under 2 %
+    assert 1e-4 < basis.info["basis_jacobian_rel"] < 0.02
 
 
 def test_trained_model_reproduces_training_and_held_out_equilibria(full, trained):
@@ -271,3 +302,18 @@ def test_equilibrium_and_control_on_library_tangents_match_the_exact_ones(full, 
     # no control step computed a tangent itself: the controller's rest equilibrium filled
     # the library, any missing one was computed on the background thread
     assert ctrl.linearizer.library.stats["computed"] == 0
+
+
+def test_an_unreachable_jacobian_target_keeps_the_best_sample_and_says_so(full, training):
+    rob, lz, rest = full
+    box, snaps, sens = training
+    basis = train(rob, snaps, rest, sensitivities=sens, box=box, basis_tol_mm=0.005, fit_tol_mm=1.0,
+                  fit_jacobian_tol=1e-9, fit_count=3, max_rounds=3)
+    rounds = basis.info["ecsw_rounds"]
+    assert len(rounds) == 3 and basis.info["fit_jacobian_met"] is False
+    chosen = [i for i, r in enumerate(rounds) if r.get("chosen")]
+    assert chosen == [int(np.argmin([r["fit_jacobian_rel"] for r in rounds]))]
+    assert len(basis.elements) == rounds[chosen[0]]["elements"]
+    with pytest.raises(ConvergenceError, match="misses the training equilibria"):
+        train(rob, snaps, rest, sensitivities=sens, box=box, basis_tol_mm=0.005, fit_tol_mm=1e-9, fit_count=2,
+              max_rounds=2)

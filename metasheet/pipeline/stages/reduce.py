@@ -44,10 +44,12 @@ class ReduceParams(StudyRobotParams):
                                 "training snapshots [mm]")
     tangent_tol: float = Field(0.01, gt=0, lt=1, description="the snapshots' static responses (the Jacobian's "
                                "data) are captured within this relative nodal error [-]")
-    ecsw_tol: float = Field(1e-3, gt=0, lt=1, description="first ECSW relative force tolerance (tightened by 4 "
-                            "until fit_tol_mm is met)")
+    ecsw_tol: float = Field(1e-3, gt=0, lt=1, description="first ECSW relative force tolerance (halved until "
+                            "fit_tol_mm and fit_jacobian_tol are met)")
     fit_tol_mm: float = Field(0.02, gt=0, le=10, description="the reduced model must reproduce the training "
                               "equilibria within this [mm]")
+    fit_jacobian_tol: float = Field(0.01, gt=0, lt=1, description="... and their Jacobians within this (relative "
+                                    "Frobenius) [-]: half the certificate's 2 %")
     held_out: int = Field(16, ge=0, le=1000, description="certificate poses (Sobol, another seed) besides the "
                           "two mixed corners")
     seed: int = Field(0, ge=0, description="Sobol scrambling seed of the training set (held-out: seed + 1)")
@@ -60,19 +62,22 @@ class ReduceParams(StudyRobotParams):
 
 def _snapshot(unit):
     """Work unit: the full model's equilibrium at motor angles [rad] from rest, compactly
-    (p, R, angles, free displacements, and with ``sens`` its static responses), or None."""
-    from ...robot.rom_training import sensitivity
+    (p, R, angles, free displacements, and for ``kind`` "training" its static responses
+    (3 n_f, 6 + na) float32 and Jacobian (6, na)), or None."""
     from ...studies.model import MODELS
 
-    spec, angles, sens = unit
+    spec, angles, kind = unit
     fem = MODELS.get(spec)
     try:
         st = solve_from_rest(fem, np.asarray(angles))
     except ConvergenceError:
         return None
     c = fem.robot.coupling
-    Y = sensitivity(fem.lz, st) if sens else None
-    return st.p, st.R, st.angles, (st.x[c.free] - c.rest[c.free]).ravel(), Y
+    u = (st.x[c.free] - c.rest[c.free]).ravel()
+    if kind != "training":
+        return st.p, st.R, st.angles, u, None, None
+    lin = fem.lz.linearize(st)  # one linearisation gives both (rom_training.sensitivity's Y)
+    return st.p, st.R, st.angles, u, lin.Y.astype(np.float32), kinematics(lin).J
 
 
 def solve_from_rest(fem, angles):
@@ -87,7 +92,7 @@ def _states(fem, rows):
     out = []
     for r in rows:
         if r is not None:
-            p, R, ang, u, _ = r
+            p, R, ang, u = r[:4]
             out.append(RobotState(p, R, ang, c.positions(p, R, ang, c.rest[c.free] + u.reshape(-1, 3))))
     return out
 
@@ -152,7 +157,7 @@ def run(ctx: StageContext) -> dict:
     t0 = time.perf_counter()
     angles = motor_design(lo, hi, p.snapshots, p.seed)
     ctx.progress("training equilibria (full model)", 0, 3)
-    rows = cache.map(ctx.executor, _snapshot, [(spec, a, True) for a in angles],
+    rows = cache.map(ctx.executor, _snapshot, [(spec, a, "training") for a in angles],
                      progress=lambda d, n: ctx.progress("training equilibria (full model)", d, n))
     snaps = _states(fem, rows)
     if len(snaps) < max(4, len(angles) // 2):
@@ -162,12 +167,14 @@ def run(ctx: StageContext) -> dict:
     held_angles = held_out_angles(lo, hi, p.held_out, p.seed + 1)
     with ThreadPoolExecutor(1) as beside:  # the workers' share while this process trains or compares
         # the held-out equilibria need no basis: the workers solve them while the basis trains
-        held_job = beside.submit(cache.map, ctx.executor, _snapshot, [(spec, a, False) for a in held_angles],
+        held_job = beside.submit(cache.map, ctx.executor, _snapshot, [(spec, a, "held-out") for a in held_angles],
                                  progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n))
         t1 = time.perf_counter()
         sens = np.hstack([r[4] for r in rows if r is not None])
-        basis = train(rob, snaps, fem.rest, sensitivities=sens, basis_tol_mm=p.basis_tol_mm,
-                      tangent_tol=p.tangent_tol, ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm, box=(lo, hi))
+        jacs = [r[5] for r in rows if r is not None]
+        basis = train(rob, snaps, fem.rest, sensitivities=sens, jacobians=jacs, basis_tol_mm=p.basis_tol_mm,
+                      tangent_tol=p.tangent_tol, ecsw_tol=p.ecsw_tol, fit_tol_mm=p.fit_tol_mm,
+                      fit_jacobian_tol=p.fit_jacobian_tol, box=(lo, hi))
         ctx.timings["training"] = time.perf_counter() - t1
         red = ReducedRobot(rob, basis)
         ctx.progress("certificate (held-out poses)", 2, 3)
