@@ -15,7 +15,8 @@ in memory, then times, on the same held-out motor angles and goals, in the same 
     python benchmarks/bench_reduced.py --mesh-size 14 --element p1 --box 12 --snapshots 24
 
 or, without training, on a pipeline's robot and its reduce stage's basis (the robot and
-reduce stages must have run; the held-out angles are drawn inside the basis's box):
+reduce stages must have run; the held-out angles are drawn inside the basis's and the
+surface's boxes):
 
     python benchmarks/bench_reduced.py --pipeline pipelines/paper.toml [--out outputs]
 """
@@ -88,7 +89,9 @@ def main() -> None:
     if a.pipeline:
         rob, red, surf, lz, rest, what = _from_pipeline(a.pipeline, a.out)
         basis, c = red.basis, rob.coupling
-        lo, hi = basis.box_lo, basis.box_hi
+        # every model on the same angles: inside the surface's box, which may be the smaller
+        slo, shi = surf.surface.box
+        lo, hi = np.maximum(basis.box_lo, slo), np.minimum(basis.box_hi, shi)
     else:
         fem = paper_robot_spec(mesh_size=a.mesh_size, element=a.element).build()
         rob, lz, rest = fem.robot, fem.lz, fem.rest

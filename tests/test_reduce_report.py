@@ -35,18 +35,35 @@ def test_the_report_carries_the_section():
 
 
 def test_the_surface_has_its_own_certificate_and_difference():
+    import numpy as np
+    import pytest
+
+    from metasheet.robot.rom_certificate import surface_check
+
     rows = [Comparison((0.0,), 0.01, 0.004, 0.011, 0.02, 0.2)]
     red = _reduce_json(rows)
     surf_rows = [Comparison((0.0,), 0.036, 0.016, 0.042, 0.06, 0.2)]  # Jacobian 4.2 %: beyond 2 %
     red["surface"] = {"degree": 4, "coefficients": 210, "equilibria": 66, "check_equilibria": 15,
-                      "certificate": summarize(surf_rows, 0.3)}
+                      "certificate": summarize(surf_rows, 0.3), "box_deg": [[70.0] * 6, [82.0] * 6]}
     lines, diffs = reduce_section(red)
     text = "\n".join(lines)
     assert "### Equilibrium surface (the real-time model)" in text and "degree 4 in the motor angles" in text
+    assert "over motor angles 70 to 82 deg" in text
     assert "| Jacobian [relative Frobenius] | 0.042 | 0.042 | 0 | 0.02 | NOT met |" in text
     assert len(diffs) == 1 and diffs[0].startswith("equilibrium surface (issue 16)")
-    assert "check equilibria" not in text  # none recorded: no line
-    red["surface"]["check_worst"] = {"position_mm": 0.137, "orientation_deg": 0.0687, "jacobian_rel": 0.0435}
+    assert "further equilibria" not in text  # no check recorded: no table
+    # the check on reduced-model equilibria: the bound adds the reduced model's own worst error
+    errs = {"position_mm": np.array([0.02, 0.05, 0.5]), "orientation_deg": np.array([0.01, 0.02, 1.0]),
+            "jacobian_rel": np.array([0.004, 0.012, 0.3])}
+    check = surface_check(errs, np.array([0.1, 0.2, 0.6]), 0.3, red["certificate"])
+    assert check["within_strain"] == 2 and check["jacobian_rel"]["worst"] == 0.012
+    assert check["jacobian_rel"]["bound_with_reduced"] == pytest.approx(0.012 + 0.011)  # over 2 %
+    assert check["position_mm"]["met"] and not check["jacobian_rel"]["met"] and check["met"] is False
+    red["surface"].update(check=check, certified=False)
     text = "\n".join(reduce_section(red)[0])
-    assert ("on the 15 check equilibria within the strain limit (not fitted), worst: position 0.137 mm, "
-            "orientation 0.0687 deg, Jacobian 4.35 %.") in text
+    assert "on 2 further equilibria within the strain limit (of 3;" in text
+    assert "| effector position [mm] | 0.05 | 0.0485 | 0.06 | 0.1 | met |" in text
+    assert "Certificate: **NOT met**" in text
+    passing = surface_check({k: v / 10 for k, v in errs.items()}, np.array([0.1, 0.2, 0.6]), 0.3, red["certificate"])
+    assert passing["met"] is True
+    assert surface_check(errs, np.array([0.4, 0.5, 0.6]), 0.3, red["certificate"])["met"] is False  # none within

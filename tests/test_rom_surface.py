@@ -141,6 +141,18 @@ def test_the_controller_runs_on_the_surface_and_finds_the_motors():
     assert ctrl.linearizer.factorizations == 0  # nothing to factorise: no refresh in a step
 
 
+def test_the_robot_keeps_its_last_evaluation_and_only_that():
+    surface = fit_surface(_data(_sobol(40, 1)), _data([REST]), LO, HI, 3)
+    robot = _robot(surface)
+    a, b = np.radians([4.0, -3.0, 2.0]), np.radians([-1.0, 5.0, 0.5])
+    first = robot.evaluate(a)
+    assert robot.evaluate(a.copy()) is first  # the same angles: kept
+    for q in (b, a):  # other angles: evaluated anew, equal to the surface's own evaluation
+        for mine, ref in zip(robot.evaluate(q), surface.evaluate(q)):
+            np.testing.assert_array_equal(mine, ref)
+    np.testing.assert_allclose(robot.equilibrium(b).p, surface.evaluate(b)[0])
+
+
 def test_angles_outside_the_box_are_refused():
     robot = _robot(fit_surface(_data(_sobol(40, 1)), _data([REST]), LO, HI, 2))
     np.testing.assert_allclose(robot.angle_max, HI)  # the QP's bounds: the box within the motor range

@@ -270,6 +270,8 @@ mesh_size = 16
 snapshots = 6
 box_deg = 10
 held_out = 1
+surface_box_deg = 7
+surface_check = 20
 [ranges]
 model = "reduced"
 certify = 0
@@ -309,6 +311,27 @@ def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
     text = (out / "report" / "report.md").read_text()
     assert f"{cert['certified']} of {cert['reachable']} re-solved, {cert['disagree']} disagree" in text
     assert f"k = {red['k']} modes" in text
+    # the surface in its own box (rest +- 7 deg), checked on 20 reduced-model equilibria beside the held-out poses
+    surf = red["surface"]
+    lo, hi = (np.array(b) for b in surf["box_deg"])
+    assert np.allclose(hi - lo, 14.0) and surf["check"]["equilibria"] == 20
+    assert surf["certified"] == (surf["check"]["met"] and (surf["certificate"]["poses"] == 0
+                                                          or surf["certificate"]["met"]))
+    assert surf["certificate"]["poses"] + surf["certificate"].get("poses_beyond_strain", 0) \
+        + surf["held_out_outside_box"] == red["certificate"]["poses"] + red["certificate"].get("poses_beyond_strain", 0)
+    assert "further equilibria within the strain limit (of 20;" in text
+
+
+def test_the_surface_box_must_lie_in_the_training_box():
+    from metasheet.pipeline.stages.reduce import ReduceParams, surface_box
+
+    lo, hi = np.full(6, 0.9), np.full(6, 1.5)
+    rest = np.full(6, 1.2)
+    assert surface_box(lo, hi, rest, ReduceParams(box_deg=10.0)) == (lo, hi)
+    slo, shi = surface_box(lo, hi, rest, ReduceParams(box_deg=10.0, surface_box_deg=5.0))
+    assert np.allclose(slo, 1.2 - np.radians(5)) and np.allclose(shi, 1.2 + np.radians(5))
+    with pytest.raises(ConfigError, match=r"reduce.surface_box_deg: 12.0: allowed range \(0, box_deg = 10.0\]"):
+        surface_box(lo, hi, rest, ReduceParams(box_deg=10.0, surface_box_deg=12.0))
 
 
 def test_report_lists_points_the_full_model_misses():

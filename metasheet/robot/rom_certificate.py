@@ -113,6 +113,35 @@ def summarize(rows: list[Comparison], strain_limit: float | None = None) -> dict
     return out
 
 
+def surface_check(errs: dict, strain, strain_limit: float | None, reduced: dict) -> dict:
+    """The equilibrium surface against the reduced model on equilibria it was not fitted on,
+    and from it a bound on its error against the full model.
+
+    ``errs`` : :func:`.rom_surface.errors` on them (each (s,)); ``strain`` (s,) [-] (None: all
+    count) and ``strain_limit``: only those within count; ``reduced`` : the reduced model's
+    certificate (:func:`summarize`). Per measure: worst and p95 against the reduced model and
+    ``bound_with_reduced`` = that worst + the reduced model's worst against the full one
+    (the triangle inequality; for the Jacobian to the first order, both being relative to
+    Jacobians ~1 % apart), judged against :data:`TARGETS`. The held-out full poses are
+    few; these equilibria see the surface's whole box."""
+    n = len(next(iter(errs.values())))
+    keep = np.ones(n, bool) if strain is None or strain_limit is None else np.asarray(strain) <= strain_limit
+    out = {"equilibria": int(n), "within_strain": int(keep.sum())}
+    met = bool(keep.any())
+    for name, target in TARGETS.items():
+        v = np.asarray(errs[name], float)[keep]
+        red = (reduced.get(name) or {}).get("worst")
+        if not len(v) or red is None:
+            out[name], met = None, False
+            continue
+        bound = float(v.max()) + float(red)
+        out[name] = {"worst": float(v.max()), "p95": float(np.percentile(v, 95)), "bound_with_reduced": bound,
+                     "target": target, "met": bool(bound <= target)}
+        met = met and bound <= target
+    out["met"] = bool(met)
+    return out
+
+
 def _summary(rows: list[Comparison]) -> dict:
     out = {"poses": len(rows)}
     for name in ("position_mm", "orientation_deg", "jacobian_rel", "inverse_motor_deg"):

@@ -61,6 +61,19 @@ class SurfaceRobot:
         self.info = {**getattr(robot, "info", {}), "surface": dict(surface.info)}
         self.gravity, self.axis = getattr(robot, "gravity", None), getattr(robot, "axis", None)
         self.ref = float(force_scale)
+        self._last = (None, None)  # (angles' bytes, evaluation): a solve linearises at fixed angles
+
+    def evaluate(self, angles) -> tuple:
+        """The surface's (p, R, J, S) at motor ``angles`` (na,) [rad] inside its box
+        (:meth:`.rom_surface.Surface.evaluate`); the last one is kept: an equilibrium solve
+        and a control step evaluate the same angles several times."""
+        a = self.check(angles)
+        key = a.tobytes()
+        last_key, value = self._last
+        if key != last_key:
+            value = self.surface.evaluate(a)
+            self._last = (key, value)
+        return value
 
     def check(self, angles) -> np.ndarray:
         a = np.asarray(angles, float).reshape(-1)
@@ -76,7 +89,7 @@ class SurfaceRobot:
 
     def equilibrium(self, angles) -> SurfaceState:
         """The equilibrium at motor ``angles`` (na,) [rad]: the surface itself."""
-        p, R, _, _ = self.surface.evaluate(self.check(angles))
+        p, R, _, _ = self.evaluate(angles)
         return SurfaceState(p, R, np.array(angles, float))
 
     def linearizer(self, solver: str = "superlu") -> "SurfaceLinearizer":
@@ -97,7 +110,7 @@ class SurfaceLinearizer:
 
     def linearize(self, state: SurfaceState, *, exact: bool = True) -> Linearization:
         rob = self.robot
-        p, R, _, S = rob.surface.evaluate(rob.check(state.angles))
+        p, R, _, S = rob.evaluate(state.angles)
         e = np.concatenate([p - state.p, rotation_vector(R @ state.R.T)])
         g = -S[:, :6] @ e  # the offset as the forces that pull the effector onto the surface
         return Linearization(state=state, r=g, S=S, Y=np.zeros((0, len(S))), y_r=np.zeros(0),
