@@ -11,9 +11,10 @@ targets (:mod:`metasheet.robot.rom_training`) and certifies the result on held-o
 * ``reduce.json``: sizes, targets, training record and the certificate (worst and p95 of the
   position, orientation, Jacobian and inverse-model errors), and the rows of the held-out set;
 * ``surface.npz``: the equilibrium surface (:mod:`metasheet.robot.rom_surface`, the real-time
-  loop's model), fitted on reduced-model equilibria over the same box, its degree chosen on
-  equilibria not fitted, and certified against the full model on the same held-out poses
-  (``reduce.json`` ``surface``).
+  loop's model), fitted on reduced-model equilibria over its box (``surface_box_deg``, inside
+  the training box), its degree chosen on equilibria not fitted, checked on further ones
+  (``surface_check``) and certified by that check's bound with the reduced model's own error,
+  the held-out full poses inside its box agreeing (``reduce.json`` ``surface``).
 
 Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
 """
