@@ -77,7 +77,8 @@ class Executor:
 
         For the block this process's BLAS / OpenMP pools get a worker's share of the cores too
         (:func:`own_threads`): the workers keep every core busy, and the idle threads of a
-        library's default pool spin (measured on the paper pipeline: 1,660 CPU s against 1,820)."""
+        library's default pool spin (the paper's robot stage alone: 75 user CPU s against 100, the
+        same wall time)."""
         if self.kind != "processes" or self.pool is not None:
             yield self
             return

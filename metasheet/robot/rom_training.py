@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import ConfigError, ConvergenceError
 from .ecsw import ecsw_path
 from .equilibrium import solve_equilibrium
+from .kinematics import kinematics
 from .reduced import ReducedBasis, ReducedRobot, ReducedState, coordinate_jacobian, robot_key
 from .rom_basis import add_sensitivities, pod_basis
 
@@ -62,7 +63,13 @@ def sensitivity(lz, state) -> np.ndarray:
     """(3 n_f, 6 + na) float32: the free nodes' static response to each rigid coordinate at
     the full equilibrium ``state`` (eq. 6's ``K_ff^-1 K_fr J_r``; one fresh linearisation of
     the :class:`~.statics.Linearizer` ``lz``). float32: POD keeps it to ~1e-3 anyway."""
-    return lz.linearize(state).Y.astype(np.float32)
+    return sensitivity_and_jacobian(lz, state)[0]
+
+
+def sensitivity_and_jacobian(lz, state) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`sensitivity`, the Jacobian (6, na)) at ``state`` from the one linearisation."""
+    lin = lz.linearize(state)
+    return lin.Y.astype(np.float32), kinematics(lin).J
 
 
 def projected_state(robot, V: np.ndarray, state) -> ReducedState:
@@ -104,8 +111,6 @@ def galerkin_jacobians(robot, V: np.ndarray, snaps, jacobians=None) -> tuple[lis
     hyper-reduction) at the snapshots' angles, and their worst relative error against the full
     ``jacobians`` (nan when None): the basis's share of the Jacobian error, which no element
     sample can remove."""
-    from .kinematics import kinematics
-
     m = robot.body.n_elements
     everything = ReducedRobot(robot, ReducedBasis(V, np.arange(m), np.ones(m), robot.angle_min, robot.angle_max,
                                                   robot_key(robot)))
@@ -130,8 +135,6 @@ def fit_error(reduced: ReducedRobot, snaps, reference_jacobians=None) -> tuple[f
     symmetric one: on the authors' P2 robot all motors 12 deg below rest hold the effector at
     x = 0 from rest, while a basis that spans the rod's sideways mode lets round-off break the
     symmetry and lands 3.6 mm away; the full model started there settles 10.7 mm to the side.)"""
-    from .kinematics import kinematics
-
     pos, jac = 0.0, 0.0 if reference_jacobians is not None else float("nan")
     lz = reduced.linearizer()
     for i, s in enumerate(snaps):
@@ -162,7 +165,8 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
     within ``fit_tol_mm`` [mm] and the Jacobians of the model with every element there within
     ``fit_jacobian_tol`` [relative], at most ``max_rounds`` times (if the Jacobians' target is
     never met, the round with the smallest Jacobian error among those meeting the positions'
-    is kept, ``info["fit_jacobian_met"]`` False; the held-out certificate judges it); ``box`` : (lo, hi) motor box [rad] (default: the robot's limits);
+    is kept, ``info["fit_jacobian_met"]`` False; the held-out certificate judges it);
+    ``box`` : (lo, hi) motor box [rad] (default: the robot's limits);
     ``ecsw_batch`` : :func:`.ecsw.ecsw_path`'s ``batch`` (elements entered per gradient).
     """
     t0 = time.perf_counter()

@@ -70,7 +70,7 @@ def _surface(surf: Mapping | None, where: str) -> tuple[list[str], list[str]]:
     cert, check = surf["certificate"], surf.get("check")
     met = surf.get("certified", cert.get("met"))
     lo, hi = surf.get("box_deg", (None, None))
-    box = f" over motor angles {min(lo):g} to {max(hi):g} deg" if lo else ""
+    box = f" over motor angles {min(lo):.4g} to {max(hi):.4g} deg" if lo else ""
     lines = ["### Equilibrium surface (the real-time model)", "",
              f"Polynomials of degree {surf.get('degree')} in the motor angles ({surf.get('coefficients')} "
              f"coefficients){box}, fitted on {surf.get('equilibria')} reduced-model equilibria, the degree chosen "

@@ -69,6 +69,7 @@ def _snapshot(unit):
     """Work unit: the full model's equilibrium at motor angles [rad] from rest, compactly
     (p, R, angles, free displacements, and for ``kind`` "training" its static responses
     (3 n_f, 6 + na) float32 and Jacobian (6, na)), or None."""
+    from ...robot.rom_training import sensitivity_and_jacobian
     from ...studies.model import MODELS
 
     spec, angles, kind = unit
@@ -81,8 +82,7 @@ def _snapshot(unit):
     u = (st.x[c.free] - c.rest[c.free]).ravel()
     if kind != "training":
         return st.p, st.R, st.angles, u, None, None
-    lin = fem.lz.linearize(st)  # one linearisation gives both (rom_training.sensitivity's Y)
-    return st.p, st.R, st.angles, u, lin.Y.astype(np.float32), kinematics(lin).J
+    return (st.p, st.R, st.angles, u, *sensitivity_and_jacobian(fem.lz, st))
 
 
 def solve_from_rest(fem, angles):
