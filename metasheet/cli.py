@@ -167,8 +167,9 @@ def run(
     else:
         outcomes = run_pipeline(p, report=_reporter(console), progress_factory=_log_progress_factory(console),
                                 **options)
-    stdout.print(_table(f"pipeline {p.name}", ("stage", "status", "time [s]", "outputs"),
-                        [(o.name, o.status, f"{o.wall_time:.1f}", o.directory) for o in outcomes]))
+    stdout.print(_table(f"pipeline {p.name}", ("stage", "status", "time [s]", "CPU [s]", "outputs"),
+                        [(o.name, o.status, f"{o.wall_time:.1f}", "" if o.cpu_time is None else f"{o.cpu_time:.0f}",
+                          o.directory) for o in outcomes]))
 
 
 @app.command()

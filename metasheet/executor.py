@@ -19,6 +19,8 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
@@ -45,6 +47,8 @@ class Executor:
         (:func:`threads_per_worker`).
     pool : the shared pool of a :meth:`session` (set by it, not by hand).
     priority : in a session, this executor's units start before those of higher numbers.
+    meter : adds up the CPU time of the units run in local worker processes (a pipeline
+        stage's manifest reports it); None: not measured.
     """
 
     workers: int = 1
@@ -52,6 +56,7 @@ class Executor:
     worker_threads: int | None = None
     pool: PriorityPool | None = field(default=None, compare=False, repr=False)
     priority: int = field(default=0, compare=False)
+    meter: "CpuMeter | None" = field(default=None, compare=False, repr=False)
 
     def __post_init__(self):
         if int(self.workers) < 1:
@@ -116,9 +121,37 @@ class Executor:
             return out
         if self.kind == "processes":
             if self.pool is not None:
-                return _collect(lambda f, x: self.pool.submit(self.priority, f, x), fn, items, progress, on_result)
-            return _map_pool(fn, items, self.workers, progress, on_result, self.worker_threads)
+                return _collect(lambda f, x: self.pool.submit(self.priority, f, x), fn, items, progress, on_result,
+                                self.meter)
+            return _map_pool(fn, items, self.workers, progress, on_result, self.worker_threads, self.meter)
         return _map_dask(fn, items, self.scheduler, progress, on_result)
+
+
+class CpuMeter:
+    """A running total of CPU seconds [s] and units, safe to add to from several threads."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.seconds = 0.0
+        self.units = 0
+
+    def add(self, seconds: float) -> None:
+        with self._lock:
+            self.seconds += float(seconds)
+            self.units += 1
+
+
+@dataclass(frozen=True)
+class _Timed:
+    """``fn`` run in a worker, returning ``(fn(x), CPU seconds of the worker process)``: a local
+    worker runs one unit at a time, so its process time is the unit's, its BLAS threads included."""
+
+    fn: Callable[[Any], Any]
+
+    def __call__(self, x):
+        t0 = time.process_time()
+        value = self.fn(x)
+        return value, time.process_time() - t0
 
 
 #: The environment variables that size the thread pools of libraries a worker may load later
@@ -177,19 +210,23 @@ def _pool(workers: int, threads: int) -> ProcessPoolExecutor:
                                initializer=_limit_threads, initargs=(threads,))
 
 
-def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None) -> list:
+def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None,
+              meter: CpuMeter | None = None) -> list:
     n = min(workers, len(items))
     with _pool(n, threads or threads_per_worker(n)) as pool:
-        return _collect(pool.submit, fn, items, progress, on_result)
+        return _collect(pool.submit, fn, items, progress, on_result, meter)
 
 
-def _collect(submit: Callable, fn, items: Sequence, progress, on_result) -> list:
+def _collect(submit: Callable, fn, items: Sequence, progress, on_result, meter: CpuMeter | None = None) -> list:
     results: list = [None] * len(items)
-    futures = {submit(fn, x): i for i, x in enumerate(items)}
+    futures = {submit(fn if meter is None else _Timed(fn), x): i for i, x in enumerate(items)}
     try:
         for done, fut in enumerate(as_completed(futures), 1):
             i = futures[fut]
             results[i] = fut.result()
+            if meter is not None:
+                results[i], seconds = results[i]
+                meter.add(seconds)
             on_result(i, results[i])
             progress(done, len(items))
     except BaseException:  # a unit failed: the others of this map are not wanted any more

@@ -1,6 +1,8 @@
 """The local process pool: results in input order, and workers that share the cores."""
 
+import contextlib
 import os
+from dataclasses import replace
 
 import pytest
 
@@ -96,3 +98,30 @@ def test_a_session_gives_this_process_a_workers_share_of_the_cores(monkeypatch):
             assert [i["num_threads"] for i in threadpool_info()] == [1] * len(before)
         assert [i["num_threads"] for i in threadpool_info()] == before
     assert "OMP_NUM_THREADS" not in os.environ and os.environ["MKL_NUM_THREADS"] == "7"
+
+
+def burn(seconds):
+    """Spin for ``seconds`` of this process's CPU time; return the CPU time it took [s]."""
+    import time
+
+    t0 = time.process_time()
+    while time.process_time() - t0 < seconds:
+        pass
+    return time.process_time() - t0
+
+
+def test_a_meter_adds_up_the_cpu_time_of_the_units_in_the_workers():
+    """Each unit reports its own CPU time; the meter's total is their sum (the worker's wrapper
+    measures a little more: the call around the unit), for a plain pool and a session's."""
+    from metasheet.executor import CpuMeter
+
+    for shared in (False, True):
+        meter = CpuMeter()
+        with Executor(workers=2).session() if shared else contextlib.nullcontext(Executor(workers=2)) as ex:
+            got = replace(ex, meter=meter).map(burn, [0.1, 0.2, 0.15, 0.05])
+        assert meter.units == 4
+        assert sum(got) <= meter.seconds <= sum(got) + 0.05
+        assert got == pytest.approx([0.1, 0.2, 0.15, 0.05], abs=0.02)  # results unwrapped, in order
+    serial = CpuMeter()
+    Executor(workers=1, meter=serial).map(burn, [0.05])
+    assert serial.units == 0  # in this process: the stage thread's own CPU time counts it

@@ -227,3 +227,35 @@ def test_a_stage_waits_only_for_the_optional_stages_it_reads(tmp_path):
     (tmp_path / "cells").symlink_to(root / "cells")
     (tmp_path / "pipelines" / "paper.toml").write_text(graded)
     assert "chart" in upstream(load_pipeline(tmp_path / "pipelines" / "paper.toml"), "orient")
+
+
+def spin(seconds):
+    """Spin for ``seconds`` of CPU time [s]."""
+    import time
+
+    t0 = time.process_time()
+    while time.process_time() - t0 < seconds:
+        pass
+    return seconds
+
+
+def run_spinning(ctx):
+    ctx.executor.map(spin, [0.2, 0.2, 0.2])
+    spin(0.15)  # the stage's own thread
+    ctx.path("c.txt").write_text("spun\n")
+    return {}
+
+
+def test_a_manifest_states_the_stage_cpu_time_in_its_thread_and_its_workers(project):
+    register(Stage("t_c", AParams, run_spinning, outputs=("c.txt",)))
+    try:
+        pl = load_pipeline(write(project, '[pipeline]\nname = "p"\nstages = ["t_c"]\n'))
+        (out,) = run_pipeline(pl, executor=Executor(workers=2))
+        cpu = json.loads((project / "outputs/p/t_c/manifest.json").read_text())["cpu_s"]
+        assert cpu["worker_units"] == 3 and 0.6 <= cpu["workers"] <= 0.7
+        assert 0.15 <= cpu["stage_thread"] <= 0.5  # its spin and the map's bookkeeping
+        assert cpu["total"] == pytest.approx(cpu["stage_thread"] + cpu["workers"], abs=2e-3)
+        assert out.cpu_time == cpu["total"]
+        assert run_pipeline(pl)[0].cpu_time is None  # cached: nothing ran
+    finally:
+        registry._REGISTRY.pop("t_c")

@@ -18,7 +18,7 @@ What a run guarantees (tested in ``tests/test_reliability_*.py``):
 - **Named faults.** An output folder that cannot be written (permissions, read-only, disk
   full) is an :class:`~metasheet.errors.OutputError` naming the path and the cause.
 - **Same bytes.** Wall-clock times go to the manifest only (``started``, ``wall_time_s``,
-  ``timings_s``); see :mod:`.manifest` for the cache key's canonical hashes.
+  ``cpu_s``, ``timings_s``); see :mod:`.manifest` for the cache key's canonical hashes.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from ..errors import ConfigError, LockedError, MetasheetError, OutputError, StageError, output_error
-from ..executor import Executor
+from ..executor import CpuMeter, Executor
 from . import manifest as mf
 from .config import Pipeline, upstream
 from .registry import StageContext, stages
@@ -61,6 +61,7 @@ class StageOutcome:
     directory: Path
     wall_time: float
     summary: dict = field(default_factory=dict)
+    cpu_time: float | None = None  # [s]: the stage's thread and its units in local workers; None: cached
 
 
 Reporter = Callable[[str, str], None]  # (stage, message)
@@ -341,7 +342,8 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
         return StageOutcome(name, "cached", final, 0.0, mf.read_manifest(final).get("summary", {}))
     report(name, "running")
     progress = progress_factory(name) if progress_factory else (lambda d, i, n: None)
-    t0 = time.perf_counter()
+    t0, cpu0, meter = time.perf_counter(), time.thread_time(), CpuMeter()
+    executor = replace(executor, meter=meter)
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     work = base / f".{name}.tmp-{os.getpid()}"
     try:
@@ -356,6 +358,7 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
         if missing:
             raise StageError(f"stage {name!r} did not write {', '.join(missing)}")
         wall = time.perf_counter() - t0
+        cpu = _cpu_record(time.thread_time() - cpu0, meter, executor)
         mf.write_json_atomic(
             work / mf.MANIFEST,
             {
@@ -372,6 +375,7 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
                 "versions": mf.versions(),
                 "started": started,
                 "wall_time_s": round(wall, 3),
+                "cpu_s": cpu,
                 "timings_s": dict(ctx.timings),
             },
         )
@@ -392,7 +396,16 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
         shutil.rmtree(work, ignore_errors=True)
         raise
     report(name, f"done in {wall:.1f} s")
-    return StageOutcome(name, "ran", final, wall, summary)
+    return StageOutcome(name, "ran", final, wall, summary, cpu["total"])
+
+
+def _cpu_record(own: float, meter: CpuMeter, executor: Executor) -> dict:
+    """A stage's CPU time [s]: its own thread in this process (concurrent stages each have one),
+    its units in local worker processes, and their sum; on a dask cluster the workers' share
+    is not measured (None) and the total is this thread's alone."""
+    workers = None if executor.kind == "dask" else round(meter.seconds, 3)
+    return {"stage_thread": round(own, 3), "workers": workers, "worker_units": meter.units,
+            "total": round(own + (workers or 0.0), 3)}
 
 
 def _swap_into_place(work: Path, final: Path) -> None:
