@@ -128,17 +128,22 @@ class Executor:
 
 
 class CpuMeter:
-    """A running total of CPU seconds [s] and units, safe to add to from several threads."""
+    """A running total of CPU seconds [s] and units, safe to add to from several threads; also
+    by unit function (``by_function``: name -> [seconds, units])."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self.seconds = 0.0
         self.units = 0
+        self.by_function: dict[str, list] = {}
 
-    def add(self, seconds: float) -> None:
+    def add(self, seconds: float, function: str = "") -> None:
         with self._lock:
             self.seconds += float(seconds)
             self.units += 1
+            entry = self.by_function.setdefault(function, [0.0, 0])
+            entry[0] += float(seconds)
+            entry[1] += 1
 
 
 @dataclass(frozen=True)
@@ -226,7 +231,7 @@ def _collect(submit: Callable, fn, items: Sequence, progress, on_result, meter: 
             results[i] = fut.result()
             if meter is not None:
                 results[i], seconds = results[i]
-                meter.add(seconds)
+                meter.add(seconds, getattr(fn, "__qualname__", type(fn).__name__))
             on_result(i, results[i])
             progress(done, len(items))
     except BaseException:  # a unit failed: the others of this map are not wanted any more

@@ -253,6 +253,7 @@ def test_a_manifest_states_the_stage_cpu_time_in_its_thread_and_its_workers(proj
         (out,) = run_pipeline(pl, executor=Executor(workers=2))
         cpu = json.loads((project / "outputs/p/t_c/manifest.json").read_text())["cpu_s"]
         assert cpu["worker_units"] == 3 and 0.6 <= cpu["workers"] <= 0.7
+        assert list(cpu["by_unit"]) == ["spin"] and cpu["by_unit"]["spin"] == [cpu["workers"], 3]
         assert 0.15 <= cpu["stage_thread"] <= 0.5  # its spin and the map's bookkeeping
         assert cpu["total"] == pytest.approx(cpu["stage_thread"] + cpu["workers"], abs=2e-3)
         assert out.cpu_time == cpu["total"]
