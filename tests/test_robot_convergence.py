@@ -77,6 +77,20 @@ def coarse_run(tmp_path_factory):
     return root / "out" / "c"
 
 
+def test_the_levels_on_two_workers_give_the_same_study(coarse_run):
+    """The levels run as work units, the slowest first: on a pool the study is the serial one's,
+    byte for byte, its levels in the configured order."""
+    from metasheet.executor import Executor
+
+    root = coarse_run.parent.parent
+    run_pipeline(load_pipeline(root / "pipelines" / "c.toml"), out_root=root / "pooled", only="robot",
+                 executor=Executor(workers=2))
+    name = "convergence.json"
+    assert (root / "pooled" / "c" / "robot" / name).read_bytes() == (coarse_run / "robot" / name).read_bytes()
+    cpu = json.loads((root / "pooled" / "c" / "robot" / "manifest.json").read_text())["cpu_s"]
+    assert cpu["by_unit"]["_level_unit"][1] == 6  # the five levels and the orient mesh
+
+
 def test_robot_stage_writes_convergence_json(coarse_run):
     conv = json.loads((coarse_run / "robot" / "convergence.json").read_text())
     labels = [(r["element"], r["mesh_size"]) for r in conv["levels"]]

@@ -403,7 +403,8 @@ def _cpu_record(own: float, meter: CpuMeter, executor: Executor) -> dict:
     """A stage's CPU time [s]: its own thread in this process (concurrent stages each have one),
     its units in local worker processes (also by unit function: [seconds, units]), and their
     sum; on a dask cluster the workers' share is not measured (None) and the total is this
-    thread's alone."""
+    thread's alone. Threads a stage starts itself (a serial executor's map in a side thread)
+    are not counted."""
     workers = None if executor.kind == "dask" else round(meter.seconds, 3)
     return {"stage_thread": round(own, 3), "workers": workers, "worker_units": meter.units,
             "by_unit": {k: [round(v[0], 3), v[1]] for k, v in sorted(meter.by_function.items())},

@@ -28,8 +28,11 @@ paper's claims depend on the shear modulus mu_l (the authors' force field does n
 
 from __future__ import annotations
 
-import numpy as np
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Literal
+
+import numpy as np
 
 from pydantic import Field
 
@@ -39,7 +42,7 @@ from ...material import Isotropic
 from ...material_model import other_model
 from ...robot.builder import six_dof_robot
 from ...robot.compare import evaluate
-from ..artefacts import read_material, read_orient, write_jacobian, write_rest_vtu
+from ..artefacts import OrientFile, read_material, read_orient, write_jacobian, write_rest_vtu
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
@@ -114,10 +117,17 @@ def run(ctx: StageContext) -> dict:
                     robots[f"{name}_{other}"] = build(name, other)
                 except ConfigError as exc:  # the authors' tensor is indefinite for these constants
                     skipped[f"{name}_{other}"] = str(exc)
-    cases = {}
-    for i, (name, rob) in enumerate(robots.items()):
-        ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, len(robots) + 2)
-        cases[name] = evaluate(rob, name, delta_deg=p.delta_deg, length_scale=p.length_scale)
+    # the convergence study's meshes go to the workers while this thread evaluates the cases
+    with ThreadPoolExecutor(1) as side:
+        conv = (side.submit(_convergence, ctx, orient, {"model": model, **foam_mass, **scene})
+                if p.convergence else None)
+        cases = {}
+        for i, (name, rob) in enumerate(robots.items()):
+            ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, len(robots) + 2)
+            cases[name] = evaluate(rob, name, delta_deg=p.delta_deg, length_scale=p.length_scale)
+        if conv is not None:
+            ctx.progress("convergence study", len(robots), len(robots) + 2)
+            conv.result()
     foam = robots["foam"]
     out = {
         "material_model": model,
@@ -129,9 +139,6 @@ def run(ctx: StageContext) -> dict:
         "materials": {name: c.to_dict() for name, c in cases.items()},
     }
     write_jacobian(ctx.path("jacobian.json"), out)
-    if p.convergence:
-        ctx.progress("convergence study", len(robots), len(robots) + 2)
-        _convergence(ctx, orient, lambda: build("foam", model), {"model": model, **foam_mass, **scene})
     write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
     if p.picture:
         ctx.progress("picture", len(robots) + 1, len(robots) + 2)
@@ -155,26 +162,49 @@ def run(ctx: StageContext) -> dict:
 _SCENE_KEYS = ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth", "angle_min", "angle_max")
 
 
-def _convergence(ctx: StageContext, orient, build_foam, robot_kw: dict) -> None:
+def _convergence(ctx: StageContext, orient, robot_kw: dict) -> None:
     """``convergence.json``: the foam robot over the mesh levels of ``convergence`` (and the
-    orient mesh, checked against the tolerances); each level's seconds go to the manifest."""
-    from ...robot.convergence import Level, convergence_summary, run_levels
-    from ._studies import remesh
+    orient mesh, checked against the tolerances), one work unit per level on the stage's
+    executor; each level's seconds go to the manifest."""
+    from ...robot.convergence import Level, convergence_summary, cost_order
 
     sp = orient.sheet_params
     own = Level(orient.element, float(sp.mesh_size), int(sp.layers), float(sp.grip_size))
     levels = list(dict.fromkeys([Level(e, float(h), int(n), float(g)) for e, h, n, g in ctx.params.convergence]
                                 + [own]))
-
-    def build(lev: Level):
-        if lev == own:
-            return build_foam()
-        return six_dof_robot(remesh(orient, lev.mesh_size, lev.layers, lev.element, lev.grip_size), **robot_kw)
-
-    results = run_levels(build, levels, progress=ctx.progress)
+    order = cost_order(levels)
+    done = ctx.executor.map(_level_unit, [_LevelTask(orient, levels[i], levels[i] == own, robot_kw) for i in order],
+                            progress=lambda d, n: ctx.progress("convergence study", d, n))
+    results = [None] * len(levels)
+    for i, r in zip(order, done):
+        results[i] = r
     for r in results:
         ctx.timings[f"convergence {r.level.label}"] = round(r.seconds, 3)
     write_json_atomic(ctx.path("convergence.json"), convergence_summary(results, {"robot": own}))
+
+
+@dataclass(frozen=True)
+class _LevelTask:
+    """One level of the convergence study: the orient sheets, the level, whether it is the
+    orient mesh itself (its sheets as they are) and the robot's keywords."""
+
+    orient: OrientFile
+    level: object
+    own: bool
+    robot_kw: dict
+
+
+def _level_unit(task: _LevelTask):
+    """Work unit: the :class:`~metasheet.robot.convergence.LevelResult` of one level."""
+    from ...robot.convergence import build_and_measure
+    from ._studies import remesh
+
+    def build(lev):
+        sheets = task.orient.sheets() if task.own else remesh(task.orient, lev.mesh_size, lev.layers, lev.element,
+                                                               lev.grip_size)
+        return six_dof_robot(sheets, **task.robot_kw)
+
+    return build_and_measure(build, task.level)
 
 
 register(Stage(
