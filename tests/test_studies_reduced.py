@@ -54,8 +54,13 @@ def test_workspace_classes_agree_or_differences_are_certified(trained):
     ids = np.flatnonzero(red.records.reached)
     rest = rspec.build().rest_pose()
     goals = np.column_stack([red.goals[ids], np.tile(rest[3:], (len(ids), 1))])
-    cert = certify_study(rspec, goals, red.records.motors_deg[ids], tol_mm=s.tol_mm, labels=ids.tolist())
-    assert cert.certified == cert.reachable == len(ids)
+    # every point twice (as two motor ranges that both hold its path report it): one full solve each
+    motors = red.records.motors_deg[ids]
+    cert = certify_study(rspec, np.vstack([goals, goals]), np.vstack([motors, motors]), tol_mm=s.tol_mm,
+                         labels=ids.tolist() * 2)
+    assert cert.certified == cert.reachable == 2 * len(ids) and cert.solves == len(ids)
+    bad = [p["point"] for p in cert.points]
+    assert bad[:len(bad) // 2] == bad[len(bad) // 2:] and len(bad) % 2 == 0  # a twin shares its verdict
     # a point the models classify differently and the reduced one reached is among those certified
     assert set(differ[red.records.reached[differ]].tolist()) <= set(ids.tolist())
     model = rspec.build()
@@ -66,6 +71,16 @@ def test_workspace_classes_agree_or_differences_are_certified(trained):
             assert abs(c.full_error_mm - c.reduced_error_mm) <= POSITION_TARGET_MM
     assert all(p["full_error_mm"] is None or p["full_error_mm"] > s.tol_mm for p in cert.points)
     assert cert.disagree == len(cert.points) and cert.rate == cert.disagree / cert.certified
+
+
+def test_only_bit_identical_points_share_a_solve():
+    from metasheet.studies.certify import _distinct
+
+    g = np.zeros((4, 6))
+    m = np.array([[1.0] * 6, [1.0] * 6, [1.0 + 1e-15] * 6, [1.0] * 6])
+    g[3, 0] = 1e-12
+    rows, which = _distinct(g, m)
+    assert rows.tolist() == [0, 2, 3] and which.tolist() == [0, 0, 1, 2]
 
 
 def test_certified_sample_is_seeded_and_sized():
@@ -309,7 +324,11 @@ def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
     assert cert["reachable"] == sum(r["reachable"].values()) == cert["certified"] > 0
     assert cert["disagree"] == len(cert["points"]) and cert["rate"] == cert["disagree"] / cert["certified"]
     text = (out / "report" / "report.md").read_text()
-    assert f"{cert['certified']} of {cert['reachable']} re-solved, {cert['disagree']} disagree" in text
+    # the three ranges share most paths: a point reached with the same motors in two is solved once
+    assert 0 < cert["solves"] < cert["certified"]
+    assert (f"{cert['certified']} of {cert['reachable']} re-solved ({cert['certified'] - cert['solves']} of "
+            f"them the same goal and motors as another: {cert['solves']} full solves), {cert['disagree']} "
+            "disagree") in text
     assert f"k = {red['k']} modes" in text
     # the surface in its own box (rest +- 7 deg), checked on 20 reduced-model equilibria beside the held-out poses
     surf = red["surface"]

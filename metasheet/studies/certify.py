@@ -48,7 +48,8 @@ class Certification:
     reachable : points the reduced model reported reachable; requested : the sample size
     asked for (0: all); seed : the sample's seed; certified : points re-solved; disagree :
     those the full model does not reach within the tolerances; points : one dict per
-    disagreeing point (index, goal, motors, reduced and full errors, full_converged, in_box).
+    disagreeing point (index, goal, motors, reduced and full errors, full_converged, in_box);
+    solves : full solves run, one per distinct (goal, motors) among the certified points.
     """
 
     reachable: int
@@ -57,6 +58,7 @@ class Certification:
     certified: int
     disagree: int
     points: tuple
+    solves: int = -1
 
     @property
     def rate(self) -> float:
@@ -65,8 +67,8 @@ class Certification:
 
     def to_dict(self) -> dict:
         return {"reachable": self.reachable, "requested": self.requested, "seed": self.seed,
-                "certified": self.certified, "disagree": self.disagree, "rate": round(self.rate, 6),
-                "points": list(self.points)}
+                "certified": self.certified, "solves": self.solves, "disagree": self.disagree,
+                "rate": round(self.rate, 6), "points": list(self.points)}
 
 
 def sample(n: int, size: int, seed: int) -> np.ndarray:
@@ -104,12 +106,15 @@ def certify_study(
     goals = np.asarray(goals, float).reshape(-1, 6)
     motors = np.asarray(motors_deg, float).reshape(len(goals), -1)
     idx = sample(len(goals), int(size), int(seed))
-    chunks = [idx[i:i + points_per_unit] for i in range(0, len(idx), points_per_unit)]
+    distinct, which = _distinct(goals[idx], motors[idx])
+    solve = idx[distinct]
+    chunks = [solve[i:i + points_per_unit] for i in range(0, len(solve), points_per_unit)]
     tasks = [CertifyTask(spec, goals[c], motors[c], float(tol_mm), None if tol_deg is None else float(tol_deg))
              for c in chunks]
     cache = cache or UnitCache(None)
     parts = cache.map(executor, certify_points, tasks, progress=lambda d, n: progress("certify (full model)", d, n))
-    certs = [c for part in parts for c in part]
+    solved = [c for part in parts for c in part]
+    certs = [solved[j] for j in which]
     bad = []
     for i, c in zip(idx, certs):
         if c.agree:
@@ -120,4 +125,20 @@ def certify_study(
                     "reduced_error_mm": _r(c.reduced_error_mm), "reduced_error_deg": _r(c.reduced_error_deg),
                     "full_error_mm": _r(c.full_error_mm), "full_error_deg": _r(c.full_error_deg),
                     "full_converged": c.full_converged, "in_box": c.in_box})
-    return Certification(len(goals), int(size), int(seed), len(certs), len(bad), tuple(bad))
+    return Certification(len(goals), int(size), int(seed), len(certs), len(bad), tuple(bad), len(solve))
+
+
+def _distinct(goals: np.ndarray, motors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, which): the indices of the points (goal (c, 6), motors (c, na)) that differ bit
+    for bit from every point before them, in order, and for each point the position among
+    ``rows`` of its own. A point a study reached twice with the same motors (two motor ranges
+    that both contain its path) gets one full solve: the same inputs give the same answer."""
+    first: dict[bytes, int] = {}
+    rows, which = [], np.empty(len(goals), int)
+    for i, (g, m) in enumerate(zip(goals, motors)):
+        key = g.tobytes() + m.tobytes()
+        if key not in first:
+            first[key] = len(rows)
+            rows.append(i)
+        which[i] = first[key]
+    return np.array(rows, int), which
