@@ -378,12 +378,8 @@ class InverseController:
         status, cert = "max_steps", None
         for _ in range(s.max_steps):
             e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
-            # confirm on a certified equilibrium, not on the one-Newton-step state, and only
-            # when the pose that state's pending equilibrium correction leads to is within too:
-            # a step far from equilibrium (a large move where the sheets stiffen or buckle) can
-            # land within the tolerance by chance, and certifying it (a Newton solve) only to
-            # step on cost 2 s a time on the paper robot, where the next step corrects it anyway
-            if _within(e, s) and _within(e - self.linearization(s).newton_step(None)[0], s):
+            if _within(e, s):
+                # confirm on a certified equilibrium, not on the one-Newton-step state
                 cert = self.certify(start, settings=s)
                 e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
                 if _within(e, s):
@@ -413,8 +409,7 @@ class InverseController:
         eq_state, r_norm, ref, how = cert
         e = pose_error(eq_state.p, eq_state.R, goal_p, goal_R)
         pos_err, rot_err = float(np.linalg.norm(e[:3])), float(np.degrees(np.linalg.norm(e[3:])))
-        if how != "none":  # a stopped run's uncertified control state is never "reached"
-            status = "reached" if _within(e, s) else ("stalled" if status == "reached" else status)
+        status = "reached" if _within(e, s) else ("stalled" if status == "reached" else status)
         out_pose = np.concatenate([eq_state.p, np.degrees(rotation_vector(eq_state.R))])
         return InverseResult(status, eq_state, np.degrees(eq_state.angles), out_pose, pose, pos_err,
                              rot_err, len(times), tuple(times), tuple(res), r_norm, ref, how)

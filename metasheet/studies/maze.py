@@ -11,7 +11,8 @@ Each segment is one work unit: the maze ramps from the previous tilt to the segm
 (``ramp_s``), holds it while the marble rolls (length / ``speed``), and the last segment
 ramps back to level. The unit reaches its first command from rest, then every sample by
 continuation (open loop, the inverse model alone), and replays the motor angles through the
-forward model to measure the tracking error. While the command holds, the motors hold: a
+forward model to measure the tracking error (a held sample's replay is the equilibrium it holds:
+solved again at the same motors from itself, it would not move). While the command holds, the motors hold: a
 sample whose command is the previous one's keeps its motor angles (on an impossible segment
 the inverse loop would otherwise spend its ``max_steps`` again on every held sample, and the
 motors would wander about the unreachable goal). A segment is impossible when a held sample
@@ -154,8 +155,12 @@ def solve_segment(task: SegmentTask) -> SegmentResult:
         e[i] = pose_errors(g, r.pose)
     tr = np.full((k, 2), np.nan)
     strain = np.full(k, np.nan)
-    q_prev, fstate = model.rest_motors(), None
+    q_prev, fstate, last = model.rest_motors(), None, None  # last: (pose, strain) of the replay at q_prev
     for i, g in enumerate(task.poses):
+        if last is not None and np.array_equal(q[i], q_prev):  # held motors: the same equilibrium
+            tr[i], strain[i] = pose_errors(g, last[0]), last[1]
+            continue
+        last = None
         # replay as the motors would move: from rest in ramps of at most 5 deg, then sample to sample
         n = max(1, int(np.ceil(np.abs(q[i] - q_prev).max() / 5.0)))
         try:
@@ -166,6 +171,7 @@ def solve_segment(task: SegmentTask) -> SegmentResult:
         q_prev = q[i]
         tr[i] = pose_errors(g, pose)
         strain[i] = model.max_principal_strain(fstate)
+        last = (pose, strain[i])
     ok = (e[:, 0] <= s.tol_mm) & (e[:, 1] <= s.tol_deg) & np.isfinite(tr[:, 0]) & conv
     return SegmentResult(q, e[:, 0], e[:, 1], tr[:, 0], tr[:, 1], ok, strain)
 
