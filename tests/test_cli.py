@@ -37,7 +37,7 @@ def test_run_writes_manifest(tmp_path):
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "quick/material/material.json").is_file()
     manifest = json.loads((tmp_path / "quick/material/manifest.json").read_text())
-    assert {"started", "wall_time_s", "timings_s"} <= manifest.keys()
+    assert {"started", "wall_time_s", "cpu_s", "timings_s"} <= manifest.keys()
     assert "time [s]" in r.stdout  # the results table keeps its unit
     assert not (tmp_path / ".quick.lock.json").exists()  # the lock's holder file leaves with the run
     constants = json.loads((tmp_path / "quick/homogenize/constants.json").read_text())

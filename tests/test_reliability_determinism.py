@@ -2,7 +2,7 @@
 
 - the quick pipeline run twice from scratch (a cold numba cache for the first run, as on a
   fresh clone) writes byte-identical outputs; manifests agree on every field but the
-  wall-clock ones (``started``, ``wall_time_s``, ``timings_s``);
+  wall-clock and CPU ones (``started``, ``wall_time_s``, ``cpu_s``, ``timings_s``);
 - no artefact holds a wall-clock time (``constants.json`` had ``timings_s``);
 - pyamg's random spectral-radius estimate is seeded: AMG-CG gives the same bits whatever
   numpy's global generator holds, and leaves that generator as it found it;
@@ -28,7 +28,7 @@ from metasheet.pipeline.runner import run_pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Manifest fields that hold wall-clock times: the only ones two runs may differ in.
-TIME_FIELDS = ("started", "wall_time_s", "timings_s")
+TIME_FIELDS = ("started", "wall_time_s", "cpu_s", "timings_s")
 
 
 def _tree(root: Path) -> dict[str, bytes]:

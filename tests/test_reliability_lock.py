@@ -133,7 +133,7 @@ def outputs(root: Path) -> dict[str, object]:
             rel = p.relative_to(root).as_posix()
             if p.name == "manifest.json":
                 m = json.loads(p.read_text())
-                out[rel] = {k: v for k, v in m.items() if k not in ("started", "wall_time_s", "timings_s")}
+                out[rel] = {k: v for k, v in m.items() if k not in ("started", "wall_time_s", "cpu_s", "timings_s")}
             else:
                 out[rel] = p.read_bytes()
     return out

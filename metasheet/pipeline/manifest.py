@@ -8,7 +8,7 @@ The content hash of a JSON artefact is canonical (:func:`canonical_sha256`): its
 rounded to :data:`SIGNIFICANT_DIGITS` significant digits, keys sorted. A last-bit change
 in a fitted constant (another BLAS, another thread count) then does not rerun every stage
 downstream; any other file is hashed byte for byte. Wall-clock times are never in an
-artefact, only in the manifest (``started``, ``wall_time_s``, ``timings_s``).
+artefact, only in the manifest (``started``, ``wall_time_s``, ``cpu_s``, ``timings_s``).
 """
 
 from __future__ import annotations
