@@ -11,11 +11,11 @@ Each segment is one work unit: the maze ramps from the previous tilt to the segm
 (``ramp_s``), holds it while the marble rolls (length / ``speed``), and the last segment
 ramps back to level. The unit reaches its first command from rest, then every sample by
 continuation (open loop, the inverse model alone), and replays the motor angles through the
-forward model to measure the tracking error (a held sample's replay is the equilibrium it holds:
-solved again at the same motors from itself, it would not move). While the command holds, the motors hold: a
-sample whose command is the previous one's keeps its motor angles (on an impossible segment
-the inverse loop would otherwise spend its ``max_steps`` again on every held sample, and the
-motors would wander about the unreachable goal). A segment is impossible when a held sample
+forward model to measure the tracking error (a held sample's replay is the equilibrium it
+holds: solved again at the same motors from itself, it would not move). While the command
+holds, the motors hold: a sample whose command is the previous one's keeps its motor angles
+(on an impossible segment the inverse loop would otherwise spend its ``max_steps`` again on
+every held sample, and the motors would wander about the unreachable goal). A segment is impossible when a held sample
 misses its pose by more than ``tol_mm`` or ``tol_deg``.
 """
 

@@ -76,11 +76,11 @@ def _reduced(name: str, summary: Mapping) -> tuple[list[str], list[str]]:
     if cert:
         scope = "all" if cert["requested"] == 0 or cert["certified"] >= cert["reachable"] else \
             f"a random sample (seed {cert['seed']})"
-        same = cert.get("solves", -1)
-        same = (f" ({cert['certified'] - same} of them the same goal and motors as another: {same} full solves)"
-                if 0 <= same < cert["certified"] else "")
+        solves = cert.get("solves", -1)  # -1: a record from before distinct points shared a solve
+        shared = (f" ({cert['certified'] - solves} of them the same goal and motors as another: {solves} full "
+                  "solves)" if 0 <= solves < cert["certified"] else "")
         lines.append(f"Full-model certification of the reachable points ({scope}): {cert['certified']} of "
-                     f"{cert['reachable']} re-solved{same}, {cert['disagree']} disagree (rate {cert['rate']:.3g}).")
+                     f"{cert['reachable']} re-solved{shared}, {cert['disagree']} disagree (rate {cert['rate']:.3g}).")
         for pt in cert["points"][:10]:
             lines.append(f"- point {pt['point']}: reduced error {_fmt(pt['reduced_error_mm'])} mm, full error "
                          f"{_fmt(pt['full_error_mm'])} mm{'' if pt['in_box'] else ' (outside the training box)'}")

@@ -160,9 +160,12 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
     fig, axes = plt.subplots(1, 3, figsize=(17, 5), squeeze=False)
     ax = axes[0, 0]
     for i in range(len(P) - 1):
+        d = P[i + 1] - P[i]
+        normal = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)  # silicone beside the foam, whatever the heading
         for ok_arr, off, name in ((segment_ok, 0.0, "foam"), (segment_ok_silicone, 1.2, "silicone")):
             ok = bool(ok_arr[i])
-            ax.plot(P[i:i + 2, 0], P[i:i + 2, 1] + off, "-" if ok else ":", lw=3 if name == "foam" else 1.5,
+            seg = P[i:i + 2] + off * normal
+            ax.plot(seg[:, 0], seg[:, 1], "-" if ok else ":", lw=3 if name == "foam" else 1.5,
                     color=("#1f77b4" if name == "foam" else "#9467bd") if ok else "#d62728")
         mid = P[i:i + 2].mean(axis=0)
         ax.annotate(str(i), mid, fontsize=8, xytext=(3, 3), textcoords="offset points")
@@ -173,7 +176,7 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
     ax.set_aspect("equal")
     ax.set_xlabel("maze u = rod axis [mm]")
     ax.set_ylabel("maze v [mm]")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="center", bbox_to_anchor=(0.5, 0.62))  # inside the loop, off the path
     ax.set_title("path and segment feasibility")
     ax.grid(alpha=0.3)
     ax = axes[0, 1]

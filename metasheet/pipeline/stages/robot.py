@@ -41,6 +41,7 @@ from ...errors import ConfigError
 from ...material import Isotropic
 from ...material_model import other_model
 from ...robot.builder import six_dof_robot
+from ...robot.convergence import Level
 from ...robot.compare import evaluate
 from ..artefacts import OrientFile, read_material, read_orient, write_jacobian, write_rest_vtu
 from ..manifest import write_json_atomic
@@ -166,7 +167,7 @@ def _convergence(ctx: StageContext, orient, robot_kw: dict) -> None:
     """``convergence.json``: the foam robot over the mesh levels of ``convergence`` (and the
     orient mesh, checked against the tolerances), one work unit per level on the stage's
     executor; each level's seconds go to the manifest."""
-    from ...robot.convergence import Level, convergence_summary, cost_order
+    from ...robot.convergence import convergence_summary, cost_order
 
     sp = orient.sheet_params
     own = Level(orient.element, float(sp.mesh_size), int(sp.layers), float(sp.grip_size))
@@ -189,7 +190,7 @@ class _LevelTask:
     orient mesh itself (its sheets as they are) and the robot's keywords."""
 
     orient: OrientFile
-    level: object
+    level: Level
     own: bool
     robot_kw: dict
 
