@@ -127,3 +127,48 @@ def test_silicone_does_not_twist_the_rod_and_foam_does(six_dof_cases):
     assert s_foam[-1] > 0.3 * s_foam[0]
     # the foam's rotation comes without the effector leaving the rod axis
     assert foam.lateral_finite < 0.05 * abs(foam.rod_rotation_finite) * 50
+
+
+
+def _off_equilibrium(robot, state, target):
+    """``state`` with the effector (and what it carries) moved rigidly onto ``target``'s pose and
+    every free node left where it was: its pose is ``target``'s, its residual large."""
+    from metasheet.robot.statics import apply_step
+
+    dq_e = np.concatenate([target.p - state.p, rotation_vector(target.R @ state.R.T)])
+    return apply_step(robot, state, dq_e, np.zeros(3 * len(robot.coupling.free)))
+
+
+def test_a_pose_the_pending_correction_moves_out_is_not_certified_and_a_stop_there_is_not_reached(robot):
+    """A state within the tolerance whose pending equilibrium correction takes the effector out of
+    it is stepped on, not certified (a Newton solve only to step on); a run stopped there returns
+    that uncertified state as "stopped", never "reached"."""
+    rest = solve_equilibrium(robot, robot.coupling.rest_angles).state
+    target = solve_equilibrium(robot, rest.angles + np.radians([-1.5, -0.5, -2.5]), state=rest).state
+    off = _off_equilibrium(robot, rest, target)  # target's pose, rest's sheets and motors
+    goal = np.concatenate([target.p, np.degrees(rotation_vector(target.R))])
+    ctl = InverseController(robot, rest, InverseSettings(pos_tol=0.5, rot_tol_deg=0.5))
+    assert np.linalg.norm(ctl.refresh(off).newton_step(None)[0][:3]) > 2.0  # the correction moves it out
+    res = ctl.goto(goal, state=off, stop=lambda st: True, certify_stop=False)
+    assert res.status == "stopped" and res.steps == 1 and res.certified == "none"
+    assert res.pos_error < 1e-9  # the uncertified state itself is on the goal: still not "reached"
+    assert ctl.certified == {"chord": 0, "newton": 0}
+
+
+def test_a_state_is_stepped_on_uncertified_only_while_its_residual_contracts(robot):
+    """The skip is granted to the first state within the tolerance whose pending correction moves
+    it out, and after that only to a state whose residual is below ``polish_rate`` times the last
+    skipped one: a run drifting away from equilibrium is certified, not stepped on."""
+    rest = solve_equilibrium(robot, robot.coupling.rest_angles).state
+    target = solve_equilibrium(robot, rest.angles + np.radians([-1.5, -0.5, -2.5]), state=rest).state
+    off = _off_equilibrium(robot, rest, target)
+    s = InverseSettings(pos_tol=0.5, rot_tol_deg=0.5)
+    ctl = InverseController(robot, rest, s)
+    ctl.state = off
+    e = np.zeros(6)  # the state is on the goal
+    r = ctl._skip_certify(e, s, None)
+    assert r is not None and r == pytest.approx(ctl.linearization(s).residual_norm, rel=1e-12)
+    assert ctl._skip_certify(e, s, r / s.polish_rate * 1.01) is not None  # contracted enough
+    assert ctl._skip_certify(e, s, r / s.polish_rate * 0.99) is None  # not enough: certify
+    ctl.state = rest  # at equilibrium the pending correction keeps it within: certify
+    assert ctl._skip_certify(e, s, None) is None

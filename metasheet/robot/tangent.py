@@ -69,6 +69,7 @@ class TangentCache:
         self.refreshes = 0
         self.reasons: dict = {}
         self._own: deque = deque(maxlen=own_states)  # states the loop produced: anything else came from outside
+        self._for = None  # the settings of the last linearisation handed out
 
     # -- the loop's own states --------------------------------------------------------------
     def remember(self, state: RobotState) -> None:
@@ -114,8 +115,14 @@ class TangentCache:
         """The linearisation at ``state`` for a control step: the chord update of the kept
         tangent when it passes the tests, else a fresh one (kept for the next steps).
 
-        The residual and the pending correction are evaluated every time, never assumed.
+        The residual and the pending correction are evaluated every time, never assumed; asked
+        again at the same state (the object) with the same settings and nothing refactorised
+        since, the linearisation just handed out is handed out again.
         """
+        if (self.lin is not None and self.lin.state is state and self._for is settings
+                and self.linearizer.factorizations == self.generation):
+            return self.lin
+        self._for = settings
         lin = None
         if self.kept(state):
             lin = self.linearizer.update(self.lin, state)

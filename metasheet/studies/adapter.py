@@ -222,7 +222,8 @@ class FemRobot:
             st, steps, converged, stopped = self.ctrl.state, self.ctrl.total_steps - steps0, False, False
         pose = st.pose
         e_mm, e_deg = pose_errors(goal, pose)
-        ok = converged and e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)
+        # a stopped run's uncertified control state is not an equilibrium: never reached
+        ok = converged and not (stopped and not certify_stop) and e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)
         return ReachResult(ok, pose, np.degrees(st.angles), e_mm, e_deg, int(steps), st, converged, stopped=stopped)
 
     def equilibrium(self, motors_deg, *, state=None):
