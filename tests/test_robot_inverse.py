@@ -1,5 +1,7 @@
 """Inverse QP (eq. 8) and the control loop on a coarse tripod; isotropic vs foam on a coarse 6-DOF robot."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -170,5 +172,10 @@ def test_a_state_is_stepped_on_uncertified_only_while_its_residual_contracts(rob
     assert r is not None and r == pytest.approx(ctl.linearization(s).residual_norm, rel=1e-12)
     assert ctl._skip_certify(e, s, r / s.polish_rate * 1.01) is not None  # contracted enough
     assert ctl._skip_certify(e, s, r / s.polish_rate * 0.99) is None  # not enough: certify
+    # within the chord corrections' reach (residual 4.2 times the force scale here) certifying
+    # is the cheap path: certify
+    rel = r / ctl.linearizer.force_scale(ctl.linearization(s))
+    assert 1.0 < rel < 9.0
+    assert ctl._skip_certify(e, replace(s, chord_tol=1.1 * rel), None) is None
     ctl.state = rest  # at equilibrium the pending correction keeps it within: certify
     assert ctl._skip_certify(e, s, None) is None

@@ -41,10 +41,10 @@ The loop stops "reached" when the position error is below
 not improved for ``stall_steps`` steps (an unreachable goal: the closest pose found is
 returned, never an exception), or "max_steps". "Reached" is judged on a certified
 equilibrium (below), asked for when a step lands within the tolerance; a state whose pending
-correction ``dq_e^0`` would move the pose out again is stepped on instead, once, and again
-only while its residual contracts (:meth:`InverseController._skip_certify`): after a large
-step where the sheets stiffen, certifying (a Newton solve) only to step on cost ~3 s a time
-on the paper robot.
+correction ``dq_e^0`` would move the pose out again, and whose residual is beyond the chord
+corrections' reach, is stepped on instead, once, and again only while its residual contracts
+(:meth:`InverseController._skip_certify`): after a large step where the sheets stiffen,
+certifying (a Newton solve) only to step on cost ~3 s a time on the paper robot.
 
 The reported pose is always an equilibrium at the final motor angles within a stated
 residual tolerance: the reduced residual (the norm of :attr:`.statics.Linearization.
@@ -362,13 +362,18 @@ class InverseController:
 
         A large control step far from equilibrium (where the sheets stiffen or buckle) can land
         within the tolerance by chance while its pending equilibrium correction moves the pose
-        out: certifying it (a Newton solve with line search, ~3 s on the paper robot) only to
-        step on again is the costly path, and the next step makes that correction anyway. So such
-        a state is stepped on: the first time, and again only while the residual contracts
-        (``polish_rate`` against the state skipped before, ``skipped`` [N]); otherwise the loop
-        certifies, as always, so a run that drifts from equilibrium is brought back.
+        out: certifying it (a Newton solve with line search, ~3 s on the paper robot, as the
+        chord corrections do not reach that far) only to step on again is the costly path, and
+        the next step makes that correction anyway. So such a state, with a residual beyond the
+        chord's reach (above ``chord_tol`` times the force scale), is stepped on: the first
+        time, and again only while the residual contracts (``polish_rate`` against the state
+        skipped before, ``skipped`` [N]); otherwise the loop certifies, as always, so a run that
+        drifts from equilibrium is brought back. Nearer equilibrium certifying is the cheap
+        path (a few chord corrections) and stays.
         """
         lin = self.linearization(s)
+        if not lin.residual_norm > s.chord_tol * self.linearizer.force_scale(lin):
+            return None
         if skipped is not None and not lin.residual_norm < s.polish_rate * skipped:
             return None
         if _within(e - lin.newton_step(None)[0], s):
