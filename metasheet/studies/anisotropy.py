@@ -35,8 +35,9 @@ class SweepTask:
 #: Halvings of a ramp step that fails to converge before the case is given up (reported). The
 #: equilibrium solver has already cut its own increments three times by then (to 1/8 of its
 #: largest), so each halving here repeats much of a failed path: on the paper pipeline no
-#: converging case needed one, and the push past the homogenised foam's snap spent 112 of its
-#: 136 CPU s in the three of them (one is kept as a margin: 100 s -> ~60 s for that case).
+#: converging case needed one, and the push past the homogenised foam's snap (a limit point:
+#: its failing solves stall at the same residual) spent 136 CPU s with three; one is kept as
+#: a margin for other foams.
 MAX_CUTS = 1
 
 
