@@ -131,7 +131,6 @@ def test_silicone_does_not_twist_the_rod_and_foam_does(six_dof_cases):
     assert foam.lateral_finite < 0.05 * abs(foam.rod_rotation_finite) * 50
 
 
-
 def _off_equilibrium(robot, state, target):
     """``state`` with the effector (and what it carries) moved rigidly onto ``target``'s pose and
     every free node left where it was: its pose is ``target``'s, its residual large."""
