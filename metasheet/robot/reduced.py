@@ -234,7 +234,7 @@ class ReducedRobot:
 
     def jacobian(self, x: np.ndarray, st: ReducedState) -> np.ndarray:
         """(3 n_s, nq) T = dx_s / dq at sub-node positions ``x`` (n_s, 3) [mm]."""
-        T = coordinate_jacobian(self.coupling, x, st.p, self._eff, self._servo, self._free, self._V)
+        T = coordinate_jacobian(self.coupling, x, st.p, self._eff, self._servo, self._free, self._V, node_major=True)
         return T.reshape(-1, self.nq)
 
     # -- generalised forces ---------------------------------------------------------------
@@ -298,13 +298,26 @@ class ReducedRobot:
         return g_int, g_ext, A
 
 
-def coordinate_jacobian(coupling, x, p, eff, servo, free, V) -> np.ndarray:
+def coordinate_jacobian(coupling, x, p, eff, servo, free, V, *, node_major: bool = False) -> np.ndarray:
     """(len(x), 3, 6 + na + k) dx / dq of the nodes at positions ``x`` [mm]: rows ``eff`` move
     with the effector (reference point ``p`` [mm]), ``servo[k]`` with horn k, ``free`` with the
-    basis rows ``V`` (3 len(free), k) (any other row is zero). Stored coordinate-major, so
-    ``T.reshape(-1, nq)`` is a Fortran-ordered view: a sparse stiffness times it runs about
-    twice as fast as on a C-ordered copy (the reduced tangent's ``K T``)."""
+    basis rows ``V`` (3 len(free), k) (any other row is zero).
+
+    Stored coordinate-major (``T.reshape(-1, nq)`` a Fortran-ordered view), or with
+    ``node_major`` C-ordered: the same numbers, filled 3x faster, and a sparse stiffness times
+    it runs ~15 % faster with bit-identical results (the reduced tangent's ``K T``: 42 against
+    50 ms on the paper's sample, scipy 1.17). The training keeps the coordinate-major layout:
+    its element sample is sensitive to round-off, and a gemv on the other layout (``T^T f``)
+    sums in another order."""
     na = coupling.n_act
+    if node_major:
+        T = np.zeros((len(x), 3, 6 + na + V.shape[1]))
+        T[eff, :, 0:3] = np.eye(3)
+        T[eff, :, 3:6] = -skew(x[eff] - p)
+        for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
+            T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
+        T[free, :, 6 + na:] = V.reshape(len(free), 3, -1)
+        return T
     Tt = np.zeros((6 + na + V.shape[1], len(x), 3))
     Tt[0:3, eff, :] = np.eye(3)[:, None, :]
     Tt[3:6, eff, :] = -skew(x[eff] - p).transpose(2, 0, 1)
