@@ -407,8 +407,9 @@ class InverseController:
         status, cert, skipped = "max_steps", None, None
         for _ in range(s.max_steps):
             e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
-            skipped = self._skip_certify(e, s, skipped) if _within(e, s) else None
-            if _within(e, s) and skipped is None:
+            within = _within(e, s)
+            skipped = self._skip_certify(e, s, skipped) if within else None
+            if within and skipped is None:
                 # confirm on a certified equilibrium, not on the one-Newton-step state
                 cert = self.certify(start, settings=s)
                 e = pose_error(self.state.p, self.state.R, goal_p, goal_R)
