@@ -294,7 +294,7 @@ def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria():
                 def __getattr__(self, name):
                     return getattr(rob, name)
 
-                def equilibrium(self, q, *, state=None):
+                def equilibrium(self, q, *, state=None, intermediate=False):
                     q0 = rob.rest_motors()
                     prev = q0 if state is None else state[1]
                     if np.abs(np.asarray(q) - prev).max() > spec.max_jump + 1e-9:

@@ -32,6 +32,9 @@ class Equilibrium:
     at_floor : True when ``tol`` asked for less than round-off allows and the solve stopped
         where Newton stalls, at a residual ``residuals[-1] <= floor``, instead of at
         ``tol * reference``; False when the tolerance itself was met.
+    linearization : the last :class:`.statics.Linearization` at ``state`` (its residual is
+        ``state``'s, its tangent may be an earlier iterate's), or None: a next solve from
+        ``state`` may start its predictor on it (``start``).
     """
 
     state: RobotState
@@ -41,6 +44,7 @@ class Equilibrium:
     time: float
     floor: float = 0.0
     at_floor: bool = False
+    linearization: Linearization | None = None
 
     @property
     def residual(self) -> float:
@@ -136,9 +140,28 @@ def n_increments(jump: float, step: float) -> int:
     return max(1, int(np.ceil(jump / step - 1e-12)))
 
 
+#: Relative tolerance of a path's intermediate states (:func:`solve_increments`, the studies'
+#: ramps): they only start the next increment, whose predictor residual is 1-10 times the
+#: force scale; converging them to 1e-8 took 7-13 Newton iterations per 5 deg ramp of the
+#: silicone sheets where 1e-4 takes 4-6, for the same end state (the last increment meets ``tol``).
+PATH_TOL = 1e-4
+#: Newton iterations within which the residual must halve (below the best before them) for a
+#: solve to go on: at a limit point of the anisotropy push Newton wandered at 1e-2 to 1e-1 of
+#: the force scale for its 50 iterations (25-29 s a try on the paper robot), where converging
+#: solves halve their residual every 1-5 iterations.
+STALL_WINDOW = 10
+
+
+def stalled(residuals, window: int) -> bool:
+    """Whether the last ``window`` of ``residuals`` (one increment's, after its predictor) [N]
+    did not bring the best residual down to half the best before them."""
+    return len(residuals) > window and min(residuals[-window:]) > 0.5 * min(residuals[:-window])
+
+
 def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: int = 50,
                      max_angle_step: float = np.radians(10.0), reuse_ratio: float = 0.25,
-                     linearizer=None, exact_tangent: bool = True) -> Equilibrium:
+                     linearizer=None, exact_tangent: bool = True, path_tol: float = PATH_TOL,
+                     stall_window: int = STALL_WINDOW, start: Linearization | None = None) -> Equilibrium:
     """Static equilibrium (eq. 1) at motor ``angles`` (na,) [rad] by Newton + line search.
 
     Starts from ``state`` (default: the rest state) and moves the motors in increments of at
@@ -147,7 +170,12 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     backtracking line search on the residual norm. The tangent (and the LU of K_ff) is kept
     while each step cuts the residual by at least ``reuse_ratio`` (a chord step costs one
     force evaluation and one solve) and recomputed otherwise; ``reuse_ratio = 0`` gives plain
-    Newton. Converged when the reduced residual is below ``tol`` times the force scale
+    Newton. An increment's predictor starts on the linearisation the previous increment
+    ended on, and the first on ``start`` when it was taken at ``state`` (an
+    :attr:`Equilibrium.linearization`): a tangent from the last iterates of a converged
+    increment predicts as well as a fresh one, which would cost a factorisation (about a
+    quarter of a 5 deg ramp of the paper robot's silicone sheets). The increments before the last are converged to ``max(tol, path_tol)`` only
+    (:data:`PATH_TOL`), the last to ``tol``. Converged when the reduced residual is below ``tol`` times the force scale
     (forces on the rigid nodes plus the external loads); when that scale is itself below the
     residual's round-off floor (:func:`residual_floor`; no loads, no motion), below the floor:
     an unloaded rest state is an equilibrium as it stands, whatever BLAS evaluated its forces.
@@ -165,13 +193,16 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     residual by less than ``reuse_ratio`` or the line search fails on it.
 
     Raises :class:`ConvergenceError` (with the residual history) when an increment fails
-    above the floor.
+    above the floor: ``max_iter`` runs out, the line search fails, or the residual has not
+    halved in ``stall_window`` iterations (:func:`stalled`).
     """
     target = np.asarray(angles, dtype=float).reshape(-1)
     if target.shape != (robot.coupling.n_act,):
         raise ConfigError(f"angles: shape {target.shape}: expected ({robot.coupling.n_act},) [rad]")
     if tol <= 0 or max_iter < 1:
         raise ConfigError(f"tol: {tol!r}, max_iter: {max_iter!r}: need tol > 0, max_iter >= 1")
+    if not path_tol > 0 or stall_window < 1:
+        raise ConfigError(f"path_tol: {path_tol!r}, stall_window: {stall_window!r}: need path_tol > 0, stall_window >= 1")
     check_reuse = float(reuse_ratio)
     if not 0.0 <= check_reuse < 1.0:
         raise ConfigError(f"reuse_ratio: {reuse_ratio!r}: allowed range [0, 1)")
@@ -181,17 +212,23 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     jump = target - st.angles
     n_inc = n_increments(float(np.max(np.abs(jump), initial=0.0)), max_angle_step)
     history, iters, ref, floor = [], 0, 0.0, 0.0
+    lin = start if start is not None and start.state is st else None
     for inc in range(n_inc):
         dq_a = jump / n_inc if np.any(jump) else None
-        lin = lz.linearize(st, exact=exact_tangent)
+        inc_tol = tol if inc == n_inc - 1 else max(tol, path_tol)
+        if dq_a is None or lin is None or lin.state is not st:
+            lin = lz.linearize(st, exact=exact_tangent)
         at_floor = False
+        tail = []  # this increment's residuals after its predictor
         for it in range(max_iter + 1):
             res = lin.residual_norm
             ref = max(lz.force_scale(lin), 1e-300)
             floor = lz.residual_floor(lin)
             history.append(res)
+            if dq_a is None:
+                tail.append(res)
             unloaded = ref <= floor  # the force scale itself is round-off: nothing to resolve
-            if dq_a is None and (res <= tol * ref or res < 1e-13 * max(ref, 1.0) or (unloaded and res <= floor)):
+            if dq_a is None and (res <= inc_tol * ref or res < 1e-13 * max(ref, 1.0) or (unloaded and res <= floor)):
                 break
             if it == max_iter:
                 if dq_a is None and res <= floor:  # steps that only shuffle round-off: done
@@ -199,7 +236,11 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
                     break
                 raise ConvergenceError(
                     f"statics: no convergence in {max_iter} Newton iterations (increment {inc + 1}/"
-                    f"{n_inc}); residual {res:.3e} N > {tol:g} x {ref:.3e} N", history)
+                    f"{n_inc}); residual {res:.3e} N > {inc_tol:g} x {ref:.3e} N", history)
+            if res > floor and stalled(tail, stall_window):
+                raise ConvergenceError(
+                    f"statics: stalled: the residual has not halved in {stall_window} Newton iterations "
+                    f"(increment {inc + 1}/{n_inc}); residual {res:.3e} N > {inc_tol:g} x {ref:.3e} N", history)
             dq_e, dx_f = lin.newton_step(dq_a)
             iters += 1
             if dq_a is not None:  # predictor: move the motors with the linearised response
@@ -238,6 +279,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
                 if not lin.fresh:  # a stale tangent may give a poor direction: refresh, retry
                     lin = lz.linearize(st)
                     history.pop()
+                    tail.pop()
                     continue
                 if noise:  # Newton has stalled in round-off: done, on the better of the two states
                     if new.residual_norm < res:
@@ -250,4 +292,5 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
                     f"floor {floor:.3e} N (increment {inc + 1}/{n_inc})", history)
             st = trial
             lin = new if new.residual_norm <= reuse_ratio * res else lz.linearize(st)
-    return Equilibrium(st, iters, tuple(history), ref, time.perf_counter() - t0, floor, at_floor)
+    return Equilibrium(st, iters, tuple(history), ref, time.perf_counter() - t0, floor, at_floor,
+                       lin if lin.state is st else None)

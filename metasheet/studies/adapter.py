@@ -160,6 +160,7 @@ class FemRobot:
     """The FEM robot of a :class:`RobotSpec` behind the study protocol."""
 
     pull_sign = 1.0  # towards 90 deg the horn lifts the arm tip outwards: it stretches the arm
+    _last_equilibrium = None  # the last :meth:`equilibrium`'s solve (its state's linearisation)
 
     def __init__(self, spec: RobotSpec):
         from ..robot.builder import six_dof_robot
@@ -226,11 +227,16 @@ class FemRobot:
         ok = converged and not (stopped and not certify_stop) and e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg)
         return ReachResult(ok, pose, np.degrees(st.angles), e_mm, e_deg, int(steps), st, converged, stopped=stopped)
 
-    def equilibrium(self, motors_deg, *, state=None):
-        from ..robot.equilibrium import solve_equilibrium
+    def equilibrium(self, motors_deg, *, state=None, intermediate: bool = False):
+        from ..robot.equilibrium import PATH_TOL, solve_equilibrium
 
-        eq = solve_equilibrium(self.robot, np.radians(np.asarray(motors_deg, float)),
-                               state=self.rest if state is None else state, linearizer=self.lz)
+        tol = {"tol": PATH_TOL} if intermediate else {}
+        start = self.rest if state is None else state
+        last = self._last_equilibrium  # a path's next step starts on the tangent its last one ended on
+        eq = solve_equilibrium(self.robot, np.radians(np.asarray(motors_deg, float)), state=start,
+                               linearizer=self.lz, start=last.linearization if last and last.state is start else None,
+                               **tol)
+        self._last_equilibrium = eq
         return eq.state.pose, eq.state
 
     @cached_property

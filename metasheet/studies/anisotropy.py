@@ -41,17 +41,18 @@ class SweepTask:
 MAX_CUTS = 1
 
 
-def _reach(model, q_from, q_to, state, cuts: int = 0):
+def _reach(model, q_from, q_to, state, cuts: int = 0, *, last: bool = True):
     """Equilibrium at motors ``q_to`` [deg] from ``state`` (at ``q_from``); a step that does not
-    converge is halved, up to :data:`MAX_CUTS` times, before the error is passed on."""
+    converge is halved, up to :data:`MAX_CUTS` times, before the error is passed on. Unless
+    ``last``, the state only starts the ramp's next step (``intermediate``)."""
     try:
-        return model.equilibrium(q_to, state=state)
+        return model.equilibrium(q_to, state=state, intermediate=not last)
     except ConvergenceError:
         if cuts >= MAX_CUTS:
             raise
         mid = 0.5 * (np.asarray(q_from) + np.asarray(q_to))
-        _, state = _reach(model, q_from, mid, state, cuts + 1)
-        return _reach(model, mid, q_to, state, cuts + 1)
+        _, state = _reach(model, q_from, mid, state, cuts + 1, last=False)
+        return _reach(model, mid, q_to, state, cuts + 1, last=last)
 
 
 def sweep_point(task: SweepTask) -> np.ndarray:
@@ -71,7 +72,7 @@ def sweep_point(task: SweepTask) -> np.ndarray:
     state, q = None, q0
     try:
         for t in np.arange(1, n + 1) / n:
-            pose, state = _reach(model, q, q0 + t * (target - q0), state)
+            pose, state = _reach(model, q, q0 + t * (target - q0), state, last=t == 1)
             q = q0 + t * (target - q0)
         out[:6] = pose - model.rest_pose()
     except ConvergenceError:

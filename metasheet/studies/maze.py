@@ -165,7 +165,7 @@ def solve_segment(task: SegmentTask) -> SegmentResult:
         n = max(1, int(np.ceil(np.abs(q[i] - q_prev).max() / 5.0)))
         try:
             for t in np.arange(1, n + 1) / n:
-                pose, fstate = model.equilibrium(q_prev + t * (q[i] - q_prev), state=fstate)
+                pose, fstate = model.equilibrium(q_prev + t * (q[i] - q_prev), state=fstate, intermediate=t < 1)
         except ConvergenceError:  # reported as a NaN tracking error (and the sample as not reached)
             continue
         q_prev = q[i]

@@ -80,8 +80,10 @@ class RobotModel(Protocol):
         ``rot_weight`` [mm/rad] overrides the QP's weight of rotation errors (0: position only).
         """
 
-    def equilibrium(self, motors_deg, *, state=None) -> tuple[np.ndarray, Any]:
-        """Forward model: the pose (6,) and the state at equilibrium for ``motors_deg``."""
+    def equilibrium(self, motors_deg, *, state=None, intermediate: bool = False) -> tuple[np.ndarray, Any]:
+        """Forward model: the pose (6,) and the state at equilibrium for ``motors_deg``.
+        ``intermediate``: a state that only starts the next solve of a path (a ramp's step),
+        converged to the path's looser tolerance (:data:`metasheet.robot.equilibrium.PATH_TOL`)."""
 
     def max_principal_strain(self, state) -> float:
         """Largest principal (Green-Lagrange or log) strain in the soft parts at ``state`` [-]."""

@@ -260,13 +260,13 @@ class ReducedFem(FemRobot):
         e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
         return ReachResult(False, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True, left_domain=True)
 
-    def equilibrium(self, motors_deg, *, state=None):
+    def equilibrium(self, motors_deg, *, state=None, intermediate: bool = False):
         """:meth:`FemRobot.equilibrium` on the reduced model, or the full one outside the training box."""
         q = np.asarray(motors_deg, float)
         if not self.in_box(q):
             self._fallback("equilibrium", q)
-            return self.full.equilibrium(q, state=self._to_full(state))
-        return super().equilibrium(q, state=self._to_reduced(state))
+            return self.full.equilibrium(q, state=self._to_full(state), intermediate=intermediate)
+        return super().equilibrium(q, state=self._to_reduced(state), intermediate=intermediate)
 
     def max_principal_strain(self, state) -> float:
         """:meth:`FemRobot.max_principal_strain` of the full mesh at ``state``'s node positions [-]."""

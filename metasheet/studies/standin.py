@@ -122,7 +122,7 @@ class StandInRobot:
     def rest_motors(self) -> np.ndarray:
         return self._q0.copy()
 
-    def equilibrium(self, motors_deg, *, state=None):
+    def equilibrium(self, motors_deg, *, state=None, intermediate: bool = False):
         q = np.asarray(motors_deg, float).copy()
         return self._pose(q), q
 

@@ -1,0 +1,119 @@
+"""solve_increments along a path: loose intermediate increments, a linearisation carried from
+one solve to the next, and stalled Newton iterations reported early."""
+
+import numpy as np
+import pytest
+
+from metasheet import paper
+from metasheet.errors import ConfigError, ConvergenceError
+from metasheet.robot.builder import SheetPair, six_dof_robot
+from metasheet.robot.equilibrium import PATH_TOL, solve_equilibrium, solve_increments, stalled
+from metasheet.robot.statics import Linearization
+from metasheet.sheet.geometry import SheetParams
+
+MOVE_DEG = np.array([6.0, -4.0, 8.0, 2.0, -6.0, 4.0])
+
+
+@pytest.fixture(scope="module")
+def robot():
+    sheets = SheetPair.spiral(SheetParams(mesh_size=14))
+    return six_dof_robot(sheets, paper.PAPER_FOAM, density=paper.FOAM_DENSITY)
+
+
+@pytest.fixture(scope="module")
+def rest(robot):
+    return solve_equilibrium(robot, robot.coupling.rest_angles, tol=1e-10)
+
+
+def _pose_gap(a, b) -> float:
+    """Largest node distance between two states [mm]."""
+    return float(np.abs(a.x - b.x).max())
+
+
+def test_intermediate_increments_are_converged_to_the_path_tolerance_only(robot, rest):
+    target = rest.state.angles + np.radians(MOVE_DEG)
+    step = np.radians(2.0)  # four increments
+    loose = solve_increments(robot, target, state=rest.state, max_angle_step=step)
+    tight = solve_increments(robot, target, state=rest.state, max_angle_step=step, path_tol=1e-8)
+    for eq in (loose, tight):
+        assert eq.residual <= 1e-8 * eq.reference and not eq.at_floor  # the end meets tol
+    assert loose.iterations < tight.iterations
+    # the same equilibrium: both ends are within 1e-8 of the force scale of it
+    assert _pose_gap(loose.state, tight.state) < 1e-5
+    assert np.allclose(loose.state.pose, tight.state.pose, rtol=0, atol=1e-6)
+    # an intermediate increment stopped once below PATH_TOL, not at 1e-8
+    h = np.asarray(loose.residuals) / loose.reference
+    assert np.any((h > 1e-8) & (h <= PATH_TOL))
+    with pytest.raises(ConfigError, match="path_tol"):
+        solve_increments(robot, target, state=rest.state, path_tol=0.0)
+
+
+def test_a_solve_starts_on_the_linearisation_the_last_one_ended_on(robot, rest):
+    lz = robot.linearizer()
+    a = rest.state.angles + np.radians(0.5 * MOVE_DEG)
+    b = rest.state.angles + np.radians(MOVE_DEG)
+    first = solve_increments(robot, a, state=rest.state, linearizer=lz)
+    assert first.linearization is not None and first.linearization.state is first.state
+    n0 = lz.factorizations
+    fresh = solve_increments(robot, b, state=first.state, linearizer=lz)
+    n_fresh = lz.factorizations - n0
+    n0 = lz.factorizations
+    carried = solve_increments(robot, b, state=first.state, linearizer=lz, start=first.linearization)
+    n_carried = lz.factorizations - n0
+    assert n_carried == n_fresh - 1  # the predictor's factorisation saved
+    assert carried.residual <= 1e-8 * carried.reference
+    assert _pose_gap(carried.state, fresh.state) < 1e-5
+    # a linearisation taken at another state is not used
+    n0 = lz.factorizations
+    other = solve_increments(robot, b, state=first.state, linearizer=lz, start=rest.linearization)
+    assert lz.factorizations - n0 == n_fresh
+    assert _pose_gap(other.state, fresh.state) < 1e-9
+
+
+def test_stalled_is_a_halving_of_the_best_residual_within_the_window():
+    assert not stalled([1.0] * 10, 10)  # not yet a full window after the first residual
+    assert stalled([1.0] * 11, 10)
+    assert not stalled([1.0] + [0.9] * 9 + [0.49], 10)  # halved on the window's last iteration
+    assert stalled([1.0, 0.1] + [0.08] * 10, 10)  # a best of 0.08 against 0.1 before: no halving
+    assert not stalled([8.0, 4.0, 2.0, 1.0, 0.5, 0.25, 0.12, 0.06, 0.03, 0.015, 0.007, 0.003], 10)
+
+
+def test_a_newton_that_creeps_is_reported_as_stalled(robot, rest, monkeypatch):
+    """Steps of a thousandth of Newton's: the line search accepts each (the residual drops a
+    little), and the solve gives up after the window instead of running to max_iter."""
+    step = Linearization.newton_step
+
+    def creeping(self, dq_a=None):
+        dq_e, dx_f = step(self, dq_a)
+        return (dq_e, dx_f) if dq_a is not None else (1e-3 * dq_e, 1e-3 * dx_f)
+
+    monkeypatch.setattr(Linearization, "newton_step", creeping)
+    target = rest.state.angles + np.radians(MOVE_DEG)
+    with pytest.raises(ConvergenceError, match="stalled: the residual has not halved in 5 Newton") as exc:
+        solve_increments(robot, target, state=rest.state, max_iter=50, stall_window=5)
+    assert len(exc.value.history) <= 1 + 1 + 5 + 1  # start, after the predictor, the window, one more
+
+
+def test_a_study_ramp_carries_the_linearisation_and_loosens_its_intermediate_steps():
+    """FemRobot.equilibrium: a ramp's next step from the state the last one returned starts on
+    its linearisation (one factorisation fewer); ``intermediate`` steps meet PATH_TOL only;
+    the ramp ends where a single solve from rest ends."""
+    from metasheet.studies.adapter import paper_robot_spec
+
+    model = paper_robot_spec(mesh_size=16.0).build()
+    q0 = model.rest_motors()
+    lz = model.lz
+    pose, st = model.equilibrium(q0 + 0.5 * MOVE_DEG, intermediate=True)
+    eq = model._last_equilibrium
+    assert eq.residual <= PATH_TOL * eq.reference
+    n0 = lz.factorizations
+    pose_end, _ = model.equilibrium(q0 + MOVE_DEG, state=st)
+    carried = lz.factorizations - n0
+    eq = model._last_equilibrium
+    assert eq.residual <= 1e-8 * eq.reference
+    n0 = lz.factorizations
+    pose_again, _ = model.equilibrium(q0 + MOVE_DEG, state=st)  # st is no longer the last state
+    assert lz.factorizations - n0 == carried + 1
+    assert np.allclose(pose_again, pose_end, rtol=0, atol=1e-6)
+    direct, _ = model.equilibrium(q0 + MOVE_DEG)
+    assert np.allclose(direct, pose_end, rtol=0, atol=1e-6)
