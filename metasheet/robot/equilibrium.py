@@ -145,23 +145,12 @@ def n_increments(jump: float, step: float) -> int:
 #: force scale; converging them to 1e-8 took 7-13 Newton iterations per 5 deg ramp of the
 #: silicone sheets where 1e-4 takes 4-6, for the same end state (the last increment meets ``tol``).
 PATH_TOL = 1e-4
-#: Newton iterations within which the residual must halve (below the best before them) for a
-#: solve to go on: at a limit point of the anisotropy push Newton wandered at 1e-2 to 1e-1 of
-#: the force scale for its 50 iterations (25-29 s a try on the paper robot), where converging
-#: solves halve their residual every 1-5 iterations.
-STALL_WINDOW = 10
-
-
-def stalled(residuals, window: int) -> bool:
-    """Whether the last ``window`` of ``residuals`` (one increment's, after its predictor) [N]
-    did not bring the best residual down to half the best before them."""
-    return len(residuals) > window and min(residuals[-window:]) > 0.5 * min(residuals[:-window])
 
 
 def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: int = 50,
                      max_angle_step: float = np.radians(10.0), reuse_ratio: float = 0.25,
                      linearizer=None, exact_tangent: bool = True, path_tol: float = PATH_TOL,
-                     stall_window: int = STALL_WINDOW, start: Linearization | None = None) -> Equilibrium:
+                     start: Linearization | None = None) -> Equilibrium:
     """Static equilibrium (eq. 1) at motor ``angles`` (na,) [rad] by Newton + line search.
 
     Starts from ``state`` (default: the rest state) and moves the motors in increments of at
@@ -193,16 +182,15 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     residual by less than ``reuse_ratio`` or the line search fails on it.
 
     Raises :class:`ConvergenceError` (with the residual history) when an increment fails
-    above the floor: ``max_iter`` runs out, the line search fails, or the residual has not
-    halved in ``stall_window`` iterations (:func:`stalled`).
+    above the floor.
     """
     target = np.asarray(angles, dtype=float).reshape(-1)
     if target.shape != (robot.coupling.n_act,):
         raise ConfigError(f"angles: shape {target.shape}: expected ({robot.coupling.n_act},) [rad]")
     if tol <= 0 or max_iter < 1:
         raise ConfigError(f"tol: {tol!r}, max_iter: {max_iter!r}: need tol > 0, max_iter >= 1")
-    if not path_tol > 0 or stall_window < 1:
-        raise ConfigError(f"path_tol: {path_tol!r}, stall_window: {stall_window!r}: need path_tol > 0, stall_window >= 1")
+    if not path_tol > 0:
+        raise ConfigError(f"path_tol: {path_tol!r}: need path_tol > 0")
     check_reuse = float(reuse_ratio)
     if not 0.0 <= check_reuse < 1.0:
         raise ConfigError(f"reuse_ratio: {reuse_ratio!r}: allowed range [0, 1)")
@@ -219,14 +207,11 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
         if dq_a is None or lin is None or lin.state is not st:
             lin = lz.linearize(st, exact=exact_tangent)
         at_floor = False
-        tail = []  # this increment's residuals after its predictor
         for it in range(max_iter + 1):
             res = lin.residual_norm
             ref = max(lz.force_scale(lin), 1e-300)
             floor = lz.residual_floor(lin)
             history.append(res)
-            if dq_a is None:
-                tail.append(res)
             unloaded = ref <= floor  # the force scale itself is round-off: nothing to resolve
             if dq_a is None and (res <= inc_tol * ref or res < 1e-13 * max(ref, 1.0) or (unloaded and res <= floor)):
                 break
@@ -237,10 +222,6 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
                 raise ConvergenceError(
                     f"statics: no convergence in {max_iter} Newton iterations (increment {inc + 1}/"
                     f"{n_inc}); residual {res:.3e} N > {inc_tol:g} x {ref:.3e} N", history)
-            if res > floor and stalled(tail, stall_window):
-                raise ConvergenceError(
-                    f"statics: stalled: the residual has not halved in {stall_window} Newton iterations "
-                    f"(increment {inc + 1}/{n_inc}); residual {res:.3e} N > {inc_tol:g} x {ref:.3e} N", history)
             dq_e, dx_f = lin.newton_step(dq_a)
             iters += 1
             if dq_a is not None:  # predictor: move the motors with the linearised response
@@ -279,7 +260,6 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
                 if not lin.fresh:  # a stale tangent may give a poor direction: refresh, retry
                     lin = lz.linearize(st)
                     history.pop()
-                    tail.pop()
                     continue
                 if noise:  # Newton has stalled in round-off: done, on the better of the two states
                     if new.residual_norm < res:

@@ -145,20 +145,22 @@ def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None, 
 
     lz = linearizer or robot.linearizer()
     angles = np.atleast_2d(np.asarray(angles, float))
-    states, poses, Js, Ss = [], [], [], []
+    states, lins, poses, Js, Ss = [], [], [], [], []
     for q in angles:
+        st, lin = start, None
         if states:
             near = int(np.argmin([np.abs(s.angles - q).max() for s in states]))
-            st = states[near]
-        else:
-            st = start
+            st, lin = states[near], lins[near]  # its fresh linearisation starts the predictor
         try:
-            eq = solve_equilibrium(robot, q, state=st, linearizer=lz)
+            eq = solve_equilibrium(robot, q, state=st, linearizer=lz, start=lin)
         except ConvergenceError as err:
             raise ConvergenceError(f"surface training: no equilibrium at motors {np.degrees(q).round(2).tolist()} "
                                    f"deg: {err}", err.history) from err
-        lin = lz.linearize(eq.state)
+        lin = eq.linearization
+        if lin is None or not (lin.fresh and lin.exact):  # the solve ended on a chord step
+            lin = lz.linearize(eq.state)
         states.append(eq.state)
+        lins.append(lin)
         poses.append(eq.state.pose)
         Js.append(jacobian_from_schur(lin.S)[1])
         Ss.append(lin.S)
