@@ -41,7 +41,7 @@ def _basis(rob, V, elements=None, weights=None):
 def test_identity_basis_is_the_full_model(full):
     rob, lz, _ = full
     nf = len(rob.coupling.free)
-    red = ReducedRobot(rob, _basis(rob, np.eye(3 * nf)))
+    red = ReducedRobot(rob, _basis(rob, np.eye(3 * nf)), tangent_dtype=np.float64)
     ang = rob.coupling.rest_angles + np.radians([10, -5, 3, 0, 8, -12])
     ef = solve_equilibrium(rob, ang, linearizer=lz, tol=1e-10)
     er = solve_equilibrium(red, ang, tol=1e-10)
@@ -50,6 +50,16 @@ def test_identity_basis_is_the_full_model(full):
     Jf = kinematics(lz.linearize(ef.state)).J
     Jr = kinematics(red.linearizer().linearize(er.state)).J
     assert np.linalg.norm(Jf - Jr) < 1e-9 * np.linalg.norm(Jf)
+    # the default single-precision tangent: the same equilibrium (the forces are double), the
+    # Jacobian within the condensation's amplification of float32 round-off
+    red32 = ReducedRobot(rob, _basis(rob, np.eye(3 * nf)))
+    assert red32.tangent_dtype == np.float32
+    e32 = solve_equilibrium(red32, ang, tol=1e-10)
+    assert np.abs(e32.state.pose - ef.state.pose).max() < 1e-9
+    J32 = kinematics(red32.linearizer().linearize(e32.state)).J
+    assert 1e-9 * np.linalg.norm(Jf) < np.linalg.norm(J32 - Jf) < 2e-3 * np.linalg.norm(Jf)
+    with pytest.raises(ConfigError, match="tangent_dtype"):
+        ReducedRobot(rob, _basis(rob, np.eye(3 * nf)), tangent_dtype=np.float16)
 
 
 def test_static_modes_give_the_rest_jacobian(full):
@@ -166,7 +176,7 @@ def test_sensitivities_make_the_jacobian_exact_where_they_were_taken(full):
     Jf = kinematics(lz.linearize(s)).J
     errors = []
     for basis in (V0, V):
-        red = ReducedRobot(rob, _basis(rob, basis))
+        red = ReducedRobot(rob, _basis(rob, basis), tangent_dtype=np.float64)  # the basis's exactness
         r = solve_equilibrium(red, s.angles, tol=1e-10).state
         assert np.abs(r.pose - s.pose).max() < 1e-6
         Jr = kinematics(red.linearizer().linearize(r)).J
