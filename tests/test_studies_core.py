@@ -268,9 +268,10 @@ def test_process_pool_equals_serial():
     assert np.array_equal(a.records.error_mm, b.records.error_mm, equal_nan=True)
 
 
-def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria():
-    """A robot whose solver fails on steps above 3 deg converges once the ramp is halved; one
-    whose equilibrium is lost beyond 20 deg reports NaN and the motor change it reached."""
+def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria(monkeypatch):
+    """A robot whose solver fails on steps above 3 deg converges once the ramp is halved (with
+    one halving allowed); one whose equilibrium is lost beyond 20 deg reports NaN and the motor
+    change it reached."""
     from dataclasses import dataclass
 
     from metasheet.errors import ConvergenceError
@@ -305,6 +306,9 @@ def test_anisotropy_point_halves_failing_steps_and_reports_lost_equilibria():
                     return pose, (None, np.asarray(q, float))
             return Wrapped()
 
+    with pytest.raises(ConvergenceError, match="step too large"):  # the default: no halving
+        an._reach(MODELS.get(Picky()), np.full(6, 60.0), np.full(6, 65.0), None)
+    monkeypatch.setattr(an, "MAX_CUTS", 1)
     out = np.array([an.sweep_point(an.SweepTask(Picky(), pull_deg=10.0, push_deg=30.0, ramp_deg=5.0, case=c))
                     for c in (0, 1)])
     assert np.all(np.isfinite(out[0])) and out[0, 6] == pytest.approx(-10.0)  # pull: 5 deg steps halved

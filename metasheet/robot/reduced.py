@@ -295,7 +295,7 @@ class ReducedRobot:
         it takes half the time of double (the sparse ``K T``: 21 against 43 ms on the paper's
         sample of 1,842 P2 elements; the whole evaluation 53 against 84 ms) for a relative error
         of ~3e-8 in the tangent, which the condensation onto the rigid coordinates amplifies to
-        1-8e-4 in the Jacobian (paper robot, 5 poses within the box; the certificate's target is
+        1-9e-4 in the Jacobian (paper robot, 5 poses within the box, benchmarks/bench_reduced_tangent.py; the certificate's target is
         2e-2). The forces, which decide convergence, stay double (``T^T f`` without T): the
         equilibria are those of double precision to the solver's tolerance."""
         x = self.sub_positions(st)
