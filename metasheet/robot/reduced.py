@@ -292,12 +292,12 @@ class ReducedRobot:
         the tangent dG/dq (nq, nq) (None unless ``tangent``) at ``st``.
 
         The tangent's projection ``T^T K T`` runs in :attr:`tangent_dtype`. In single precision
-        it takes half the time of double (the sparse ``K T``: 21 against 43 ms on the paper's
-        sample of 1,842 P2 elements; the whole evaluation 53 against 84 ms) for a relative error
-        of ~3e-8 in the tangent, which the condensation onto the rigid coordinates amplifies to
-        1-9e-4 in the Jacobian (paper robot, 5 poses within the box, benchmarks/bench_reduced_tangent.py; the certificate's target is
-        2e-2). The forces, which decide convergence, stay double (``T^T f`` without T): the
-        equilibria are those of double precision to the solver's tolerance."""
+        the evaluation takes 0.59 of double's time (53 against 89 ms on the paper's sample of
+        1,842 P2 elements, ``benchmarks/bench_reduced_tangent.py``; the sparse ``K T`` 21
+        against 43 ms) for a relative error of ~3e-8 in the tangent, which the condensation
+        onto the rigid coordinates amplifies to 1-9e-4 in the Jacobian (5 poses in the box; the
+        certificate's target is 2e-2). The forces, which decide convergence, stay double
+        (``T^T f`` without T): the equilibria are double precision's to the solver's tolerance."""
         x = self.sub_positions(st)
         f, data = self.sub.evaluate(x, tangent)
         g_ext = self._gravity(st)
