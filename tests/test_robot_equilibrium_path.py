@@ -4,24 +4,12 @@ from one solve to the next."""
 import numpy as np
 import pytest
 
-from metasheet import paper
 from metasheet.errors import ConfigError
-from metasheet.robot.builder import SheetPair, six_dof_robot
-from metasheet.robot.equilibrium import PATH_TOL, solve_equilibrium, solve_increments
-from metasheet.sheet.geometry import SheetParams
+from metasheet.robot.equilibrium import PATH_TOL, solve_increments
 
 MOVE_DEG = np.array([6.0, -4.0, 8.0, 2.0, -6.0, 4.0])
 
 
-@pytest.fixture(scope="module")
-def robot():
-    sheets = SheetPair.spiral(SheetParams(mesh_size=14))
-    return six_dof_robot(sheets, paper.PAPER_FOAM, density=paper.FOAM_DENSITY)
-
-
-@pytest.fixture(scope="module")
-def rest(robot):
-    return solve_equilibrium(robot, robot.coupling.rest_angles, tol=1e-10)
 
 
 def _pose_gap(a, b) -> float:
@@ -29,11 +17,11 @@ def _pose_gap(a, b) -> float:
     return float(np.abs(a.x - b.x).max())
 
 
-def test_intermediate_increments_are_converged_to_the_path_tolerance_only(robot, rest):
-    target = rest.state.angles + np.radians(MOVE_DEG)
+def test_intermediate_increments_are_converged_to_the_path_tolerance_only(foam_robot_14, foam_rest_14):
+    target = foam_rest_14.state.angles + np.radians(MOVE_DEG)
     step = np.radians(2.0)  # four increments
-    loose = solve_increments(robot, target, state=rest.state, max_angle_step=step)
-    tight = solve_increments(robot, target, state=rest.state, max_angle_step=step, path_tol=1e-8)
+    loose = solve_increments(foam_robot_14, target, state=foam_rest_14.state, max_angle_step=step)
+    tight = solve_increments(foam_robot_14, target, state=foam_rest_14.state, max_angle_step=step, path_tol=1e-8)
     for eq in (loose, tight):
         assert eq.residual <= 1e-8 * eq.reference and not eq.at_floor  # the end meets tol
     assert loose.iterations < tight.iterations
@@ -44,27 +32,27 @@ def test_intermediate_increments_are_converged_to_the_path_tolerance_only(robot,
     h = np.asarray(loose.residuals) / loose.reference
     assert np.any((h > 1e-8) & (h <= PATH_TOL))
     with pytest.raises(ConfigError, match="path_tol"):
-        solve_increments(robot, target, state=rest.state, path_tol=0.0)
+        solve_increments(foam_robot_14, target, state=foam_rest_14.state, path_tol=0.0)
 
 
-def test_a_solve_starts_on_the_linearisation_the_last_one_ended_on(robot, rest):
-    lz = robot.linearizer()
-    a = rest.state.angles + np.radians(0.5 * MOVE_DEG)
-    b = rest.state.angles + np.radians(MOVE_DEG)
-    first = solve_increments(robot, a, state=rest.state, linearizer=lz)
+def test_a_solve_starts_on_the_linearisation_the_last_one_ended_on(foam_robot_14, foam_rest_14):
+    lz = foam_robot_14.linearizer()
+    a = foam_rest_14.state.angles + np.radians(0.5 * MOVE_DEG)
+    b = foam_rest_14.state.angles + np.radians(MOVE_DEG)
+    first = solve_increments(foam_robot_14, a, state=foam_rest_14.state, linearizer=lz)
     assert first.linearization is not None and first.linearization.state is first.state
     n0 = lz.factorizations
-    fresh = solve_increments(robot, b, state=first.state, linearizer=lz)
+    fresh = solve_increments(foam_robot_14, b, state=first.state, linearizer=lz)
     n_fresh = lz.factorizations - n0
     n0 = lz.factorizations
-    carried = solve_increments(robot, b, state=first.state, linearizer=lz, start=first.linearization)
+    carried = solve_increments(foam_robot_14, b, state=first.state, linearizer=lz, start=first.linearization)
     n_carried = lz.factorizations - n0
     assert n_carried == n_fresh - 1  # the predictor's factorisation saved
     assert carried.residual <= 1e-8 * carried.reference
     assert _pose_gap(carried.state, fresh.state) < 1e-5
     # a linearisation taken at another state is not used
     n0 = lz.factorizations
-    other = solve_increments(robot, b, state=first.state, linearizer=lz, start=rest.linearization)
+    other = solve_increments(foam_robot_14, b, state=first.state, linearizer=lz, start=foam_rest_14.linearization)
     assert lz.factorizations - n0 == n_fresh
     assert _pose_gap(other.state, fresh.state) < 1e-9
 

@@ -8,25 +8,21 @@ stopped instead of raising, and still raise when a step fails far above the floo
 import numpy as np
 import pytest
 
-from metasheet import paper
 from metasheet.errors import ConvergenceError
-from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.equilibrium import residual_floor, solve_equilibrium
 from metasheet.robot.statics import Linearization, RobotState
-from metasheet.sheet.geometry import SheetParams
 
 MOVE_DEG = np.array([3.0, -2.0, 4.0, 1.0, -3.0, 2.0])  # a few degrees on each motor
 
 
 @pytest.fixture(scope="module")
-def robot():
-    sheets = SheetPair.spiral(SheetParams(mesh_size=14))
-    return six_dof_robot(sheets, paper.PAPER_FOAM, density=paper.FOAM_DENSITY)
+def robot(foam_robot_14):
+    return foam_robot_14
 
 
 @pytest.fixture(scope="module")
-def rest(robot):
-    return solve_equilibrium(robot, robot.coupling.rest_angles, tol=1e-10)
+def rest(foam_rest_14):
+    return foam_rest_14
 
 
 def test_unreachable_tolerance_stops_at_the_floor(robot, rest):
