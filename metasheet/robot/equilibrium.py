@@ -163,10 +163,11 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     ended on, and the first on ``start`` when it was taken at ``state`` (an
     :attr:`Equilibrium.linearization`): a tangent from the last iterates of a converged
     increment predicts as well as a fresh one, which would cost a factorisation (about a
-    quarter of a 5 deg ramp of the paper robot's silicone sheets). The increments before the last are converged to ``max(tol, path_tol)`` only
-    (:data:`PATH_TOL`), the last to ``tol``. Converged when the reduced residual is below ``tol`` times the force scale
-    (forces on the rigid nodes plus the external loads); when that scale is itself below the
-    residual's round-off floor (:func:`residual_floor`; no loads, no motion), below the floor:
+    quarter of a 5 deg ramp of the paper robot's silicone sheets). The increments before the
+    last are converged to ``max(tol, path_tol)`` only (:data:`PATH_TOL`), the last to ``tol``.
+    Converged when the reduced residual is below ``tol`` times the force scale (forces on
+    the rigid nodes plus the external loads); when that scale is itself below the residual's
+    round-off floor (:func:`residual_floor`; no loads, no motion), below the floor:
     an unloaded rest state is an equilibrium as it stands, whatever BLAS evaluated its forces.
     The test is on the true residual, whatever tangent was used.
 

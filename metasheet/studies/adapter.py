@@ -233,9 +233,9 @@ class FemRobot:
         tol = {"tol": PATH_TOL} if intermediate else {}
         start = self.rest if state is None else state
         last = self._last_equilibrium  # a path's next step starts on the tangent its last one ended on
+        carried = last.linearization if last is not None and last.state is start else None
         eq = solve_equilibrium(self.robot, np.radians(np.asarray(motors_deg, float)), state=start,
-                               linearizer=self.lz, start=last.linearization if last and last.state is start else None,
-                               **tol)
+                               linearizer=self.lz, start=carried, **tol)
         self._last_equilibrium = eq
         return eq.state.pose, eq.state
 
