@@ -51,7 +51,7 @@ def main() -> None:
     ap.add_argument("--rays", type=int, default=6)
     ap.add_argument("--repeats", type=int, default=2)
     args = ap.parse_args()
-    from metasheet.executor import THREAD_VARS, Executor, threads_per_worker
+    from metasheet.executor import THREAD_VARS, UNIT_THREADS, Executor
     from metasheet.studies.workspace import explore_ray
 
     set_vars = [v for v in THREAD_VARS if v in os.environ]
@@ -69,7 +69,7 @@ def main() -> None:
     print(f"\n{len(tasks)} workspace rays of {args.pipeline}, 2 workers, {cores} cores; medians of {args.repeats}\n")
     print("| workers' BLAS threads | wall [s] | ratio to limited |")
     print("|---|---|---|")
-    print(f"| limited: {threads_per_worker(2, cores)} each | {lim:.1f} | 1.00 |")
+    print(f"| limited: {UNIT_THREADS} each | {lim:.1f} | 1.00 |")
     print(f"| default: {cores} each | {dft:.1f} | {dft / lim:.2f} |")
 
 

@@ -14,15 +14,18 @@ shows it) and exit with the status their class carries:
 | 2 | an error: bad config or command line, missing file, failed stage, outputs not writable, disk full |
 | 3 | another run holds the output folder (``run --no-wait``, ``clean --no-wait``) |
 | 4 | ``robot goto``: the goal was not reached (the closest pose and the remaining error are printed) |
-| 130 | interrupted (Ctrl-C) |
+| 129, 130, 143 | interrupted by SIGHUP, Ctrl-C (SIGINT) or SIGTERM (128 + the signal): the run's workers are stopped and its temporary folders removed first |
 
 Anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import signal
 import sys
+import threading
 import traceback
 from pathlib import Path
 from typing import Annotated, Optional
@@ -213,24 +216,32 @@ def diff(
     a: Annotated[Path, typer.Argument(help="an output directory (e.g. outputs/quick)")],
     b: Annotated[Path, typer.Argument(help="the output directory to compare it with")],
     rtol: Annotated[float, typer.Option("--rtol", min=0.0, help="largest relative difference accepted")] = 1e-12,
+    atol: Annotated[float, typer.Option("--atol", min=0.0, help="absolute difference always accepted, in each "
+                                        "quantity's unit (mm, MPa, N, t/mm^3...): the floor for values zero up to "
+                                        "round-off, e.g. 1e-12; default 0")] = 0.0,
 ) -> None:
-    """Compare two output trees: identical bytes, numbers equal to RTOL, or different (exit 1)."""
+    """Compare two output trees: identical bytes, numbers within tolerance, or different (exit 1).
+
+    A quantity (a JSON key, a mesh array, a CSV column) agrees when
+    max|a - b| <= ATOL + RTOL * max(max|a|, max|b|). ATOL defaults to 0: values here come in
+    units as far apart as mm and t/mm^3 (the foam's density is ~1.8e-10), so no one floor
+    fits them all; pass one for quantities that are zero by symmetry.
+    """
     from .errors import ConfigError
     from .pipeline.outputs_diff import compare_trees
 
     for d in (a, b):
         if not d.is_dir():
             raise ConfigError(f"{d}: not a directory")
-    rows = compare_trees(a, b)
+    rows = compare_trees(a, b, rtol=rtol, atol=atol)
     out = []
-    bad = 0
     for r in rows:
-        ok = r.status == "identical" or (r.status == "numbers" and r.max_rel <= rtol)
-        bad += not ok
-        shown = "" if r.status in ("identical", "different") or r.status.startswith("missing") else f"{r.max_rel:.2e}"
-        out.append((r.path, Text(r.status, style="" if ok else "red"), shown, r.note))
-    stdout.print(_table("", ("file", "result", "max relative difference", "note"), out))
-    say(f"{len(rows) - bad} of {len(rows)} files identical or within rtol {rtol:g}", err=False)
+        numbers = r.status == "numbers"
+        out.append((r.path, Text(r.status, style="" if r.within else "red"), f"{r.max_rel:.2e}" if numbers else "",
+                    f"{r.max_abs:.2e}" if numbers else "", r.note))
+    stdout.print(_table("", ("file", "result", "max relative difference", "max absolute difference", "note"), out))
+    bad = sum(not r.within for r in rows)
+    say(f"{len(rows) - bad} of {len(rows)} files identical or within rtol {rtol:g}, atol {atol:g}", err=False)
     if bad:
         raise typer.Exit(1)
 
@@ -328,17 +339,33 @@ def _pop_debug(args: list[str]) -> bool:
     return found
 
 
-def _terminate(signum, frame):  # SIGTERM: unwind like Ctrl-C (temporary folders removed, lock released)
-    raise SystemExit(128 + signum)
+#: The signals that stop a command as Ctrl-C does: it unwinds (the run's workers killed, its
+#: temporary folders removed, the lock released) and exits with 128 + the signal.
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
+class _Stopped(SystemExit):
+    """Raised in the main thread by a stop signal; its code is 128 + the signal."""
+
+
+def _stop(signum, frame):
+    if _STATE.get("stopping"):  # the first one is unwinding: let it finish
+        return
+    _STATE["stopping"] = signum
+    raise _Stopped(128 + signum)
 
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
     args = list(sys.argv[1:] if argv is None else argv)
     _STATE["debug"] = _pop_debug(args)
-    previous = signal.signal(signal.SIGTERM, _terminate) if hasattr(signal, "SIGTERM") else None
+    _STATE["stopping"] = 0
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = {s: signal.signal(s, _stop) for s in STOP_SIGNALS} if in_main else {}
     try:
         app(args=args, prog_name="metasheet")
+    except _Stopped as stop:
+        _exit_stopped(stop.code)
     except MetasheetError as err:
         if _STATE["debug"]:
             traceback.print_exc()
@@ -351,8 +378,19 @@ def main(argv: list[str] | None = None) -> None:
         say(f"{where}{err.strerror or err}", prefix="error: ", style="bold red")
         sys.exit(2)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _exit_stopped(code: int) -> None:
+    """Say so and end the process now: a stage thread still computing in this process (its
+    temporary folder already removed) or a server's solver thread must not keep it alive."""
+    name = signal.Signals(code - 128).name
+    say(f"stopped by {name}", prefix="interrupted: ")
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":

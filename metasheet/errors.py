@@ -11,7 +11,7 @@ Every error a user can provoke with bad input or a hard problem is a
 | 2 | an error: bad config or command line, missing file, failed stage, outputs not writable, disk full |
 | 3 | :class:`LockedError`: another run holds the output folder (``--no-wait``) |
 | 4 | :class:`UnreachableError`: ``robot goto`` stopped short of the goal |
-| 130 | interrupted (Ctrl-C) |
+| 129, 130, 143 | interrupted: 128 + the signal (SIGHUP, Ctrl-C's SIGINT, SIGTERM); the workers are stopped and the temporary folders removed |
 """
 
 import errno as _errno
@@ -58,6 +58,12 @@ class OutputError(MetasheetError):
     """
 
 
+class Interrupted(BaseException):
+    """The run was told to stop (Ctrl-C, SIGTERM, SIGHUP): raised in a stage still under way at
+    its next progress report, so that it unwinds (its temporary folder removed) as the main
+    thread does. Not an ``Exception``: a stage's ``except Exception`` does not swallow it."""
+
+
 class LockedError(MetasheetError):
     """Another run holds the output folder (``metasheet run --no-wait``); names its pid and start."""
 
@@ -102,8 +108,8 @@ def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=F
         v = float(value)
     except (TypeError, ValueError):
         raise ConfigError(f"{field}: {value!r}: expected a number") from None
-    if v != v:
-        raise ConfigError(f"{field}: {value!r}: expected a finite number, got NaN")
+    if v != v or v in (float("inf"), float("-inf")):
+        raise ConfigError(f"{field}: {value!r}: expected a finite number")
     bad = (lo is not None and (v <= lo if lo_open else v < lo)) or (
         hi is not None and (v >= hi if hi_open else v > hi)
     )

@@ -3,10 +3,13 @@
 The studies and the design chart hand their independent units (rays, sweep
 points, grid cells) to an :class:`Executor`; results come back in input order.
 
-A local pool's workers share the machine's cores: each limits its BLAS / OpenMP thread pools
-to cores // workers (:func:`threads_per_worker`). Left at their default (one thread per
-core each), two workers' OpenBLAS threads oversubscribed a 2-core machine and made the
-paper's workspace rays 2.5x slower (benchmarks/bench_executor.py).
+Every unit computes with one BLAS / OpenMP thread (:data:`UNIT_THREADS`), in a local worker,
+on a dask worker and in this process alike: a threaded BLAS splits a sum (a dot product, a
+matrix-vector product) by its thread count, so the last bits of a result, and through a
+Newton solve's iterates every digit below its tolerance, changed with ``OPENBLAS_NUM_THREADS``
+and with the worker count (a pooled ``convergence.json`` differed from the serial one by
+1e-11). One thread per unit also keeps two workers from oversubscribing a 2-core machine
+(their default pools made the paper's workspace rays 2.5x slower, benchmarks/bench_executor.py).
 
 Inside :meth:`Executor.session` every map goes to one pool kept for the block: a pipeline run
 starts its workers once, not once per map (a spawned worker imports the package and builds
@@ -19,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -43,8 +47,9 @@ class Executor:
     workers : number of local processes; 1 runs in this process.
     scheduler : address of a dask.distributed scheduler (``tcp://host:port``);
         when given, ``workers`` is ignored and the cluster's workers are used.
-    worker_threads : BLAS / OpenMP threads of each local worker; None: cores // workers
-        (:func:`threads_per_worker`).
+    worker_threads : BLAS / OpenMP threads of each local worker and, in a :meth:`session`, of
+        this process; None: :data:`UNIT_THREADS` (1). More than one may speed up a dense
+        factorisation but gives up the bytes promise: the last bits then depend on the count.
     pool : the shared pool of a :meth:`session` (set by it, not by hand).
     priority : in a session, this executor's units start before those of higher numbers.
     meter : adds up the CPU time of the units run in local worker processes (a pipeline
@@ -69,6 +74,11 @@ class Executor:
             )
 
     @property
+    def threads(self) -> int:
+        """BLAS / OpenMP threads a unit computes with."""
+        return int(self.worker_threads or UNIT_THREADS)
+
+    @property
     def kind(self) -> str:
         """'dask', 'processes' or 'serial'."""
         if self.scheduler:
@@ -87,13 +97,15 @@ class Executor:
         if self.kind != "processes" or self.pool is not None:
             yield self
             return
-        threads = self.worker_threads or threads_per_worker(self.workers)
+        threads = self.threads
         pool = PriorityPool(_pool(self.workers, threads), self.workers)
         try:
             with own_threads(threads):
                 yield replace(self, pool=pool)
-        finally:
-            pool.shutdown()
+        except BaseException:  # a failure or an interrupt: what still runs is not wanted
+            pool.shutdown(kill=True)
+            raise
+        pool.shutdown()
 
     def map(
         self,
@@ -114,17 +126,18 @@ class Executor:
             return []
         if self.kind == "serial":
             out = []
-            for i, x in enumerate(items):
-                out.append(fn(x))
-                on_result(i, out[-1])
-                progress(i + 1, total)
+            with own_threads(self.threads):
+                for i, x in enumerate(items):
+                    out.append(fn(x))
+                    on_result(i, out[-1])
+                    progress(i + 1, total)
             return out
         if self.kind == "processes":
             if self.pool is not None:
                 return _collect(lambda f, x: self.pool.submit(self.priority, f, x), fn, items, progress, on_result,
                                 self.meter)
-            return _map_pool(fn, items, self.workers, progress, on_result, self.worker_threads, self.meter)
-        return _map_dask(fn, items, self.scheduler, progress, on_result)
+            return _map_pool(fn, items, self.workers, progress, on_result, self.threads, self.meter)
+        return _map_dask(_Threads(fn, self.threads), items, self.scheduler, progress, on_result)
 
 
 class CpuMeter:
@@ -164,10 +177,24 @@ class _Timed:
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
-def threads_per_worker(workers: int, cores: int | None = None) -> int:
-    """BLAS / OpenMP threads each of ``workers`` local processes gets: cores // workers, at least 1."""
-    cores = cores or os.cpu_count() or 1
-    return max(1, cores // max(1, workers))
+#: BLAS / OpenMP threads of every unit and of a pipeline run's own process, unless an executor
+#: names another count: one, so that no result depends on how a library splits a sum.
+UNIT_THREADS = 1
+
+
+@dataclass(frozen=True)
+class _Threads:
+    """``fn`` run with at most ``n`` BLAS / OpenMP threads (a dask worker's pools are the
+    cluster's: each unit limits them for its own call)."""
+
+    fn: Callable[[Any], Any]
+    n: int
+
+    def __call__(self, x):
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=self.n):
+            return self.fn(x)
 
 
 #: How much lower a local worker's scheduling priority is than its parent's (Unix ``nice``).
@@ -193,10 +220,15 @@ def own_threads(n: int) -> Iterator[None]:
                 os.environ[var] = value
 
 
-def _limit_threads(n: int) -> None:
+#: How often [s] a local worker checks that the process that started it is still there.
+PARENT_CHECK_S = 1.0
+
+
+def _init_worker(n: int) -> None:
     """Pool initializer: at most ``n`` threads in this worker's BLAS and OpenMP pools, those
     already loaded (threadpoolctl) and those loaded later (their environment variables); a
-    niceness :data:`WORKER_NICENESS` above the parent's."""
+    niceness :data:`WORKER_NICENESS` above the parent's; Ctrl-C left to the parent (a
+    terminal sends it to the whole process group); and an exit as soon as the parent is gone."""
     from threadpoolctl import ThreadpoolController
 
     for var in THREAD_VARS:
@@ -206,20 +238,51 @@ def _limit_threads(n: int) -> None:
     # next stage's set-up) it is the run's critical path, and the workers take what is left
     if hasattr(os, "nice"):
         os.nice(WORKER_NICENESS)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), name="parent-watch", daemon=True).start()
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Exit this worker once its parent has died (a SIGKILLed run cannot stop its workers, and an
+    orphan would compute its unit to the end, then wait for work for ever): the orphan is
+    re-parented (``os.getppid()`` changes)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_CHECK_S)
+    os._exit(1)
+
+
+def kill_workers(pool: ProcessPoolExecutor, grace: float = 5.0) -> None:
+    """Terminate ``pool``'s worker processes now (their running units are lost) and shut it
+    down without waiting for them; a worker still alive ``grace`` seconds later is killed."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.join(grace)
+            if p.is_alive():
+                p.kill()
 
 
 def _pool(workers: int, threads: int) -> ProcessPoolExecutor:
     # "spawn", not fork: a forked child inherits the locks of BLAS, numba and gmsh threads
     # held at fork time and can hang forever (seen with the design chart).
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_limit_threads, initargs=(threads,))
+                               initializer=_init_worker, initargs=(threads,))
 
 
-def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int | None = None,
+def _map_pool(fn, items: Sequence, workers: int, progress, on_result, threads: int = UNIT_THREADS,
               meter: CpuMeter | None = None) -> list:
-    n = min(workers, len(items))
-    with _pool(n, threads or threads_per_worker(n)) as pool:
-        return _collect(pool.submit, fn, items, progress, on_result, meter)
+    pool = _pool(min(workers, len(items)), threads)
+    try:
+        result = _collect(pool.submit, fn, items, progress, on_result, meter)
+    except BaseException:
+        kill_workers(pool)
+        raise
+    pool.shutdown(wait=True)
+    return result
 
 
 def _collect(submit: Callable, fn, items: Sequence, progress, on_result, meter: CpuMeter | None = None) -> list:

@@ -80,10 +80,15 @@ def format_result(res) -> str:
 
 #: The six pose components ``robot goto`` takes, in order, with their units.
 POSE_COMPONENTS = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
+#: Largest |component| of a goal: 1000 mm, the longest sheet reach, rod and horn a pipeline allows
+#: (no robot moves its effector farther; 1e308 overflowed to inf mm and nan deg); 180 deg, as every
+#: rotation is a rotation vector of length <= 180 deg, so its components are within it.
+POSE_BOUNDS = (1000.0,) * 3 + (180.0,) * 3
 
 
 def parse_pose(values: list[str]) -> list[float]:
-    """Six finite numbers from the command line; a bad one is named with its position and unit."""
+    """Six finite numbers within :data:`POSE_BOUNDS` from the command line; a bad one is named with
+    its position and unit."""
     from .errors import ConfigError
 
     if len(values) != 6:
@@ -96,5 +101,8 @@ def parse_pose(values: list[str]) -> list[float]:
             raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: expected a number") from None
         if not math.isfinite(v):
             raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: expected a finite number")
+        bound = POSE_BOUNDS[i - 1]
+        if abs(v) > bound:
+            raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: allowed range is [{-bound:g}, {bound:g}]")
         pose.append(v)
     return pose

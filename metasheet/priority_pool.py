@@ -66,10 +66,16 @@ class PriorityPool:
         else:
             future.set_result(result)
 
-    def shutdown(self) -> None:
-        """Cancel the waiting units and shut the pool down (waiting for the running ones)."""
+    def shutdown(self, *, kill: bool = False) -> None:
+        """Cancel the waiting units and shut the pool down: waiting for the running ones, or
+        with ``kill`` terminating its workers at once (an interrupted run)."""
+        from .executor import kill_workers
+
         with self._lock:
             waiting, self._waiting = self._waiting, []
         for *_, future in waiting:
             future.cancel()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        if kill:
+            kill_workers(self.pool)
+        else:
+            self.pool.shutdown(wait=True, cancel_futures=True)

@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.executor import THREAD_VARS, Executor, threads_per_worker
+from metasheet.executor import THREAD_VARS, UNIT_THREADS, Executor
 
 
 def blas_threads(_):
@@ -18,16 +18,22 @@ def blas_threads(_):
     return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"], [os.environ[v] for v in THREAD_VARS]
 
 
-def test_threads_per_worker_shares_the_cores():
-    assert threads_per_worker(2, cores=2) == 1
-    assert threads_per_worker(2, cores=8) == 4
-    assert threads_per_worker(3, cores=8) == 2
-    assert threads_per_worker(4, cores=2) == 1  # never 0
+def test_units_compute_with_one_thread_whatever_the_executor(monkeypatch):
+    """A threaded BLAS splits sums by its thread count: every unit gets the same single thread,
+    in this process (a serial map) as in a worker, whatever the environment asked for."""
+    from threadpoolctl import threadpool_limits
+
+    assert UNIT_THREADS == 1 and Executor(workers=2).threads == 1
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    with threadpool_limits(limits=2):
+        for blas, env in Executor(workers=1).map(blas_threads, range(2)):
+            assert blas and all(t == 1 for t in blas)
+            assert env == ["1"] * len(THREAD_VARS)
 
 
 def test_pool_workers_limit_their_blas_threads():
     got = Executor(workers=2).map(blas_threads, range(4))
-    n = threads_per_worker(2)
+    n = UNIT_THREADS
     for blas, env in got:
         assert blas and all(t == n for t in blas)
         assert env == [str(n)] * len(THREAD_VARS)

@@ -11,6 +11,7 @@ def cube(x):
     return x**3 - 2 * x
 
 
+@pytest.mark.bytes
 def test_dask_cluster_equals_serial():
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None

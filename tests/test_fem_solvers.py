@@ -197,6 +197,7 @@ def test_pardiso_solves_spd_exactly_and_agrees_with_superlu(monkeypatch):
 
 
 @needs_pardiso
+@pytest.mark.bytes
 def test_pardiso_gives_the_same_bits_every_time():
     """MKL's threaded sums vary run to run unless its conditional numerical reproducibility is
     on (``MKL_CBWR``, set when the solvers load): without it the same 65k-dof solve differed by

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from metasheet import cpu
 from metasheet.pipeline import registry
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.registry import Params, Stage, register
@@ -35,24 +36,35 @@ def _tree(root: Path) -> dict[str, bytes]:
     return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+#: Thread settings a user may have: the run's bytes must not depend on them.
+BLAS_THREADS = {"a": "2", "b": "1"}
+
+
+@pytest.mark.bytes
 def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
-    """Not marked slow: CI runs it (two quick runs, about 30 s on 2 shared cores). The second
-    runs its independent stages at once (``stages_at_once = 2``: printmap beside robot, both
-    drawing pictures): the same bytes."""
+    """Not marked slow: CI runs it (two quick runs, about a minute each on 2 shared cores).
+    The first runs serially with two BLAS threads asked for, the second with one, on a pool of
+    two workers, its independent stages at once (``stages_at_once = 2``: printmap beside
+    robot, both drawing pictures): the same bytes. Before: 10 of 26 files differed between
+    the default threads and one (the Jacobian by 9e-9)."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}  # cold, as on a fresh clone
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    env.pop(cpu.DECISION, None)  # each run decides its code paths as a user's would (metasheet.cpu)
     trees, seconds = [], []
     for run in ("a", "b"):
         project = tmp_path / f"project_{run}"
         for d in ("cells", "pipelines"):
             shutil.copytree(ROOT / d, project / d)
+        extra = []
         if run == "b":
             toml = project / "pipelines" / "quick.toml"
             toml.write_text(toml.read_text().replace("[pipeline]\n", "[pipeline]\nstages_at_once = 2\n", 1))
+            extra = ["--workers", "2"]
+        threads = {v: BLAS_THREADS[run] for v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")}
         t0 = time.perf_counter()
         r = subprocess.run([sys.executable, "-m", "metasheet.cli", "run", "pipelines/quick.toml",
-                            "--out", str(tmp_path / run)], cwd=project, env=env, capture_output=True,
-                           text=True, timeout=900)
+                            "--out", str(tmp_path / run), *extra], cwd=project, env={**env, **threads},
+                           capture_output=True, text=True, timeout=900)
         seconds.append(time.perf_counter() - t0)
         assert r.returncode == 0, r.stdout + r.stderr
         trees.append(_tree(tmp_path / run / "quick"))
@@ -66,7 +78,8 @@ def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
     for k in manifests:
         ma, mb = json.loads(a[k]), json.loads(b[k])
         assert ma.keys() == mb.keys()
-        assert {f for f in ma if ma[f] != mb[f]} <= set(TIME_FIELDS), k
+        assert {f for f in ma if ma[f] != mb[f]} <= {*TIME_FIELDS, "executor"}, k
+        assert ma["code_paths"]["decision"] == ("pinned" if cpu.has_avx2_fma() else "native"), k
     for k, data in a.items():  # wall-clock times live in manifests only
         if k.endswith(".json") and k not in manifests:
             assert "timings_s" not in json.loads(data), k
@@ -93,6 +106,7 @@ def test_homogenize_writes_no_wall_time_into_constants(tmp_path):
     assert set(ctx.timings) == {"assembly", "setup", "solve", "post"}  # for the manifest
 
 
+@pytest.mark.bytes
 def test_amg_cg_is_the_same_bits_whatever_the_global_generator():
     """pyamg estimates spectral radii from ``np.random.rand`` vectors: seeded now."""
     from metasheet.fem.amg import amg_cg

@@ -4,146 +4,20 @@ Real processes: a small driver script registers two test stages (``slow`` sleeps
 temporary folder holds a partial file, ``after`` reads it) and calls ``metasheet.cli.main``.
 """
 
-import json
 import os
 import signal
 import subprocess
 import sys
-import threading
 import time
-from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-
-DRIVER = '''
-import os, sys, time
-from metasheet.pipeline.registry import Params, Stage, register, stages
-
-stages()
-
-
-class SlowParams(Params):
-    value: float = 1.0
-    workers_probe: bool = False
-
-
-def probe(lock_file):
-    """Runs in a pool worker: the lock is held by the run, never by a worker."""
-    from filelock import FileLock, Timeout
-    try:
-        FileLock(lock_file).acquire(timeout=0)
-    except Timeout:
-        return ("held by another process", os.getpid())
-    return ("free", os.getpid())
-
-
-def run_slow(ctx):
-    ctx.path("partial.txt").write_text("half-written")
-    (ctx.root / "started").mkdir(exist_ok=True)
-    (ctx.root / "started" / str(os.getpid())).write_text("")
-    wait = os.environ.get("SLOW_STAGE_SECONDS", "0")
-    if wait == "gate":  # until the test opens the gate (at most two minutes)
-        t0 = time.monotonic()
-        while not (ctx.root / "gate-open").exists() and time.monotonic() - t0 < 120:
-            time.sleep(0.05)
-    else:
-        time.sleep(float(wait))
-    ctx.path("out.txt").write_text(f"{ctx.params.value}\\n")
-    if ctx.params.workers_probe:
-        lock = str(ctx.workdir.parents[1] / f".{ctx.workdir.parent.name}.lock")
-        ctx.path("probe.json").write_text(repr(ctx.executor.map(probe, [lock, lock])))
-    return {"value": ctx.params.value}
-
-
-def run_after(ctx):
-    v = float((ctx.inputs["slow"] / "out.txt").read_text())
-    ctx.path("after.txt").write_text(f"{2 * v}\\n")
-    return {}
-
-
-register(Stage("slow", SlowParams, run_slow, outputs=("out.txt",)))
-register(Stage("after", SlowParams, run_after, requires=("slow",), outputs=("after.txt",)))
-
-if __name__ == "__main__":
-    from metasheet.cli import main
-
-    main(sys.argv[1:])
-'''
-
-
-STARTED: list[subprocess.Popen] = []
+from run_driver import call, make_project, outputs, pipeline, start, stderr_lines, stop_started, wait_started
 
 
 @pytest.fixture
 def project(tmp_path):
-    (tmp_path / "cells").mkdir()
-    (tmp_path / "pipelines").mkdir()
-    (tmp_path / "driver.py").write_text(DRIVER)
-    yield tmp_path
-    (tmp_path / "gate-open").write_text("")  # a failed test leaves no run behind
-    while STARTED:
-        proc = STARTED.pop()
-        if proc.poll() is None:
-            proc.kill()
-        proc.communicate()
-
-
-def pipeline(project: Path, *, name: str = "p", probe: bool = False) -> Path:
-    p = project / "pipelines" / f"{name}.toml"
-    p.write_text(f'[pipeline]\nname = "{name}"\nstages = ["slow", "after"]\n'
-                 f'[slow]\nworkers_probe = {str(probe).lower()}\n')
-    return p
-
-
-def env(seconds: float | str = 0.0):
-    e = dict(os.environ, SLOW_STAGE_SECONDS=str(seconds))
-    e["PYTHONPATH"] = os.pathsep.join([str(ROOT), e.get("PYTHONPATH", "")])
-    return e
-
-
-def start(project: Path, *args: str, seconds: float | str) -> subprocess.Popen:
-    """A run whose stage ``slow`` sleeps ``seconds`` (or until ``gate-open`` exists: "gate"), in the background."""
-    proc = subprocess.Popen([sys.executable, str(project / "driver.py"), *args], cwd=project, env=env(seconds),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    STARTED.append(proc)
-    return proc
-
-
-def call(project: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(project / "driver.py"), *args], cwd=project, env=env(),
-                          capture_output=True, text=True, timeout=300)
-
-
-def wait_started(project: Path, proc: subprocess.Popen, timeout: float = 120.0) -> None:
-    """Until ``proc`` is inside stage ``slow`` (its temporary folder holds a partial file)."""
-    t0 = time.monotonic()
-    while not (project / "started" / str(proc.pid)).exists():
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() - t0 < timeout, "the first run did not start its stage"
-        time.sleep(0.05)
-
-
-def outputs(root: Path) -> dict[str, object]:
-    """Every file under ``root``: bytes, or for manifests every field but the wall-clock ones."""
-    out = {}
-    for p in sorted(root.rglob("*")):
-        if p.is_file():
-            rel = p.relative_to(root).as_posix()
-            if p.name == "manifest.json":
-                m = json.loads(p.read_text())
-                out[rel] = {k: v for k, v in m.items() if k not in ("started", "wall_time_s", "cpu_s", "timings_s")}
-            else:
-                out[rel] = p.read_bytes()
-    return out
-
-
-def stderr_lines(proc: subprocess.Popen) -> list[str]:
-    """Collect ``proc``'s stderr lines as they come (a reader thread)."""
-    lines: list[str] = []
-    threading.Thread(target=lambda: lines.extend(iter(proc.stderr.readline, "")), daemon=True).start()
-    return lines
+    yield make_project(tmp_path)
+    stop_started(tmp_path)
 
 
 def test_second_run_waits_for_the_first_and_outputs_equal_a_single_run(project):
@@ -261,3 +135,28 @@ def test_workers_never_take_the_lock(project, where):
     probes = eval((project / "outputs/p/slow/probe.json").read_text())
     assert [p[0] for p in probes] == ["held by another process"] * 2
     assert all(p[1] != first.pid for p in probes)  # they ran in workers
+
+
+def test_waiters_take_their_turn_in_the_order_they_came(project):
+    """A run waiting for the lock goes before a ``clean --all`` that came after it. Before:
+    whichever polled first after the release won, so the clean could remove the outputs the
+    first run wrote and the waiting run then rebuilt them."""
+    toml = pipeline(project)
+    first = start(project, "run", str(toml), seconds="gate")
+    wait_started(project, first)
+    waiting = []
+    for args in (("run", str(toml)), ("clean", str(toml), "--all")):
+        proc = start(project, *args, seconds="gate")
+        lines = stderr_lines(proc)
+        t0 = time.monotonic()
+        while not any("waiting for it to finish" in ln for ln in lines):
+            assert proc.poll() is None and time.monotonic() - t0 < 120, lines
+            time.sleep(0.05)
+        waiting.append(proc)
+    (project / "gate-open").write_text("")
+    assert first.wait(timeout=300) == 0
+    second, cleaner = waiting
+    assert second.wait(timeout=300) == 0 and cleaner.wait(timeout=300) == 0
+    assert "cached" in second.stdout.read()  # it ran after the first, before the clean
+    assert not (project / "outputs" / "p").exists()  # the clean came last
+    assert not (project / "outputs" / ".p.queue").exists()

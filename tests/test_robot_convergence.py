@@ -77,6 +77,7 @@ def coarse_run(tmp_path_factory):
     return root / "out" / "c"
 
 
+@pytest.mark.bytes
 def test_the_levels_on_two_workers_give_the_same_study(coarse_run):
     """The levels run as work units, the slowest first: on a pool the study is the serial one's,
     byte for byte, its levels in the configured order."""

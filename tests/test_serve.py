@@ -366,3 +366,55 @@ def test_page_draws_a_snapshot_for_every_tab(session, outputs):
         assert "reached" in page.status.content and "pose [mm, deg]" in page.status.content
         page.color_by.value = "strain"  # as a tab would: the page redraws
         wait_until(lambda: "max principal strain" in page.legend.content)
+
+
+def _from_a_tab(handle, value):
+    """What viser does with a tab's GUI update message (``viser/_gui_api.py``,
+    ``_handle_gui_updates``): cast the value to the widget's type (a menu takes any text, a
+    number NaN), store it, then call the widget's callbacks with the tab as the client."""
+    from viser import GuiEvent
+
+    handle._impl.value = type(handle._impl.value)(value)
+    for cb in handle._impl.update_cb:
+        cb(GuiEvent(client=object(), client_id=1, target=handle))
+
+
+def test_the_page_refuses_bad_values_and_keeps_drawing(session, outputs, caplog):
+    """Before: "nonsense" in the colour menu raised at every redraw (no tab updated again),
+    and a NaN goal moved the gizmo to NaN before the session refused it."""
+    from types import SimpleNamespace
+
+    from viser import GuiEvent
+
+    def click(target=None):
+        return GuiEvent(client=object(), client_id=1, target=target)
+
+    with live_page(session, outputs, "full") as page:
+        rest = session.snapshot()
+        _from_a_tab(page.color_by, "nonsense")
+        assert page.field == "displacement" and page.color_by.value == "displacement"  # the state as it was
+        wait_until(lambda: "note: colour by: 'nonsense': allowed values are displacement" in page.status.content)
+        for k, bad, why in ((2, float("nan"), "finite"), (0, 5e3, "allowed range is [-1000, 1000]")):
+            _from_a_tab(page.goal_fields[k], bad)
+            page._on_go(click())
+            assert "goal" in page.notice and why in page.notice
+            assert page.goal_fields[k].value == float(round(rest.goal[k], 2))  # the field shows the goal again
+        page._on_gizmo(click(SimpleNamespace(position=(np.nan, 0.0, 0.0), wxyz=(1.0, 0.0, 0.0, 0.0))))
+        assert page.notice.startswith("goal gizmo:")
+        np.testing.assert_allclose(page.goal.position, rest.goal[:3] * SCALE)
+        _from_a_tab(page.material, "steel")
+        assert page.material.value == "foam" and "material: 'steel'" in page.notice
+        _from_a_tab(page.sliders[0], float("nan"))
+        assert "motor angles" in page.notice and page.sliders[0].value == float(round(rest.angles_deg[0], 1))
+        caplog.clear()
+        page._on_gizmo(click(object()))  # a malformed message: no pose at all
+        assert "malformed" in page.notice
+        assert len(caplog.records) == 1 and caplog.records[0].exc_info is None  # one line, no traceback
+        assert session.snapshot().version == rest.version  # nothing reached the session
+        for f, v in zip(page.goal_fields, GOAL):  # a valid goal still moves the robot, and is drawn
+            _from_a_tab(f, v)
+        page._on_go(click())
+        assert page.notice == ""
+        snap = session.wait_idle(60)
+        assert snap.status == "reached", snap.message
+        wait_until(lambda: page.drawn == snap.version and "reached" in page.status.content)

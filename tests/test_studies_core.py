@@ -260,6 +260,7 @@ def test_resume_after_interruption_gives_same_result(tmp_path):
     assert np.array_equal(again.records.motors_deg, full.records.motors_deg, equal_nan=True)
 
 
+@pytest.mark.bytes
 def test_process_pool_equals_serial():
     spec, grid = StandInSpec(), star_grid(n_azimuth=4, n_elevation=1, n_steps=5)
     a = explore_workspace(spec, grid, WorkspaceSettings(substeps=1))

@@ -19,6 +19,7 @@ def cluster():
         yield c
 
 
+@pytest.mark.bytes
 def test_workspace_on_dask_equals_serial(cluster):
     spec, grid = StandInSpec(), star_grid(n_azimuth=6, n_elevation=3, n_steps=6, extent_axial=40, extent_lateral=50)
     s = WorkspaceSettings(substeps=2)

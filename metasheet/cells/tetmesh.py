@@ -246,9 +246,9 @@ def _gmsh_fill(verts, faces, h, *, optimize, threads):
     """
     import gmsh
 
-    was_init = gmsh.isInitialized()
-    if not was_init:
-        gmsh.initialize(argv=[], readConfigFiles=False, run=False, interruptible=False)
+    from ..gmsh_start import initialize as start_gmsh
+
+    was_init = not start_gmsh(argv=[], readConfigFiles=False, run=False, interruptible=False)
     opts = {
         "General.Terminal": 0,
         "General.NumThreads": threads,

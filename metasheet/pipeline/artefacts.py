@@ -17,6 +17,8 @@ nothing falls back silently to a default material or geometry.
 
 Stage-private outputs (pictures, print fields, local strain fields) are written by their
 stage modules, which like this one belong to the pipeline layer: no code below it does I/O.
+Every mesh file is read by :func:`read_mesh`: a corrupt one is a
+:class:`~metasheet.errors.MeshError` naming it.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import GRAVITY
-from ..errors import ConfigError
+from ..errors import ConfigError, MeshError
 from ..material import CONSTANT_NAMES, TransverseIsotropic
 from ..material_model import authors_effective, check_model, model_stiffness
 from ..robot.builder import SheetPair
@@ -37,6 +39,29 @@ from ..sheet.geometry import SheetMesh, SheetParams
 from .manifest import read_manifest, write_json_atomic
 
 SHEET_FILES = {"normal": "sheet.vtu", "mirrored": "sheet_mirrored.vtu"}
+
+
+def read_mesh(path: Path):
+    """The ``meshio.Mesh`` in ``path``; every reader failure is a :class:`MeshError` naming the file.
+
+    The one place the project reads a mesh file. ``meshio.read`` prints its reader's error
+    and calls ``sys.exit(1)`` on a file it cannot parse (meshio 5.3): that exit status is
+    ``metasheet diff``'s "trees differ", and no ``error:`` line is printed. So a VTU goes
+    straight to meshio's VTU reader (it raises ``meshio.ReadError``), and whatever a reader
+    raises on corrupt bytes (ReadError, ValueError, an XML ParseError, zlib's error,
+    SystemExit) becomes one message saying to rerun the stage that wrote the file
+    (``metasheet run`` rewrites outputs whose bytes no longer match their manifest).
+    """
+    import meshio
+
+    path = Path(path)
+    reader = meshio.vtu.read if path.suffix.lower() == ".vtu" else meshio.read
+    try:
+        return reader(str(path))
+    except (Exception, SystemExit) as exc:  # noqa: BLE001  (any parse failure of corrupt bytes)
+        cause = type(exc).__name__ + (f": {exc}" if str(exc) else "")  # meshio's ReadError has no text
+        raise MeshError(f"{path}: unreadable mesh file ({cause}): it is corrupt or truncated; rerun the stage "
+                        "that wrote it (`metasheet run PIPELINE` rewrites outputs whose bytes changed)") from exc
 
 
 def _json(path: Path) -> dict:
@@ -82,12 +107,10 @@ def read_cell(directory: Path) -> CellFile:
 
 def read_cell_tets(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """``cell.vtu``: points (n, 3) [mm], tets (m, 4), per-tet phase (m,) or None."""
-    import meshio
-
     vtu = directory / "cell.vtu"
     if not vtu.exists():
         raise ConfigError("homogenize.mesh_route: true: the cell stage wrote no cell.vtu (set cell.tet_mesh = true)")
-    mesh = meshio.read(vtu)
+    mesh = read_mesh(vtu)
     tets = mesh.get_cells_type("tetra")
     phase = None
     for name in ("phase", "phases"):
@@ -236,11 +259,9 @@ class SheetFile:
 
 def read_sheet(path: Path, arm_angles_deg=(0.0, 120.0, 240.0)) -> SheetFile:
     """A sheet VTU written by :func:`write_sheet` (arm directions from sheet.json)."""
-    import meshio
-
     if not Path(path).is_file():
         raise ConfigError(f"{path}: missing (did the orient stage run?)")
-    m = meshio.read(path)
+    m = read_mesh(path)
     tets = np.asarray(m.cells_dict.get("tetra", np.zeros((0, 4))), dtype=np.int64)
     if len(tets) == 0:
         raise ConfigError(f"{path}: no tetra cells")

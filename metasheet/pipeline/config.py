@@ -12,31 +12,55 @@ A pipeline file has one ``[pipeline]`` table and one table per stage::
 A stage listed without a table runs with its defaults. A parameter naming a project file
 (its description says "relative to the project root": ``cell.design``, ``chart.design``)
 must name an existing file: loading the pipeline (``metasheet validate`` too) checks it.
+Loading also refuses nan and inf in any number, the checks across a table's fields (the five
+constants' stability, a sheet's geometry) and across tables (a sheet too large to mesh, or to
+build its robot on: :data:`metasheet.pipeline.stages.orient.MAX_SHEET_TETS`).
 """
 
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from types import UnionType
+from typing import Annotated, Any, Union, get_args, get_origin, get_type_hints
 
-from pydantic import Field, ValidationError
+from pydantic import BaseModel, Field, ValidationError, field_validator
 
 from ..errors import ConfigError
 from .registry import Params, Stage, stages
 
 
+#: A run name is one folder under outputs/ that ``metasheet clean --all`` deletes: no separator, no
+#: "." or ".." (the outputs root or its parent), no hidden name, no trailing dot (Windows drops it).
+NAME_MAX = 64
+_NAME = re.compile(rf"[A-Za-z0-9_-]([A-Za-z0-9_.-]{{0,{NAME_MAX - 2}}}[A-Za-z0-9_-])?")
+#: Device names Windows reserves, with any extension (``nul.txt`` too): such a folder cannot be made there.
+_WINDOWS_RESERVED = re.compile(r"(con|prn|aux|nul|com[1-9]|lpt[1-9])(\..*)?", re.IGNORECASE)
+
+
 class PipelineSection(Params):
     """The ``[pipeline]`` table."""
 
-    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$", description="run name: outputs/<name>/")
+    name: str = Field(description="run name: outputs/<name>/, one folder name (letters, digits, _ - .; not "
+                      f"starting or ending with '.'; at most {NAME_MAX} characters)")
     stages: list[str] = Field(min_length=1, description="stages to run")
     description: str = ""
     workers: int = Field(1, ge=1, le=256, description="local worker processes for sweeps")
     scheduler: str | None = Field(None, description="dask.distributed scheduler address")
     stages_at_once: int = Field(1, ge=1, le=16, description="stages whose inputs are ready that run at once "
                                 "(each in a thread of the run, its work units on the workers); 1: one after another")
+
+    @field_validator("name")
+    @classmethod
+    def _one_folder(cls, name: str) -> str:
+        if not _NAME.fullmatch(name):
+            raise ValueError(f"expected one folder name: letters, digits, '_', '-' and '.', not starting or ending "
+                             f"with '.', 1 to {NAME_MAX} characters")
+        if _WINDOWS_RESERVED.fullmatch(name):
+            raise ValueError("a device name reserved on Windows (CON, PRN, AUX, NUL, COM1-9, LPT1-9)")
+        return name
 
 
 @dataclass(frozen=True)
@@ -62,21 +86,83 @@ def find_root(path: Path) -> Path:
     return path.resolve().parent
 
 
-def format_validation(source: str, table: str, err: ValidationError, data: dict) -> str:
-    """One ``file: field: value: what is allowed`` line per pydantic error."""
+def format_validation(source: str, table: str, err: ValidationError, data: dict,
+                      model: type[BaseModel] | None = None) -> str:
+    """One ``file: field: value: what is allowed`` line per pydantic error.
+
+    A range or finiteness error adds the field's whole ``allowed range`` (from ``model``); a
+    model validator's :class:`ConfigError` ``"field: value: what"`` is prefixed with the file,
+    the table and the path of the model that raised it.
+    """
     lines = []
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"])
+        loc, bounds = locate(model, e["loc"]) if model else (".".join(str(p) for p in e["loc"]), [])
         field = f"{table}.{loc}" if loc else table
         value = e.get("input", data)
+        cause = (e.get("ctx") or {}).get("error")
+        if isinstance(cause, ConfigError):
+            lines.append(f"{source}: {field}.{cause}")
+            continue
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         elif e["type"] == "missing":
             msg, value = "required key is missing", "<missing>"
+        elif e["type"] == "value_error" and cause is not None:
+            msg = str(cause)  # the validator's own words, without pydantic's "Value error, "
         else:
             msg = e["msg"]
+            if e["type"] in _RANGE_ERRORS and range_text(bounds):
+                msg += f"; allowed range is {range_text(bounds)}"
         lines.append(f"{source}: {field}: {value!r}: {msg}")
     return "\n".join(lines)
+
+
+_RANGE_ERRORS = {"finite_number", "greater_than", "greater_than_equal", "less_than", "less_than_equal"}
+
+
+def _unwrap(tp) -> tuple[Any, list]:
+    """``tp`` without ``Optional`` and ``Annotated``, and the constraints ``Annotated`` carried."""
+    meta: list = []
+    while True:
+        if get_origin(tp) is Annotated:
+            tp, *extra = get_args(tp)
+            meta += [m for x in extra for m in getattr(x, "metadata", [x])]
+        elif get_origin(tp) in (Union, UnionType) and len(args := [a for a in get_args(tp) if a is not type(None)]) == 1:
+            tp = args[0]
+        else:
+            return tp, meta
+
+
+def locate(model: type[BaseModel], loc: tuple) -> tuple[str, list]:
+    """The field at pydantic's ``loc`` in ``model``: its name as a reader writes it (indices as
+    ``[i]``, a NamedTuple's items by name: ``convergence[0].mesh_size``) and its constraints."""
+    path, tp, meta = "", model, []
+    for part in loc:
+        tp, _ = _unwrap(tp)
+        fields = getattr(tp, "_fields", None) if isinstance(tp, type) and issubclass(tp, tuple) else None
+        if isinstance(tp, type) and issubclass(tp, BaseModel) and part in tp.model_fields:
+            info = tp.model_fields[part]
+            path, tp, meta = f"{path}.{part}", info.annotation, list(info.metadata)
+        elif isinstance(part, int) and fields:
+            path, tp, meta = f"{path}.{fields[part]}", get_type_hints(tp, include_extras=True)[fields[part]], []
+        elif isinstance(part, int):
+            args = [a for a in get_args(tp) if a is not Ellipsis]  # list[T], tuple[T, ...], tuple[A, B]
+            path, meta, tp = f"{path}[{part}]", [], args[min(part, len(args) - 1)] if args else None
+        else:
+            path, meta = f"{path}.{part}", []
+            tp = get_args(tp)[1] if get_origin(tp) is dict else None
+    return path.lstrip("."), meta + _unwrap(tp)[1]
+
+
+def range_text(constraints: list) -> str:
+    """``[lo, hi]`` of annotated-types constraints (``(`` / ``)`` for strict bounds, -inf / inf
+    where none), or "" when there is no bound."""
+    b = {k: getattr(c, k) for c in constraints for k in ("gt", "ge", "lt", "le") if getattr(c, k, None) is not None}
+    if not b:
+        return ""
+    left, lo = ("(", b["gt"]) if "gt" in b else ("[", b["ge"]) if "ge" in b else ("(", float("-inf"))
+    right, hi = (")", b["lt"]) if "lt" in b else ("]", b["le"]) if "le" in b else (")", float("inf"))
+    return f"{left}{lo:g}, {hi:g}{right}"
 
 
 def validate_table(source: str, table: str, model: type[Params], data: Any) -> Params:
@@ -86,7 +172,7 @@ def validate_table(source: str, table: str, model: type[Params], data: Any) -> P
     try:
         return model.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(format_validation(source, table, err, data)) from None
+        raise ConfigError(format_validation(source, table, err, data, model)) from None
 
 
 def load_pipeline(path: str | Path) -> Pipeline:
@@ -126,6 +212,10 @@ def load_pipeline(path: str | Path) -> Pipeline:
     root = find_root(path)
     for name in section.stages:
         check_project_files(str(path), name, params[name], root)
+        try:
+            params[name].check_pipeline(name, params)
+        except ConfigError as err:  # "table.field: value: what"
+            raise ConfigError(f"{path}: {err}") from None
     return Pipeline(path, root, section, order, params)
 
 

@@ -21,14 +21,26 @@ from ..executor import Executor
 
 
 class Params(BaseModel):
-    """Base of every stage's parameter model: unknown keys are errors, models are frozen.
+    """Base of every stage's parameter model: unknown keys are errors, models are frozen, and
+    every float, nested ones too (lists, tuples, tables), is finite: TOML's ``nan`` and ``inf``
+    would pass every bound check of a field without one and reach the artefacts
+    (``Infinity`` is not JSON).
 
     A string parameter that names a project file says so in its description with the
     words "relative to the project root" (``cell.design``, ``chart.design``): loading the
     pipeline (``metasheet validate`` too) then checks the file exists.
+
+    Checks across fields belong in a ``model_validator(mode="after")`` raising
+    :class:`~metasheet.errors.ConfigError` ``"field: value: what is allowed"`` (the loader adds
+    the file and the table); checks against other stages' tables in :meth:`check_pipeline`.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    def check_pipeline(self, table: str, params: dict[str, Params]) -> None:
+        """Check this table (the stage ``table``) against the pipeline's others (``params``: stage
+        -> its parameters) when a pipeline is loaded; raise :class:`~metasheet.errors.ConfigError`
+        ``"table.field: value: what is allowed"`` (the loader adds the file). Nothing by default."""
 
 
 @dataclass

@@ -9,15 +9,18 @@ has its own thread in this process (its maps still go to worker processes), at m
 ``at_once`` of them; stages start in the given order as their upstream stages finish.
 
 A failing stage stops the run from starting more; the ones already running finish (their
-outputs are complete and valid), then the first failure is raised. The threads are daemons:
-an interrupt (Ctrl-C) ends the process without waiting for them (their temporary folders
-are the debris the next run removes).
+outputs are complete and valid), then the first failure is raised. An interrupt (Ctrl-C,
+SIGTERM) is another matter: ``on_interrupt`` stops the stages under way (the runner kills the
+workers and cancels the stages at their next progress report), they get ``grace`` seconds to
+unwind (removing their temporary folders), and the interrupt is raised. The threads are
+daemons: one still computing in this process then ends with it.
 """
 
 from __future__ import annotations
 
 import queue
 import threading
+import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -25,7 +28,8 @@ from ..errors import ConfigError
 
 
 def run_graph(names: Sequence[str], deps: Mapping[str, Sequence[str]], run: Callable[[str], Any], *,
-              at_once: int = 1) -> dict[str, Any]:
+              at_once: int = 1, on_interrupt: Callable[[], None] | None = None,
+              grace: float = 3.0) -> dict[str, Any]:
     """``{name: run(name)}`` for every name of ``names`` (a topological order), each after the
     ``deps[name]`` among ``names`` have returned, at most ``at_once`` running at a time.
 
@@ -63,7 +67,13 @@ def run_graph(names: Sequence[str], deps: Mapping[str, Sequence[str]], run: Call
                     threading.Thread(target=worker, args=(n,), name=f"stage-{n}", daemon=True).start()
         if not running:
             break
-        name, result, exc = finished.get()
+        try:
+            name, result, exc = finished.get()
+        except BaseException:  # an interrupt reached this thread: stop the stages under way
+            if on_interrupt is not None:
+                on_interrupt()
+            _drain(finished, running, grace)
+            raise
         running.discard(name)
         if exc is not None:
             failure = failure or exc
@@ -72,3 +82,14 @@ def run_graph(names: Sequence[str], deps: Mapping[str, Sequence[str]], run: Call
     if failure is not None:
         raise failure
     return {n: done[n] for n in names}
+
+
+def _drain(finished: queue.Queue, running: set[str], grace: float) -> None:
+    """Wait at most ``grace`` seconds [s] for the ``running`` stages to hand in their outcome."""
+    deadline = time.monotonic() + grace
+    while running:
+        try:
+            name, *_ = finished.get(timeout=max(0.0, deadline - time.monotonic()))
+        except queue.Empty:
+            return
+        running.discard(name)

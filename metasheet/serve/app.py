@@ -14,10 +14,17 @@ panel), so neither a slow solve nor a slow draw blocks the page.
 
 The scene is in metres (viser's camera, grid and gizmo sizes are made for metres); the robot
 and every number on the page are in mm and degrees (:data:`SCALE` converts).
+
+Every value a tab sends is checked before it reaches the session or the drawing
+(:func:`_from_page`): viser only casts it to the widget's type (a menu takes any text, a
+number NaN). A refused one is a note on the page; the state and the widgets stay as they were.
 """
 
 from __future__ import annotations
 
+import functools
+import logging
+import reprlib
 import socket
 import threading
 import time
@@ -30,6 +37,9 @@ from ..rotations import rotation_matrix, rotation_vector
 from . import scene
 from .maze import maze_file, read_maze
 from .panel import MEASURED_RATE, RateMeter, status_markdown
+from .tracking import check_goal
+
+log = logging.getLogger(__name__)
 
 SCALE = 1e-3  # [m/mm]
 GOAL_NAMES = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
@@ -60,11 +70,43 @@ def _wxyz(R) -> np.ndarray:
 
 
 def _pose_of_handle(handle) -> np.ndarray:
-    """(6,) goal (mm, rotation vector deg) of a viser transform handle (metres, quaternion)."""
+    """(6,) goal (mm, rotation vector deg) of a viser transform handle (metres, quaternion);
+    ConfigError unless it holds 3 finite coordinates and a finite, non-zero quaternion."""
     import viser.transforms as tf
 
-    R = tf.SO3(np.asarray(handle.wxyz)).as_matrix()
-    return np.concatenate([np.asarray(handle.position) / SCALE, np.degrees(rotation_vector(R))])
+    try:
+        p, q = (np.asarray(v, dtype=float).reshape(-1) for v in (handle.position, handle.wxyz))
+    except (TypeError, ValueError):
+        p, q = np.zeros(0), np.zeros(0)
+    n = np.linalg.norm(q) if q.shape == (4,) else 0.0
+    if p.shape != (3,) or not np.all(np.isfinite(p)) or not np.isfinite(n) or n < 1e-6:
+        raise ConfigError(f"goal gizmo: position {reprlib.repr(handle.position)}, orientation "
+                          f"{reprlib.repr(handle.wxyz)}: expected 3 finite numbers and a non-zero quaternion")
+    R = tf.SO3(q / n).as_matrix()
+    return np.concatenate([p / SCALE, np.degrees(rotation_vector(R))])
+
+
+def _from_page(handler):
+    """A GUI callback on values from the page: a refused value (ConfigError) is a note on the
+    page, anything else it raises (a malformed message) a note and one log line, never a
+    traceback per event (:meth:`Page._refuse`); an accepted value from a tab clears the note."""
+
+    @functools.wraps(handler)
+    def guarded(self, event) -> None:
+        try:
+            handler(self, event)
+        except ConfigError as exc:
+            self._refuse(str(exc))
+        except Exception as exc:  # noqa: BLE001  (a malformed message must not stop the page)
+            log.warning("metasheet serve: ignored a malformed update from a tab: %s: %s",
+                        type(exc).__name__, reprlib.repr(str(exc)))
+            self._refuse(f"ignored a malformed update ({type(exc).__name__})")
+        else:
+            if getattr(event, "client", None) is not None:
+                self.notice = ""
+                self._dirty.set()
+
+    return guarded
 
 
 class Page:
@@ -86,6 +128,7 @@ class Page:
         self._validity: dict[str, np.ndarray] = {}  # material -> the elements the strain flag counts
         snap = session.snapshot()
         self._material = snap.material
+        self._goal_shown = np.array(snap.goal, float)  # the goal the gizmo and the fields show
         self.surface = scene.surface(*self._mesh_of(snap.material))
         self.draws = 0
         self.drawn = -1  # the version of the last snapshot drawn
@@ -135,7 +178,7 @@ class Page:
             self.goal_fields = [gui.add_number(f"goal {name}", float(round(v, 2)), step=0.1)
                                 for name, v in zip(GOAL_NAMES, snap.goal)]
             gui.add_button("Go to goal").on_click(self._on_go)
-            gui.add_button("Reset to rest").on_click(lambda e: self._command(self.session.reset))
+            gui.add_button("Reset to rest").on_click(self._on_reset)
         with gui.add_folder("Motors (forward model)"):
             self.sliders = []
             for k, (a, lo, hi) in enumerate(zip(snap.angles_deg, snap.angle_min_deg, snap.angle_max_deg)):
@@ -170,51 +213,72 @@ class Page:
         for f, v in zip(self.goal_fields, pose):
             f.value = float(round(v, 2))
 
-    def _command(self, fn, *args) -> None:
-        """Post a command; a refused one (ConfigError) is shown on the page, never raised."""
-        try:
-            fn(*args)
-            self.notice = ""
-        except ConfigError as exc:
-            self.notice = str(exc)
-            self._dirty.set()
+    def _move_goal(self, pose) -> None:
+        """The gizmo and the goal fields to ``pose`` (6,) [mm, deg]: the goal the session was last given."""
+        self._goal_shown = np.array(pose, float)
+        self.goal.position = self._goal_shown[:3] * SCALE
+        self.goal.wxyz = _wxyz(rotation_matrix(np.radians(self._goal_shown[3:])))
+        self._show_goal(self._goal_shown)
 
+    def _refuse(self, message: str) -> None:
+        """Show why a value from the page was refused and put the widgets back as they were."""
+        snap = self.session.snapshot()
+        self._move_goal(self._goal_shown)
+        for s, a in zip(self.sliders, snap.angles_deg):
+            s.value = float(round(a, 1))  # the page's own update: _on_slider ignores it
+        self.material.value = snap.material
+        self.color_by.value = self.field
+        self.notice = message
+        self._dirty.set()
+
+    # the session checks each value (ConfigError before anything changes): post, then move widgets
+    @_from_page
     def _on_gizmo(self, event) -> None:
         pose = _pose_of_handle(event.target)
+        self.session.set_goal(pose)
+        self._goal_shown = pose
         self._show_goal(pose)
-        self._command(self.session.set_goal, pose)
 
+    @_from_page
     def _on_go(self, event) -> None:
-        pose = np.array([f.value for f in self.goal_fields], float)
-        self.goal.position = pose[:3] * SCALE
-        self.goal.wxyz = _wxyz(rotation_matrix(np.radians(pose[3:])))
-        self._command(self.session.set_goal, pose)
+        pose = check_goal([f.value for f in self.goal_fields])
+        self.session.set_goal(pose)
+        self._move_goal(pose)
 
+    @_from_page
+    def _on_reset(self, event) -> None:
+        self.session.reset()
+
+    @_from_page
     def _on_slider(self, event) -> None:
         if event.client is None:  # the page itself moved the slider to the solved angle
             return
-        self._command(self.session.set_motors, [s.value for s in self.sliders])
+        self.session.set_motors([s.value for s in self.sliders])
 
+    @_from_page
     def _on_material(self, event) -> None:
         if event.client is not None:
-            self._command(self.session.set_material, self.material.value)
+            self.session.set_material(self.material.value)
 
+    @_from_page
     def _on_field(self, event) -> None:
-        self.field = self.color_by.value
+        value = self.color_by.value
+        if not isinstance(value, str) or value not in scene.FIELDS:  # drawn at every redraw: never unchecked
+            raise ConfigError(f"colour by: {reprlib.repr(value)}: allowed values are {', '.join(scene.FIELDS)}")
+        self.field = value
         self._dirty.set()
 
+    @_from_page
     def _on_maze(self, event) -> None:
         try:
             playback = read_maze(maze_file(self.outputs.directory, self.session.snapshot().material))
         except ConfigError as exc:
-            self.notice = f"{exc} (pipelines/paper.toml has it)"
-            self._dirty.set()
-            return
-        self._command(self.session.play_maze, playback)
+            raise ConfigError(f"{exc} (pipelines/paper.toml has it)") from None
+        self.session.play_maze(playback)
 
     # -- drawing ------------------------------------------------------------------------
     def _loop(self) -> None:
-        last = -1
+        last, failed = -1, None
         while not self._stop.is_set():
             snap = self.session.wait(last, timeout=0.25)
             if snap is None:
@@ -225,10 +289,13 @@ class Page:
             last = snap.version
             try:
                 self.draw(snap)
-            except Exception:  # keep drawing the next snapshots; the page stays up
+                failed = None
+            except Exception as exc:  # keep drawing the next snapshots; the page stays up
                 import traceback
 
-                traceback.print_exc()
+                if (type(exc), str(exc)) != failed:  # its traceback once, not at every redraw
+                    traceback.print_exc()
+                failed = (type(exc), str(exc))
 
     def _strain_of(self, snap):
         """The elements' largest principal strains at ``snap`` (m,), recomputed at most every
@@ -284,9 +351,7 @@ class Page:
                 self.fibers.points = scene.fiber_segments(geo, x) * SCALE
             if snap.goal_version != self._goal_version:  # the session moved the goal: follow
                 self._goal_version = snap.goal_version
-                self.goal.position = snap.goal[:3] * SCALE
-                self.goal.wxyz = _wxyz(rotation_matrix(np.radians(snap.goal[3:])))
-                self._show_goal(snap.goal)
+                self._move_goal(snap.goal)
             for s, a in zip(self.sliders, snap.angles_deg):
                 s.value = float(round(a, 1))
             if self.material.value != snap.material:

@@ -24,7 +24,9 @@ mesh or the scene that is the robot built here, and the basis's robot key proves
 basis trained on another robot is a clear error, never a silent misfit). The basis is
 trained on the foam: ``"reduced"`` with silicone gives the full silicone robot, with a note
 saying so. Missing outputs are a :class:`~metasheet.errors.ConfigError` naming the file and
-the command that writes it; nothing falls back to a default robot.
+the command that writes it; nothing falls back to a default robot. Nor do outputs the
+pipeline file no longer matches (edited since its run, under the same ``name``: the cache
+keys in their manifests differ) drive anything (:func:`check_fresh`).
 """
 
 from __future__ import annotations
@@ -65,17 +67,34 @@ class Outputs:
 
 def find_outputs(pipeline: str | Path, out: str | Path | None = None) -> Outputs:
     """The output folder of ``pipeline`` (a TOML file) as ``metasheet run`` writes it:
-    ``<out>/<name>`` with ``out`` the ``--out`` root, default ``outputs/`` of the project."""
+    ``<out>/<name>`` with ``out`` the ``--out`` root, default ``outputs/`` of the project.
+
+    Raises :class:`ConfigError` when the outputs the page reads were written by another
+    version of the file (:func:`check_fresh`)."""
     from .. import paper
     from ..pipeline.config import load_pipeline
 
     p = load_pipeline(pipeline)
     root = Path(out) if out is not None else p.root / "outputs"
     command = f"metasheet run {pipeline}" + (f" --out {out}" if out is not None else "")
+    check_fresh(p, root / p.name, command)
     rp = p.params.get("robot")
     silicone = ((rp.silicone_E, rp.silicone_nu, rp.silicone_density) if rp is not None
                 else (paper.SILICONE.E, paper.SILICONE.nu, paper.SILICONE_DENSITY))
     return Outputs(root / p.name, command, tuple(float(v) for v in silicone), tuple(p.order))
+
+
+def check_fresh(pipeline, directory: Path, run_command: str) -> None:
+    """ConfigError naming the stages whose outputs in ``directory`` the pipeline file would
+    not reuse (their manifests' cache keys differ from the ones it computes now: a scene, a
+    mesh, a material edited under the same ``name``) among those the page and ``goto`` read
+    and their upstream stages. Outputs without manifests (written by hand) are not judged."""
+    from ..pipeline.staleness import stale_stages
+
+    stale = stale_stages(pipeline, directory, (*REQUIRED, "reduce", "maze"))
+    if stale:
+        raise ConfigError(f"{directory}: the outputs of stage(s) {', '.join(stale)} do not match {pipeline.path} "
+                          f"(edited since they were written: their cache keys differ): run `{run_command}` first")
 
 
 def check_outputs(outputs: Outputs) -> None:

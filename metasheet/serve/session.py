@@ -41,6 +41,7 @@ Newton solve has to start from far).
 
 from __future__ import annotations
 
+import reprlib
 import threading
 import time
 import traceback
@@ -53,7 +54,7 @@ from ..robot.inverse import InverseSettings
 from ..robot.qp import pose_error
 from ..rotations import rotation_matrix
 from .models import RobotModels
-from .tracking import GoalRun, check_pose, pose_of
+from .tracking import GoalRun, check_goal, pose_of
 
 #: the inverse loop's settings on the page (see the module docstring for drift_tol)
 LIVE_SETTINGS = InverseSettings(drift_tol=10.0)
@@ -186,23 +187,32 @@ class Session:
             self._busy = True
             self._cond.notify_all()
 
+    # Every value from the page is checked here, before it is posted: a bad one is a
+    # ConfigError (the page shows it) and never reaches the worker or the state.
     def set_goal(self, pose) -> None:
-        """Drive the effector to ``pose`` (6,) = (x, y, z [mm], rotation vector [deg])."""
-        self._post("motion", ("goal", check_pose(pose)))
+        """Drive the effector to ``pose`` (6,) = (x, y, z [mm], rotation vector [deg]), each
+        component within :data:`.tracking.GOAL_LIMITS`."""
+        self._post("motion", ("goal", check_goal(pose)))
 
     def set_motors(self, angles_deg) -> None:
         """Move the motors to ``angles_deg`` (na,) [deg] (clipped to the stroke): forward model."""
-        a = np.asarray(angles_deg, dtype=float).reshape(-1)
-        if not np.all(np.isfinite(a)):
-            raise ConfigError(f"motor angles: {angles_deg!r}: expected finite numbers [deg]")
+        built = self._robots.get(self._material)
+        count = len(built.full.angle_min) if built is not None else None  # None: before start()
+        try:
+            a = np.asarray(angles_deg, dtype=float).reshape(-1)
+        except (TypeError, ValueError):  # text, None, ragged lists: a malformed message
+            a = np.zeros(0)
+        if a.size == 0 or (count is not None and a.size != count) or not np.all(np.isfinite(a)):
+            many = f"{count} " if count else ""
+            raise ConfigError(f"motor angles: {reprlib.repr(angles_deg)}: expected {many}finite numbers [deg]")
         self._post("motion", ("motors", a))
 
     def set_material(self, material: str) -> None:
         """Switch the sheets' material ("foam" / "silicone") at the current motor angles."""
         from .loading import MATERIALS
 
-        if material not in MATERIALS:
-            raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
+        if not isinstance(material, str) or material not in MATERIALS:
+            raise ConfigError(f"material: {reprlib.repr(material)}: allowed values are {', '.join(MATERIALS)}")
         self._post("material", ("material", material))
 
     def play_maze(self, playback) -> None:

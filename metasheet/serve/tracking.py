@@ -12,11 +12,12 @@ settings it takes the same steps and ends on the same pose as ``goto``
 
 from __future__ import annotations
 
+import reprlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, check_range
 from ..robot.qp import pose_error, weighted_norm
 from ..rotations import rotation_matrix, rotation_vector
 
@@ -33,9 +34,30 @@ def within(e, settings) -> bool:
 
 def check_pose(pose, name: str = "goal") -> np.ndarray:
     """``pose`` as a (6,) float array (x, y, z [mm], rotation vector [deg]), or ConfigError."""
-    p = np.asarray(pose, dtype=float).reshape(-1)
+    try:
+        p = np.asarray(pose, dtype=float).reshape(-1)
+    except (TypeError, ValueError):  # text, None, ragged lists: from a page, a malformed message
+        p = np.zeros(0)
     if p.shape != (6,) or not np.all(np.isfinite(p)):
-        raise ConfigError(f"{name}: {pose!r}: expected 6 finite numbers X Y Z [mm] RX RY RZ [deg]")
+        raise ConfigError(f"{name}: {reprlib.repr(pose)}: expected 6 finite numbers X Y Z [mm] RX RY RZ [deg]")
+    return p
+
+
+#: the pose components in order, with their units
+POSE_NAMES = ("X [mm]", "Y [mm]", "Z [mm]", "RX [deg]", "RY [deg]", "RZ [deg]")
+#: a goal component beyond +-these is refused [mm] x 3, [deg] x 3: 1 m is far beyond any reach
+#: of the robot (rod 80 mm; the stroke moves its centre by tens of mm) and a turn bounds any
+#: rotation vector's components (180 deg suffices): a larger value is a typo or a malformed
+#: message, and would only send the solver far out for an "unreachable"
+GOAL_LIMITS = (1000.0, 1000.0, 1000.0, 360.0, 360.0, 360.0)
+
+
+def check_goal(pose) -> np.ndarray:
+    """A goal from the page or a script: :func:`check_pose`, each component within
+    :data:`GOAL_LIMITS` (the message names the component and the range), or ConfigError."""
+    p = check_pose(pose)
+    for name, v, limit in zip(POSE_NAMES, p, GOAL_LIMITS):
+        check_range(f"goal {name}", float(v), -limit, limit)
     return p
 
 

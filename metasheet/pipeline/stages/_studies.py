@@ -66,6 +66,15 @@ class StudyRobotParams(Params):
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
 
+    def check_pipeline(self, table: str, params: dict) -> None:
+        """The sheet the study's robot is built on (orient's, or re-meshed) within the size limit."""
+        from .orient import check_robot_mesh
+
+        if self.model == "standin" or "orient" not in params:
+            return
+        changes = {k: getattr(self, k) for k in ("mesh_size", "layers", "grip_size") if getattr(self, k) is not None}
+        check_robot_mesh(params["orient"], table if changes else "orient", self.element, **changes)
+
 
 class CertifyParams(StudyRobotParams):
     """A study that may run on the reduced model: how many of its reachable points the full model re-solves."""

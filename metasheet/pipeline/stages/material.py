@@ -16,11 +16,12 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ... import paper
 from ...errors import ConfigError
 from ...material import Isotropic, TransverseIsotropic
+from ...material_model import model_stiffness
 from ..artefacts import constants_material, write_material
 from ..registry import Params, Stage, StageContext, register
 
@@ -35,7 +36,8 @@ class MaterialParams(Params):
     E_t: float = Field(_FOAM.E_t, gt=0, description="transverse Young's modulus [MPa]")
     E_l: float = Field(_FOAM.E_l, gt=0, description="longitudinal Young's modulus [MPa]")
     nu_t: float = Field(_FOAM.nu_t, gt=-1, lt=1, description="transverse Poisson ratio [-]")
-    nu_tl: float = Field(_FOAM.nu_tl, description="transverse-longitudinal Poisson ratio [-]")
+    nu_tl: float = Field(_FOAM.nu_tl, description="transverse-longitudinal Poisson ratio [-]; with the others "
+                         "|nu_tl| < sqrt((1 - nu_t) E_t / (2 E_l)) (positive-definite stiffness)")
     mu_l: float = Field(_FOAM.mu_l, gt=0, description="longitudinal shear modulus [MPa]")
     E: float = Field(paper.SILICONE.E, gt=0, description="isotropic Young's modulus [MPa] (kind = 'isotropic')")
     nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="isotropic Poisson ratio [-] (kind = 'isotropic')")
@@ -43,6 +45,31 @@ class MaterialParams(Params):
     model: Literal["ours", "authors"] = Field(
         "ours", description="'ours': the tensor of all five constants; 'authors': the authors' SOFA force field's "
         "(longitudinal shear E_t / (2 (1 + nu_t)), mu_l unused; c13 as their code)")
+
+    @model_validator(mode="after")
+    def _stable(self):
+        if self.kind == "transverse":
+            m = check_constants(self)
+            if self.source == "config" and self.model == "authors":  # the constants this table gives are used
+                try:
+                    model_stiffness(m, "authors")
+                except ConfigError as err:
+                    raise ConfigError(f"model: 'authors': {str(err).split(': ', 2)[-1]}") from None
+        return self
+
+
+def check_constants(p) -> TransverseIsotropic:
+    """The material of the five constants ``p.E_t, E_l, nu_t, nu_tl, mu_l`` (each already in its
+    field's range), or :class:`ConfigError` ``nu_tl: value: allowed range is (-b, b)`` when they
+    give no positive-definite stiffness (1 - nu_t - 2 nu_tl^2 E_l / E_t > 0: only nu_tl's range
+    depends on the others; :class:`~metasheet.material.TransverseIsotropic` checks it)."""
+    try:
+        return TransverseIsotropic(p.E_t, p.E_l, p.nu_t, p.nu_tl, p.mu_l)
+    except ConfigError:
+        b = ((1.0 - p.nu_t) * p.E_t / (2.0 * p.E_l)) ** 0.5
+        raise ConfigError(f"nu_tl: {p.nu_tl!r}: allowed range is (-{b:.6g}, {b:.6g}) for E_t = {p.E_t:g}, "
+                          f"E_l = {p.E_l:g}, nu_t = {p.nu_t:g} (positive-definite stiffness: "
+                          "1 - nu_t - 2 nu_tl^2 E_l / E_t > 0)") from None
 
 
 def material_from_params(p: MaterialParams) -> TransverseIsotropic:

@@ -13,12 +13,14 @@ study stages take: rod, servos, sheet mass, gravity) and
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ... import paper
+from ...errors import ConfigError
 from ...material import TransverseIsotropic, interpolate
 from ...robot.scenes import PRESETS, get_preset
 from ...sheet import fibers as fb
@@ -27,6 +29,7 @@ from ...sheet import grading as gr
 from ..artefacts import SHEET_FILES, read_material, read_print_model, write_sheet
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
+from .material import check_constants
 
 _FOAM = paper.PAPER_FOAM
 
@@ -39,6 +42,11 @@ class ConstantsParams(Params):
     nu_t: float = Field(_FOAM.nu_t, gt=-1, lt=1, description="transverse Poisson ratio [-]")
     nu_tl: float = Field(_FOAM.nu_tl, gt=-1, lt=2, description="transverse-longitudinal Poisson ratio [-]")
     mu_l: float = Field(_FOAM.mu_l, gt=0, description="longitudinal shear modulus [MPa]")
+
+    @model_validator(mode="after")
+    def _stable(self):
+        check_constants(self)
+        return self
 
 
 class GradingParams(Params):
@@ -89,6 +97,11 @@ class OrientParams(Params):
     grading: GradingParams = Field(default_factory=GradingParams, description="graded design")
     constants: ConstantsParams = Field(default_factory=ConstantsParams, description="fallback constants")
 
+    @model_validator(mode="after")
+    def _sheet(self):  # the geometry's checks across fields, and its size, before anything is meshed
+        check_sheet_size(sheet_params(self), "mesh")
+        return self
+
 
 _SHEET_KEYS = ("arm_width", "reach", "thickness", "hole_radius", "fillet_radius", "tip_box", "centre_radius")
 
@@ -103,6 +116,59 @@ def sheet_params(p: OrientParams) -> geo.SheetParams:
     """The sheet geometry: the scene's, each key given in ``p`` overriding it."""
     return geo.SheetParams(mesh_size=p.mesh_size, layers=p.layers, grip_size=p.grip_size,
                            **{k: _scene_value(p, k) for k in _SHEET_KEYS})
+
+
+#: Most tetrahedra one sheet may mesh to (:func:`metasheet.sheet.geometry.estimated_tets`, within
+#: ~1.5x of gmsh's count), for a machine of ~32 GB: "mesh" for the orient stage itself, "p1" / "p2"
+#: for a robot built on it (two sheets). Measured peaks (default sheet, one process): gmsh +67 MB
+#: for 46k tets (~1.5 KB a tet: 3 GB at 2M); robot P1 413 MB at 12.8k tets a sheet, 1.1 GB at 46k
+#: (~18 KB a tet and rising with the factorisation's fill: ~10 GB at 400k); robot P2 2.3 GB at 12.8k
+#: (136k unknowns), over 10 GB at 46k and still rising when stopped (~220 KB a tet: over 11 GB at
+#: 50k). The paper's finest level (P2, 10 mm, 0.7 mm grips) makes 28k.
+MAX_SHEET_TETS = {"mesh": 2_000_000, "p1": 400_000, "p2": 50_000}
+
+
+def check_sheet_size(sp: geo.SheetParams, use: str, field: str = "mesh_size") -> None:
+    """Raise :class:`ConfigError` ``field: value: ...`` when the sheet ``sp`` would mesh to more
+    tetrahedra than :data:`MAX_SHEET_TETS` ``[use]`` allows, naming the sizes that set the estimate,
+    the estimate, the limit and the finest mesh size this sheet can have."""
+    est, limit = geo.estimated_tets(sp), MAX_SHEET_TETS[use]
+    if est <= limit:
+        return
+    what = "to mesh it" if use == "mesh" else f"for a robot of {use} elements"
+    h = finest_mesh_size(sp, limit)
+    fix = (f"allowed range for this sheet is [{h:g}, 50]" if h else
+           "no mesh_size in [0.3, 50] fits: a smaller reach, arm_width or thickness, or a larger grip_size")
+    raise ConfigError(
+        f"{field}: {sp.mesh_size!r}: the sheet (reach {sp.reach:g}, arm_width {sp.arm_width:g}, thickness "
+        f"{sp.thickness:g} mm, grip_size {sp.grip_size:g} mm, layers {sp.layers}) makes about {est:,} tetrahedra, "
+        f"over the limit of {limit:,} {what} (about 32 GB of memory); {fix}")
+
+
+def check_robot_mesh(orient: OrientParams, where: str, element: str | None = None, **changes) -> None:
+    """Check the sheet a robot is built on: orient's, re-meshed with ``changes`` (``mesh_size``,
+    ``layers``, ``grip_size``) when given, of ``element`` (None: orient's) elements, against
+    :data:`MAX_SHEET_TETS`; the :class:`ConfigError` names ``where.field``."""
+    try:
+        check_sheet_size(replace(sheet_params(orient), **changes), element or orient.element)
+    except ConfigError as err:
+        raise ConfigError(f"{where}.{err}") from None
+
+
+def finest_mesh_size(sp: geo.SheetParams, limit: int) -> float | None:
+    """The smallest mesh size [mm] in [0.3, 50] whose estimate for ``sp`` is within ``limit``
+    (bisection: the estimate falls as the size grows), or None when even 50 mm is over it."""
+    def est(h: float) -> int:
+        return geo.estimated_tets(replace(sp, mesh_size=h, grip_size=min(sp.grip_size, h)))
+
+    lo, hi = 0.3, 50.0
+    if est(hi) > limit:
+        return None
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if est(mid) <= limit else (mid, hi)
+    step = 10.0 ** (np.floor(np.log10(hi)) - 2)  # 3 digits, rounded up: the size printed passes
+    return min(float(f"{np.ceil(hi / step - 1e-9) * step:.3g}"), 50.0)
 
 
 def fiber_settings(p: OrientParams) -> dict:

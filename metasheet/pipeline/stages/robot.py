@@ -30,11 +30,11 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal, NamedTuple
 
 import numpy as np
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ... import paper
 from ...errors import ConfigError
@@ -49,6 +49,18 @@ from ..registry import Params, Stage, StageContext, register
 
 
 _SCENE = "; None: the orient stage's scene (sheet.json)"
+
+
+class ConvergenceLevel(NamedTuple):
+    """One ``[robot] convergence`` entry, ``[element, mesh_size, layers, grip_size]``: the
+    :class:`~metasheet.robot.convergence.Level` it becomes, with the ranges of
+    :class:`~metasheet.sheet.geometry.SheetParams`, checked at load (a size of 0 was a
+    ZeroDivisionError 30 s into the stage)."""
+
+    element: Literal["p1", "p2"]
+    mesh_size: Annotated[float, Field(ge=0.3, le=50)]  # [mm]
+    layers: Annotated[int, Field(ge=0, le=16)]
+    grip_size: Annotated[float, Field(ge=0, le=50)]  # [mm]; 0: uniform, else within [0.2, mesh_size]
 
 
 class RobotParams(Params):
@@ -75,9 +87,26 @@ class RobotParams(Params):
     compare_models: bool = Field(True, description="also evaluate the foam (and published) robots under the other "
                                  "material model ('ours' / 'authors'), for the report's mu_l table")
     picture: bool = Field(True, description="write robot.png")
-    convergence: list[tuple[Literal["p1", "p2"], float, int, float]] = Field(
+    convergence: list[ConvergenceLevel] = Field(
         default_factory=list, description="mesh levels [element, mesh_size [mm], layers, grip_size [mm]] of the "
         "convergence study (convergence.json); the orient mesh is added; empty: no study")
+
+    @model_validator(mode="after")
+    def _grips(self):
+        for i, lev in enumerate(self.convergence):
+            if lev.grip_size and not 0.2 <= lev.grip_size <= lev.mesh_size:
+                raise ConfigError(f"convergence[{i}].grip_size: {lev.grip_size!r}: allowed range is "
+                                  f"[0.2, mesh_size = {lev.mesh_size:g}], or 0 (uniform)")
+        return self
+
+    def check_pipeline(self, table: str, params: dict) -> None:
+        """The robot's sheet (orient's) and each convergence level's within the size limit."""
+        from .orient import check_robot_mesh
+
+        check_robot_mesh(params["orient"], "orient")
+        for i, lev in enumerate(self.convergence):
+            check_robot_mesh(params["orient"], f"{table}.convergence[{i}]", lev.element,
+                             mesh_size=lev.mesh_size, layers=lev.layers, grip_size=lev.grip_size)
 
 
 def run(ctx: StageContext) -> dict:
