@@ -24,6 +24,8 @@ from metasheet.cells.connectivity import check_percolation
 from metasheet.cells.metrics import PolyhedralMetric, StretchedMetric
 from metasheet.cells.seeds import poisson_disk_seeds
 
+from _results import add_save_option, saved_output
+
 
 @dataclass
 class Case:
@@ -99,23 +101,25 @@ def main(argv=None, rows: list[Row] | None = None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--n", type=int, default=64, help="voxels per side")
+    add_save_option(ap)
     args = ap.parse_args(argv)
     case = Case(n=args.n)
-    print(f"64-seed open-cell foam, 10 mm box, rho {case.rho}, n = {case.n}; "
-          f"{os.cpu_count()} cpus, OMP/NUMBA threads {os.environ.get('NUMBA_NUM_THREADS', 'default')}; "
-          f"median of {args.repeats} after one warm-up")
-    header = f"{'measurement':44s} {'median s':>9s} {'min s':>8s} {'warm-up s':>9s} {'target s':>8s}  note"
-    print(header)
-    print("-" * len(header))
-    out = []
-    for row in rows or ROWS:
-        warm, times = time_row(row.make(case), args.repeats)
-        med = statistics.median(times)
-        flag = "" if row.target_s is None else ("ok" if med < row.target_s else "SLOW")
-        target = "" if row.target_s is None else f"{row.target_s:g} {flag}"
-        print(f"{row.name.replace('n^3', f'{case.n}^3'):44s} {med:9.3f} {min(times):8.3f} {warm:9.3f} {target:>8s}  {row.note}")
-        out.append({"name": row.name, "median_s": med, "min_s": min(times), "warmup_s": warm,
-                    "target_s": row.target_s})
+    with saved_output(__file__, args.save, fenced=True):
+        print(f"64-seed open-cell foam, 10 mm box, rho {case.rho}, n = {case.n}; "
+              f"{os.cpu_count()} cpus, OMP/NUMBA threads {os.environ.get('NUMBA_NUM_THREADS', 'default')}; "
+              f"median of {args.repeats} after one warm-up")
+        header = f"{'measurement':44s} {'median s':>9s} {'min s':>8s} {'warm-up s':>9s} {'target s':>8s}  note"
+        print(header)
+        print("-" * len(header))
+        out = []
+        for row in rows or ROWS:
+            warm, times = time_row(row.make(case), args.repeats)
+            med = statistics.median(times)
+            flag = "" if row.target_s is None else ("ok" if med < row.target_s else "SLOW")
+            target = "" if row.target_s is None else f"{row.target_s:g} {flag}"
+            print(f"{row.name.replace('n^3', f'{case.n}^3'):44s} {med:9.3f} {min(times):8.3f} {warm:9.3f} {target:>8s}  {row.note}")
+            out.append({"name": row.name, "median_s": med, "min_s": min(times), "warmup_s": warm,
+                        "target_s": row.target_s})
     return out
 
 

@@ -1,7 +1,7 @@
 """What the pinned code paths cost: the quick pipeline pinned to AVX2 (metasheet.cpu) against
 this CPU's native kernels, run after run in the same session.
 
-    python benchmarks/bench_code_paths.py [--repeats 3] [--pipeline pipelines/quick.toml]
+    python benchmarks/bench_code_paths.py [--repeats 3] [--pipeline pipelines/quick.toml] [--save]
 
 Each run is a fresh ``metasheet run --force`` in its own process (the code path is chosen
 when numpy loads), the numba cache warm for both; prints the median wall time of each and
@@ -19,6 +19,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _results import add_save_option, saved_output
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -43,6 +45,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pipeline", default="pipelines/quick.toml")
     ap.add_argument("--repeats", type=int, default=3)
+    add_save_option(ap)
     args = ap.parse_args()
     times: dict[str, list[float]] = {"pinned": [], "native": []}
     with tempfile.TemporaryDirectory() as tmp:
@@ -55,12 +58,13 @@ def main() -> None:
         name = Path(args.pipeline).stem
         same = same_bytes(outs["pinned"] / name, outs["native"] / name)
     pinned, native = (statistics.median(times[d]) for d in ("pinned", "native"))
-    print(f"\n{args.pipeline}, medians of {args.repeats} forced runs each, interleaved\n")
-    print("| code paths | wall [s] | ratio to native |")
-    print("|---|---|---|")
-    print(f"| native (this CPU's kernels) | {native:.1f} | 1.00 |")
-    print(f"| pinned (AVX2: metasheet.cpu) | {pinned:.1f} | {pinned / native:.2f} |")
-    print(f"\nsame bytes: {same}")
+    with saved_output(__file__, args.save):
+        print(f"\n{args.pipeline}, medians of {args.repeats} forced runs each, interleaved\n")
+        print("| code paths | wall [s] | ratio to native |")
+        print("|---|---|---|")
+        print(f"| native (this CPU's kernels) | {native:.1f} | 1.00 |")
+        print(f"| pinned (AVX2: metasheet.cpu) | {pinned:.1f} | {pinned / native:.2f} |")
+        print(f"\nsame bytes: {same}")
 
 
 if __name__ == "__main__":

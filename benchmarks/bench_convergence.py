@@ -26,6 +26,8 @@ from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.convergence import Level, convergence_summary, run_levels
 from metasheet.sheet.geometry import SheetParams
 
+from _results import add_save_option, saved_output
+
 MATERIALS = {"published": paper.PAPER_FOAM, "silicone": paper.SILICONE,
              "isotropic-foam": Isotropic(paper.PAPER_FOAM.E_t, paper.PAPER_FOAM.nu_t)}
 
@@ -41,6 +43,7 @@ def main() -> None:
     ap.add_argument("--layers", type=int, default=0, help="elements through the thickness (0: free mesh)")
     ap.add_argument("--pitch", type=float, default=45.0)
     ap.add_argument("--json", default=None)
+    add_save_option(ap)
     a = ap.parse_args()
     mat = MATERIALS[a.material]
 
@@ -53,25 +56,26 @@ def main() -> None:
     levels = ([Level("p1", h, a.layers) for h in a.p1] + [Level("p2", h, a.layers) for h in a.p2]
               + [Level("p2", a.graded_h, a.layers, g) for g in a.graded])
     results = run_levels(build, levels, progress=lambda d, i, n: print(f"[{i + 1}/{n}] {d}", flush=True))
-    summary = convergence_summary(results)
-    print(f"\nmaterial {a.material}, load {os.getloadavg()[0]:.1f}, OPENBLAS_NUM_THREADS="
-          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; errors against the "
-          f"{summary['reference']} limit\n")
-    head = ("mesh", "tets", "dofs", "s", "sv max", "sv min", "rod deg/deg", "rod mm/N", "sag mm",
-            "err J", "err W_rod")
-    print(" | ".join(f"{h:>12}" for h in head))
-    for r, row in zip(results, summary["levels"]):
-        e = row["errors"]
-        cells = (r.level.label, r.tets, r.dofs, f"{r.seconds:.1f}", f"{r.singular_values[0]:.3f}",
-                 f"{r.singular_values[-1]:.3f}", f"{r.rod_rotation_deg_per_deg:.4f}",
-                 f"{r.rod_compliance_mm_per_N:.3f}", f"{r.gravity_sag_mm:.4f}",
-                 f"{100 * e['jacobian']:.2f} %", f"{100 * e['rod_compliance']:.2f} %")
-        print(" | ".join(f"{c:>12}" for c in cells))
-    for fam, lim in summary["limits"].items():
-        v = lim["limits"]
-        print(f"\n{fam} limit: sv {np.round(v['singular_values'], 3).tolist()}, rod {v['rod_rotation_deg_per_deg']:.4f} "
-              f"deg/deg, W_rod {v['rod_compliance_mm_per_N']:.3f} mm/N, sag {v['gravity_sag_mm']:.4f} mm; "
-              f"orders {({k: round(o, 2) for k, o in lim['fitted_orders'].items()})}")
+    with saved_output(__file__, a.save, fenced=True):
+        summary = convergence_summary(results)
+        print(f"\nmaterial {a.material}, load {os.getloadavg()[0]:.1f}, OPENBLAS_NUM_THREADS="
+              f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; errors against the "
+              f"{summary['reference']} limit\n")
+        head = ("mesh", "tets", "dofs", "s", "sv max", "sv min", "rod deg/deg", "rod mm/N", "sag mm",
+                "err J", "err W_rod")
+        print(" | ".join(f"{h:>12}" for h in head))
+        for r, row in zip(results, summary["levels"]):
+            e = row["errors"]
+            cells = (r.level.label, r.tets, r.dofs, f"{r.seconds:.1f}", f"{r.singular_values[0]:.3f}",
+                     f"{r.singular_values[-1]:.3f}", f"{r.rod_rotation_deg_per_deg:.4f}",
+                     f"{r.rod_compliance_mm_per_N:.3f}", f"{r.gravity_sag_mm:.4f}",
+                     f"{100 * e['jacobian']:.2f} %", f"{100 * e['rod_compliance']:.2f} %")
+            print(" | ".join(f"{c:>12}" for c in cells))
+        for fam, lim in summary["limits"].items():
+            v = lim["limits"]
+            print(f"\n{fam} limit: sv {np.round(v['singular_values'], 3).tolist()}, rod {v['rod_rotation_deg_per_deg']:.4f} "
+                  f"deg/deg, W_rod {v['rod_compliance_mm_per_N']:.3f} mm/N, sag {v['gravity_sag_mm']:.4f} mm; "
+                  f"orders {({k: round(o, 2) for k, o in lim['fitted_orders'].items()})}")
     if a.json:
         for row, r in zip(summary["levels"], results):
             row["seconds"] = r.seconds

@@ -21,6 +21,8 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
+from _results import add_save_option, saved_output
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -50,6 +52,7 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="output root the pipeline ran with")
     ap.add_argument("--rays", type=int, default=6)
     ap.add_argument("--repeats", type=int, default=2)
+    add_save_option(ap)
     args = ap.parse_args()
     from metasheet.executor import THREAD_VARS, UNIT_THREADS, Executor
     from metasheet.studies.workspace import explore_ray
@@ -66,11 +69,12 @@ def main() -> None:
             Executor(workers=2, worker_threads=threads).map(explore_ray, tasks)
             runs[name].append(time.perf_counter() - t)
     lim, dft = statistics.median(runs["limited"]), statistics.median(runs["default"])
-    print(f"\n{len(tasks)} workspace rays of {args.pipeline}, 2 workers, {cores} cores; medians of {args.repeats}\n")
-    print("| workers' BLAS threads | wall [s] | ratio to limited |")
-    print("|---|---|---|")
-    print(f"| limited: {UNIT_THREADS} each | {lim:.1f} | 1.00 |")
-    print(f"| default: {cores} each | {dft:.1f} | {dft / lim:.2f} |")
+    with saved_output(__file__, args.save):
+        print(f"\n{len(tasks)} workspace rays of {args.pipeline}, 2 workers, {cores} cores; medians of {args.repeats}\n")
+        print("| workers' BLAS threads | wall [s] | ratio to limited |")
+        print("|---|---|---|")
+        print(f"| limited: {UNIT_THREADS} each | {lim:.1f} | 1.00 |")
+        print(f"| default: {cores} each | {dft:.1f} | {dft / lim:.2f} |")
 
 
 if __name__ == "__main__":

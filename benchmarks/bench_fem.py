@@ -23,6 +23,8 @@ from metasheet.fem.meshes import box_mesh
 from metasheet.robot.body import ElasticBody
 from metasheet.robot.dirichlet import solve_static
 
+from _results import add_save_option, saved_output
+
 FOAM = TransverseIsotropic(E_t=1.39, E_l=0.0942, nu_t=0.3, nu_tl=0.05, mu_l=0.08)
 
 
@@ -77,6 +79,7 @@ def environment() -> str:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=21)
+    add_save_option(ap)
     args = ap.parse_args(argv)
     rng = np.random.default_rng(0)
     P, T = two_sheets()
@@ -119,13 +122,14 @@ def main(argv=None):
     rows.append((f"solve_static under 1000 g ({res.iterations} Newton it.)", timed(
         lambda: solve_static(foam, fixed, loads=loads), 3)))
 
-    print(environment())
-    print(f"mesh: {foam.n_elements} tets, {foam.n_nodes} nodes, tangent nnz {foam.pattern.nnz}")
-    print(f"check: |K_ours(rest) - K_skfem| / |K_skfem| = {rel:.2e} (isotropic, same matrix)\n")
-    ref_wall, ref_cpu = t_ft
-    print(f"{'case':<56} {'wall ms':>9} {'cpu ms':>9} {'x ours f+K (cpu)':>17}")
-    for name, (w, c) in rows:
-        print(f"{name:<56} {w * 1e3:9.2f} {c * 1e3:9.2f} {c / ref_cpu:17.2f}")
+    with saved_output(__file__, args.save, fenced=True):
+        print(environment())
+        print(f"mesh: {foam.n_elements} tets, {foam.n_nodes} nodes, tangent nnz {foam.pattern.nnz}")
+        print(f"check: |K_ours(rest) - K_skfem| / |K_skfem| = {rel:.2e} (isotropic, same matrix)\n")
+        ref_wall, ref_cpu = t_ft
+        print(f"{'case':<56} {'wall ms':>9} {'cpu ms':>9} {'x ours f+K (cpu)':>17}")
+        for name, (w, c) in rows:
+            print(f"{name:<56} {w * 1e3:9.2f} {c * 1e3:9.2f} {c / ref_cpu:17.2f}")
 
 
 if __name__ == "__main__":

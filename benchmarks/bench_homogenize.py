@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _results import add_save_option, saved_output
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
@@ -105,6 +107,7 @@ def main():
     ap.add_argument("--timeout", type=float, default=1800.0, help="per row [s]")
     ap.add_argument("--one", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--matched", action="store_true", help=argparse.SUPPRESS)
+    add_save_option(ap)
     args = ap.parse_args()
     if args.one:
         print(json.dumps(one(int(args.one[0]), args.one[1], args.repeat, args.matched)))
@@ -112,34 +115,35 @@ def main():
     from metasheet.fem.solvers import HAVE_CHOLMOD, available
     from sfepy_reference import sfepy_available
 
-    print(f"cholmod={HAVE_CHOLMOD} pardiso={available('pardiso')} BLAS: {blas_info()} OPENBLAS_NUM_THREADS="
-          f"{os.environ.get('OPENBLAS_NUM_THREADS', '-')} cores={os.cpu_count()} load={os.getloadavg()[0]:.1f} "
-          f"repeat={args.repeat}")
-    # every fast direct back-end present (SuperLU: 119 s / 6.5 GB at 105k dofs, not a contender)
-    direct = [name for name in ("cholmod", "pardiso") if available(name)]
-    cases = [("foam", n, s, False) for n in args.sizes for s in direct + ["amg"]]
-    if args.large:
-        cases.append(("foam", 96, direct[0] if direct else "amg", False))
-    if args.sfepy and sfepy_available():
-        cases += [("sfepy", args.sfepy, s, True) for s in direct + ["amg"]]
-        theirs = (["sfepy-cholmod"] if HAVE_CHOLMOD else []) + ["sfepy-default"]
-        cases += [("sfepy", args.sfepy, s, True) for s in theirs]
-    print(f"{'case':>6} {'n':>4} {'solver':>22} {'dofs':>8} {'median s':>9} {'setup s':>8} {'solve s':>8} "
-          f"{'iters':>6} {'C11 MPa':>9} {'peak GB':>8} {'vs ours':>8}")
-    ours: dict = {}
-    for case, n, solver, matched in cases:
-        r = run_child(n, solver, args.repeat, matched, args.timeout)
-        if "error" in r:
-            print(f"{case:>6} {n:>4} {solver:>22} failed: {r['error']}", flush=True)
-            continue
-        key = (case, n)
-        if not solver.startswith("sfepy"):
-            ours[key] = min(ours.get(key, np.inf), r["s"])  # the faster of our routes
-        ratio = r["s"] / ours[key] if solver.startswith("sfepy") and key in ours else float("nan")
-        print(f"{case:>6} {n:>4} {r['solver']:>22} {r['dofs']:>8} {r['s']:>9.2f} {r['setup']:>8.2f} "
-              f"{r['solve']:>8.2f} {r['iters']:>6} {r['C11']:>9.5f} {r['peak_gb']:>8.2f} {ratio:>8.2f}", flush=True)
-    print("sfepy 'median s' = its homogenisation app (assembly, factorisation, solves), imports excluded; "
-          "'vs ours' = that / our fastest route on the identical mesh")
+    with saved_output(__file__, args.save, fenced=True):
+        print(f"cholmod={HAVE_CHOLMOD} pardiso={available('pardiso')} BLAS: {blas_info()} OPENBLAS_NUM_THREADS="
+              f"{os.environ.get('OPENBLAS_NUM_THREADS', '-')} cores={os.cpu_count()} load={os.getloadavg()[0]:.1f} "
+              f"repeat={args.repeat}")
+        # every fast direct back-end present (SuperLU: 119 s / 6.5 GB at 105k dofs, not a contender)
+        direct = [name for name in ("cholmod", "pardiso") if available(name)]
+        cases = [("foam", n, s, False) for n in args.sizes for s in direct + ["amg"]]
+        if args.large:
+            cases.append(("foam", 96, direct[0] if direct else "amg", False))
+        if args.sfepy and sfepy_available():
+            cases += [("sfepy", args.sfepy, s, True) for s in direct + ["amg"]]
+            theirs = (["sfepy-cholmod"] if HAVE_CHOLMOD else []) + ["sfepy-default"]
+            cases += [("sfepy", args.sfepy, s, True) for s in theirs]
+        print(f"{'case':>6} {'n':>4} {'solver':>22} {'dofs':>8} {'median s':>9} {'setup s':>8} {'solve s':>8} "
+              f"{'iters':>6} {'C11 MPa':>9} {'peak GB':>8} {'vs ours':>8}")
+        ours: dict = {}
+        for case, n, solver, matched in cases:
+            r = run_child(n, solver, args.repeat, matched, args.timeout)
+            if "error" in r:
+                print(f"{case:>6} {n:>4} {solver:>22} failed: {r['error']}", flush=True)
+                continue
+            key = (case, n)
+            if not solver.startswith("sfepy"):
+                ours[key] = min(ours.get(key, np.inf), r["s"])  # the faster of our routes
+            ratio = r["s"] / ours[key] if solver.startswith("sfepy") and key in ours else float("nan")
+            print(f"{case:>6} {n:>4} {r['solver']:>22} {r['dofs']:>8} {r['s']:>9.2f} {r['setup']:>8.2f} "
+                  f"{r['solve']:>8.2f} {r['iters']:>6} {r['C11']:>9.5f} {r['peak_gb']:>8.2f} {ratio:>8.2f}", flush=True)
+        print("sfepy 'median s' = its homogenisation app (assembly, factorisation, solves), imports excluded; "
+              "'vs ours' = that / our fastest route on the identical mesh")
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _results import add_save_option, saved_output
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -64,6 +66,7 @@ def main() -> None:
     ap.add_argument("pipeline", nargs="?", default=str(ROOT / "pipelines" / "paper.toml"))
     ap.add_argument("--out", default=None, help="output root the pipeline ran with")
     ap.add_argument("--repeats", type=int, default=5)
+    add_save_option(ap)
     args = ap.parse_args()
 
     import pypardiso
@@ -88,14 +91,15 @@ def main() -> None:
         t1, _ = median_time(lambda: s.solve(A2, B[:, 0].copy()), args.repeats)
         rows[name] = (tf, tr, t13, t1, np.linalg.norm(A2 @ x - B) / np.linalg.norm(B))
         s.free_memory(everything=True)
-    print(f"\nK_ff {n} x {n}, {A.nnz} non-zeros, of {description}")
-    print(f"medians of {args.repeats}\n")
-    print("| solver | factor [s] | refactor [s] | solve, 13 rhs [ms] | solve, 1 rhs [ms] | residual | factor / superlu | solve 13 / superlu |")
-    print("|---|---|---|---|---|---|---|---|")
-    base = rows["superlu (symmetric mode)"]
-    for name, (tf, tr, t13, t1, res) in rows.items():
-        print(f"| {name} | {tf:.3f} | {tr:.3f} | {1e3 * t13:.1f} | {1e3 * t1:.1f} | {res:.1e} | "
-              f"{tf / base[0]:.2f} | {t13 / base[2]:.2f} |")
+    with saved_output(__file__, args.save):
+        print(f"\nK_ff {n} x {n}, {A.nnz} non-zeros, of {description}")
+        print(f"medians of {args.repeats}\n")
+        print("| solver | factor [s] | refactor [s] | solve, 13 rhs [ms] | solve, 1 rhs [ms] | residual | factor / superlu | solve 13 / superlu |")
+        print("|---|---|---|---|---|---|---|---|")
+        base = rows["superlu (symmetric mode)"]
+        for name, (tf, tr, t13, t1, res) in rows.items():
+            print(f"| {name} | {tf:.3f} | {tr:.3f} | {1e3 * t13:.1f} | {1e3 * t1:.1f} | {res:.1e} | "
+                  f"{tf / base[0]:.2f} | {t13 / base[2]:.2f} |")
 
 
 if __name__ == "__main__":

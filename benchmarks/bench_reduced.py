@@ -5,11 +5,11 @@ in memory, then times, on the same held-out motor angles and goals, in the same 
 
 * equilibrium from rest (:func:`metasheet.robot.equilibrium.solve_equilibrium`), median;
   the reduced model twice: exact tangents, and its tangent library (``exact_tangent=False``,
-  :mod:`metasheet.robot.rom_tangents`) after one warm-up pass over the same angles;
+  :mod:`metasheet.rom.tangents`) after one warm-up pass over the same angles;
 * the inverse control step (:meth:`~metasheet.robot.inverse.InverseController.step`),
   median, mean and p99 over a goal sequence, with the fresh tangents taken; the reduced
   model with its library computing missing tangents in the background;
-* the same on the equilibrium surface (:mod:`metasheet.robot.rom_surface`): the reduce
+* the same on the equilibrium surface (:mod:`metasheet.rom.surface`): the reduce
   stage's ``surface.npz``, or (without ``--pipeline``) one fitted here on reduced equilibria.
 
     python benchmarks/bench_reduced.py --mesh-size 14 --element p1 --box 12 --snapshots 24
@@ -30,10 +30,12 @@ import numpy as np
 
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
-from metasheet.robot.reduced import ReducedRobot
-from metasheet.robot.rom_training import motor_design, sensitivity, train
+from metasheet.rom.model import ReducedRobot
+from metasheet.rom.training import motor_design, sensitivity, train
 from metasheet.rotations import rotation_matrix
 from metasheet.studies.adapter import paper_robot_spec
+
+from _results import add_save_option, saved_output
 
 
 def _control(robot, goals, steps: int):
@@ -62,7 +64,7 @@ def _from_pipeline(pipeline: str, out: str | None):
     from metasheet.serve.loading import find_outputs, load_robot
 
     outputs = find_outputs(pipeline, out)
-    from metasheet.robot.rom_surface_robot import load_surface
+    from metasheet.rom.surface_robot import load_surface
 
     rob, _ = load_robot(outputs, "full")
     red, _ = load_robot(outputs, "reduced")
@@ -85,6 +87,7 @@ def main() -> None:
     ap.add_argument("--surface", type=int, default=64, help="reduced equilibria the surface is fitted on")
     ap.add_argument("--pipeline", default=None, help="a pipeline whose robot and reduce stages have run")
     ap.add_argument("--out", default=None, help="its outputs folder (default: the pipeline's)")
+    add_save_option(ap)
     a = ap.parse_args()
     if a.pipeline:
         rob, red, surf, lz, rest, what = _from_pipeline(a.pipeline, a.out)
@@ -129,24 +132,25 @@ def main() -> None:
     live.background_tangents = True
     ctl = {name: _control(robot, goals, 10)
            for name, robot in (("full", rob), ("reduced", red), ("reduced+lib", live), ("surface", surf))}
-    print(f"robot: {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
-          f"reduced: k = {basis.k}, {len(basis.elements)} elements; {what}")
-    print(f"{'model':12s} {'equilibrium from rest [ms]':>26s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
-          f"{'fresh':>6s} {'steps':>6s}")
-    for name, eq in rows:
-        m, mean, p99, fresh, n = ctl[name]
-        print(f"{name:12s} {eq:26.2f} {m:12.2f} {mean:8.2f} {p99:8.2f} {fresh:6d} {n:6d}")
-    print(f"ratio full / reduced+lib: equilibrium {rows[0][1] / rows[2][1]:.2f}, "
-          f"step median {ctl['full'][0] / ctl['reduced+lib'][0]:.2f}, p99 {ctl['full'][2] / ctl['reduced+lib'][2]:.2f}")
-    print(f"ratio full / surface: equilibrium {rows[0][1] / rows[3][1]:.0f}, "
-          f"step median {ctl['full'][0] / ctl['surface'][0]:.0f}, p99 {ctl['full'][2] / ctl['surface'][2]:.0f}")
+    with saved_output(__file__, a.save, fenced=True):
+        print(f"robot: {3 * len(c.free)} free dofs, {rob.body.n_elements} elements; "
+              f"reduced: k = {basis.k}, {len(basis.elements)} elements; {what}")
+        print(f"{'model':12s} {'equilibrium from rest [ms]':>26s} {'step median':>12s} {'mean':>8s} {'p99':>8s} "
+              f"{'fresh':>6s} {'steps':>6s}")
+        for name, eq in rows:
+            m, mean, p99, fresh, n = ctl[name]
+            print(f"{name:12s} {eq:26.2f} {m:12.2f} {mean:8.2f} {p99:8.2f} {fresh:6d} {n:6d}")
+        print(f"ratio full / reduced+lib: equilibrium {rows[0][1] / rows[2][1]:.2f}, "
+              f"step median {ctl['full'][0] / ctl['reduced+lib'][0]:.2f}, p99 {ctl['full'][2] / ctl['reduced+lib'][2]:.2f}")
+        print(f"ratio full / surface: equilibrium {rows[0][1] / rows[3][1]:.0f}, "
+              f"step median {ctl['full'][0] / ctl['surface'][0]:.0f}, p99 {ctl['full'][2] / ctl['surface'][2]:.0f}")
 
 
 def _fit_surface(red, lo, hi, n: int):
     """The equilibrium surface of ``red`` on the box [lo, hi], fitted on ``n`` reduced equilibria
     (its degree chosen on n / 2 more), as the reduce stage does (without its strain limit)."""
-    from metasheet.robot.rom_certificate import TARGETS
-    from metasheet.robot.rom_surface_robot import equilibrium_data, fit_surface_robot
+    from metasheet.rom.certificate import TARGETS
+    from metasheet.rom.surface_robot import equilibrium_data, fit_surface_robot
 
     lz = red.linearizer()
     rest = solve_equilibrium(red, red.coupling.rest_angles, linearizer=lz).state

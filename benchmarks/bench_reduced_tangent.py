@@ -5,7 +5,7 @@ run, e.g. ``metasheet run pipelines/paper.toml``):
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_reduced_tangent.py [pipelines/paper.toml] [--out ROOT]
 
-Times :meth:`~metasheet.robot.reduced.ReducedRobot.evaluate` with the tangent, on the same
+Times :meth:`~metasheet.rom.model.ReducedRobot.evaluate` with the tangent, on the same
 states, with ``tangent_dtype`` float64 and float32 alternating in one process (medians of
 ``--repeats``), and compares what the precision changes: the equilibria (the forces are double
 in both) and the Jacobians there (relative Frobenius), at rest and at ``--poses`` random motor
@@ -22,6 +22,8 @@ import numpy as np
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.kinematics import kinematics
 
+from _results import add_save_option, saved_output
+
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -29,6 +31,7 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     ap.add_argument("--repeats", type=int, default=9)
     ap.add_argument("--poses", type=int, default=4)
+    add_save_option(ap)
     args = ap.parse_args()
     from metasheet.serve.loading import find_outputs, load_robot
 
@@ -52,12 +55,13 @@ def main() -> None:
         rows.append((np.degrees(q - red.coupling.rest_angles).round(1), float(np.abs(s32.pose - s64.pose).max()),
                      float(np.linalg.norm(J32 - J64) / np.linalg.norm(J64))))
     m64, m32 = (1e3 * float(np.median(times[d])) for d in (np.float64, np.float32))
-    print(f"reduced model: k {red.k}, {len(red.basis.elements)} sampled elements, {3 * len(red.sub_nodes)} sub-mesh dofs")
-    print("\n| tangent_dtype | evaluate with tangent, median [ms] | ratio to float64 |\n|---|---|---|")
-    print(f"| float64 | {m64:.1f} | 1.00 |\n| float32 | {m32:.1f} | {m32 / m64:.2f} |")
-    print("\n| motors from rest [deg] | equilibrium pose, largest difference | Jacobian, relative difference |\n|---|---|---|")
-    for d, dp, dj in rows:
-        print(f"| {d.tolist()} | {dp:.1e} | {dj:.1e} |")
+    with saved_output(__file__, args.save):
+        print(f"reduced model: k {red.k}, {len(red.basis.elements)} sampled elements, {3 * len(red.sub_nodes)} sub-mesh dofs")
+        print("\n| tangent_dtype | evaluate with tangent, median [ms] | ratio to float64 |\n|---|---|---|")
+        print(f"| float64 | {m64:.1f} | 1.00 |\n| float32 | {m32:.1f} | {m32 / m64:.2f} |")
+        print("\n| motors from rest [deg] | equilibrium pose, largest difference | Jacobian, relative difference |\n|---|---|---|")
+        for d, dp, dj in rows:
+            print(f"| {d.tolist()} | {dp:.1e} | {dj:.1e} |")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,8 @@ import time
 
 import numpy as np
 
+from _results import add_save_option, saved_output
+
 
 def _median(fn, n):
     ts = []
@@ -64,6 +66,7 @@ def main():
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--element", choices=("p1", "p2"), default="p1")
     ap.add_argument("--grip-size", type=float, default=0.0)
+    add_save_option(ap)
     a = ap.parse_args()
     from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
     from metasheet.robot.builder import SheetPair, six_dof_robot
@@ -128,12 +131,13 @@ def main():
         rows.append(("peer: scikit-fem assembly (linear, same mesh)", peer, f"ours/peer = {t_ft / peer:.3f}"))
     except Exception as exc:  # pragma: no cover
         rows.append(("peer: scikit-fem", float("nan"), f"failed: {exc}"))
-    print(f"6-DOF robot ({a.element}, mesh {a.mesh_size:g} mm, grip {a.grip_size:g} mm): {rob.info['n_tets']} tets ({rob.info['n_tets_per_sheet']} per sheet), "
-          f"{rob.body.n_nodes} nodes, {3 * len(rob.coupling.free)} free DOFs; BLAS: {_blas()}; "
-          f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; solvers: {', '.join(solvers)}")
-    print(f"{'case':52s} {'median [ms]':>12s}  notes")
-    for name, t, note in rows:
-        print(f"{name:52s} {1e3 * t:12.2f}  {note}")
+    with saved_output(__file__, a.save, fenced=True):
+        print(f"6-DOF robot ({a.element}, mesh {a.mesh_size:g} mm, grip {a.grip_size:g} mm): {rob.info['n_tets']} tets ({rob.info['n_tets_per_sheet']} per sheet), "
+              f"{rob.body.n_nodes} nodes, {3 * len(rob.coupling.free)} free DOFs; BLAS: {_blas()}; "
+              f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; solvers: {', '.join(solvers)}")
+        print(f"{'case':52s} {'median [ms]':>12s}  notes")
+        for name, t, note in rows:
+            print(f"{name:52s} {1e3 * t:12.2f}  {note}")
 
 
 if __name__ == "__main__":

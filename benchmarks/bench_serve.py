@@ -49,6 +49,8 @@ from metasheet.robot.inverse import InverseSettings  # noqa: E402
 from metasheet.serve.loading import find_outputs, load_robot  # noqa: E402
 from metasheet.serve.session import LIVE_SETTINGS, Session  # noqa: E402
 
+from _results import add_save_option, saved_output
+
 PERIOD = 2.0  # [s] of each drag's cycle
 DRAGS = {
     "translate": lambda t: np.array([0.0, 3.0 * np.sin(2 * np.pi * t / PERIOD),
@@ -125,6 +127,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--browser", action="store_true", help="keep the page open in headless chromium")
     ap.add_argument("--scale", type=float, default=1.0, help="amplitude factor of every drag")
+    add_save_option(ap)
     args = ap.parse_args()
 
     import viser
@@ -160,26 +163,27 @@ def main() -> None:
             page.close()
             session.stop()
             server.stop()
-    print(f"\nmetasheet serve, {outputs.directory}")
-    for model in models:
-        print(f"  {model}: {info[model].description}")
-    print(f"drags of {args.seconds:g} s at amplitude x {args.scale:g}, goal events at 60 Hz, medians of "
-          f"{args.repeats} run(s); browser connected: {args.browser}; "
-          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
-    med = {k: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for k, rs in runs.items()}
-    keys = list(next(iter(med.values())))
-    print("| drag | settings | model | " + " | ".join(keys) + " |")
-    print("|---|---|---|" + "---|" * len(keys))
-    for (drag, name, model), r in med.items():
-        print(f"| {drag} | {name} | {model} | " + " | ".join(_cell(k, r[k]) for k in keys) + " |")
-    if len(models) == 2:
-        print("\n| drag | settings | updates/s reduced / full | steps/s reduced / full | step ms median full / reduced |")
-        print("|---|---|---|---|---|")
-        for drag in DRAGS:
-            for name in names:
-                f, r = med[drag, name, "full"], med[drag, name, "reduced"]
-                print(f"| {drag} | {name} | {r['updates/s'] / f['updates/s']:.2f} | {r['steps/s'] / f['steps/s']:.2f} "
-                      f"| {f['step ms median'] / r['step ms median']:.1f} |")
+    with saved_output(__file__, args.save):
+        print(f"\nmetasheet serve, {outputs.directory}")
+        for model in models:
+            print(f"  {model}: {info[model].description}")
+        print(f"drags of {args.seconds:g} s at amplitude x {args.scale:g}, goal events at 60 Hz, medians of "
+              f"{args.repeats} run(s); browser connected: {args.browser}; "
+              f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}\n")
+        med = {k: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for k, rs in runs.items()}
+        keys = list(next(iter(med.values())))
+        print("| drag | settings | model | " + " | ".join(keys) + " |")
+        print("|---|---|---|" + "---|" * len(keys))
+        for (drag, name, model), r in med.items():
+            print(f"| {drag} | {name} | {model} | " + " | ".join(_cell(k, r[k]) for k in keys) + " |")
+        if len(models) == 2:
+            print("\n| drag | settings | updates/s reduced / full | steps/s reduced / full | step ms median full / reduced |")
+            print("|---|---|---|---|---|")
+            for drag in DRAGS:
+                for name in names:
+                    f, r = med[drag, name, "full"], med[drag, name, "reduced"]
+                    print(f"| {drag} | {name} | {r['updates/s'] / f['updates/s']:.2f} | {r['steps/s'] / f['steps/s']:.2f} "
+                          f"| {f['step ms median'] / r['step ms median']:.1f} |")
 
 
 if __name__ == "__main__":

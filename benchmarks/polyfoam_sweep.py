@@ -25,6 +25,8 @@ import numpy as np
 from metasheet.cells.design import design_cell, parse_design
 from metasheet.homogenize.voxels import homogenize_voxels
 
+from _results import add_save_option, saved_output
+
 ROOT = Path(__file__).resolve().parents[1]
 E_S = 12.0
 PAPER = {"E_t": 1.39, "E_l": 0.0942, "nu_t": 0.262, "nu_tl": 0.416, "mu_l": 0.0163}
@@ -69,25 +71,27 @@ def main() -> None:
     ap.add_argument("--shrink", type=float, nargs="+", default=[0.2, 1.0])
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--max-voxels", type=int, default=8_000_000)
+    add_save_option(ap)
     a = ap.parse_args()
-    print(HEADER, flush=True)
-    if a.only in (None, "paper"):
-        for v in a.voxel:
-            print(row("paper", 15.0, 0.2, v, a.count, a.seed, a.max_voxels), flush=True)
-    if a.only in (None, "sweep"):
-        for s in a.shrink:
-            for p in a.infill:
-                print(row("sweep", p, s, a.sweep_voxel, a.sweep_count, a.seed, a.max_voxels), flush=True)
-    if a.only in (None, "variants"):  # candidate physical differences, on the sweep's settings
-        for variant in VARIANTS:
+    with saved_output(__file__, a.save, fenced=True):
+        print(HEADER, flush=True)
+        if a.only in (None, "paper"):
+            for v in a.voxel:
+                print(row("paper", 15.0, 0.2, v, a.count, a.seed, a.max_voxels), flush=True)
+        if a.only in (None, "sweep"):
             for s in a.shrink:
-                print(row(variant, a.infill[-1], s, a.sweep_voxel, a.sweep_count, a.seed, a.max_voxels, variant),
-                      flush=True)
-    print("\npaper (rho 0.15): " + ", ".join(f"{k} {v:g}" for k, v in PAPER.items()) + " MPa")
-    print("authors, transverse foam: E_y,z / E_s ~ 0.98 rho^1.1, E_x / E_s ~ 0.007-0.011")
-    print("authors, isotropic foam:  E / E_s ~ 0.50 rho^1.24, nu 0.22-0.29")
-    for rho in (0.09, 0.15, 0.18, 0.26, 0.34):
-        print(f"  rho {rho:.2f}: 0.98 rho^1.1 = {0.98 * rho**1.1:.4f}, 0.50 rho^1.24 = {0.50 * rho**1.24:.4f}")
+                for p in a.infill:
+                    print(row("sweep", p, s, a.sweep_voxel, a.sweep_count, a.seed, a.max_voxels), flush=True)
+        if a.only in (None, "variants"):  # candidate physical differences, on the sweep's settings
+            for variant in VARIANTS:
+                for s in a.shrink:
+                    print(row(variant, a.infill[-1], s, a.sweep_voxel, a.sweep_count, a.seed, a.max_voxels, variant),
+                          flush=True)
+        print("\npaper (rho 0.15): " + ", ".join(f"{k} {v:g}" for k, v in PAPER.items()) + " MPa")
+        print("authors, transverse foam: E_y,z / E_s ~ 0.98 rho^1.1, E_x / E_s ~ 0.007-0.011")
+        print("authors, isotropic foam:  E / E_s ~ 0.50 rho^1.24, nu 0.22-0.29")
+        for rho in (0.09, 0.15, 0.18, 0.26, 0.34):
+            print(f"  rho {rho:.2f}: 0.98 rho^1.1 = {0.98 * rho**1.1:.4f}, 0.50 rho^1.24 = {0.50 * rho**1.24:.4f}")
 
 
 if __name__ == "__main__":

@@ -21,11 +21,7 @@ Anything else is a bug and keeps its traceback.
 
 from __future__ import annotations
 
-import contextlib
-import os
-import signal
 import sys
-import threading
 import traceback
 from pathlib import Path
 from typing import Annotated, Optional
@@ -43,17 +39,29 @@ from rich.table import Table
 from rich.text import Text
 
 from .errors import MetasheetError
-from .goto import format_result, goto_robot, parse_pose, pipeline_robot, pose_text
+from .goto import format_result, goto_robot, parse_pose, pipeline_robot, pose_text, stall_text
+from .stop_signals import Stopped, exit_now, stop_on_signals
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
 # panels that wrap long messages); pretty_exceptions off: a bug prints a plain traceback.
 _TYPER = dict(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False)
+#: Where each command is documented: the site's CLI page (``mkdocs serve`` shows it), one
+#: section per command.
+DOCS_PAGE = "docs/cli.md"
+
+
+def docs(command: str) -> str:
+    """The ``--help`` epilog pointing at ``command``'s section of the documentation."""
+    return f"Documentation: {DOCS_PAGE}#{command.replace(' ', '-')} (browse the site: mkdocs serve)"
+
+
 app = typer.Typer(
     help="metasheet: soft robots from 3D-printed anisotropic foam, cell to controller.",
+    epilog=docs("metasheet"),
     no_args_is_help=True,
     **_TYPER,
 )
-robot_app = typer.Typer(help="Drive the robot model.", no_args_is_help=True, **_TYPER)
+robot_app = typer.Typer(help="Drive the robot model.", epilog=docs("robot"), no_args_is_help=True, **_TYPER)
 app.add_typer(robot_app, name="robot")
 # markup=False, highlight=False, emoji=False: a string prints as given
 console = Console(stderr=True, markup=False, highlight=False, emoji=False)
@@ -84,9 +92,19 @@ def _table(title: str, columns, rows) -> Table:
 @app.callback()
 def _options(
     debug: Annotated[bool, typer.Option("--debug", help="show the traceback of an error")] = False,
+    version: Annotated[bool, typer.Option("--version", is_eager=True, callback=lambda v: _print_version(v),
+                                          help="print the version and exit")] = False,
 ) -> None:
     """metasheet: soft robots from 3D-printed anisotropic foam, cell to controller."""
     _STATE["debug"] = _STATE["debug"] or debug
+
+
+def _print_version(asked: bool) -> None:
+    if asked:
+        from . import __version__
+
+        say(f"metasheet {__version__}", err=False)
+        raise typer.Exit()
 
 
 def _progress_factory(progress: Progress):
@@ -138,7 +156,7 @@ def _reporter(target: Console):
     return report
 
 
-@app.command()
+@app.command(epilog=docs("run"))
 def run(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
     stage: Annotated[Optional[str], typer.Option("--stage", help="run only this stage (and what it needs)")] = None,
@@ -175,7 +193,7 @@ def run(
                           o.directory) for o in outcomes]))
 
 
-@app.command()
+@app.command(epilog=docs("clean"))
 def clean(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
     everything: Annotated[bool, typer.Option("--all", help="also remove every stage's outputs")] = False,
@@ -192,7 +210,7 @@ def clean(
     say(f"{p.name}: removed {len(removed)} item(s)" if removed else f"{p.name}: nothing to remove", err=False)
 
 
-@app.command("stages")
+@app.command("stages", epilog=docs("stages"))
 def list_stages() -> None:
     """List the stages, what they read and what they write."""
     from .pipeline.registry import stages
@@ -202,7 +220,7 @@ def list_stages() -> None:
     stdout.print(_table("metasheet stages", ("stage", "reads", "writes", "what"), rows))
 
 
-@app.command()
+@app.command(epilog=docs("validate"))
 def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")]) -> None:
     """Check a pipeline file without running it (fields, stages, files it names)."""
     from .pipeline.config import load_pipeline
@@ -211,7 +229,7 @@ def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")
     say(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}", err=False)
 
 
-@app.command()
+@app.command(epilog=docs("diff"))
 def diff(
     a: Annotated[Path, typer.Argument(help="an output directory (e.g. outputs/quick)")],
     b: Annotated[Path, typer.Argument(help="the output directory to compare it with")],
@@ -246,7 +264,7 @@ def diff(
         raise typer.Exit(1)
 
 
-@robot_app.command("goto")
+@robot_app.command("goto", epilog=docs("robot goto"))
 def robot_goto(
     pose: Annotated[list[str], typer.Argument(
         metavar="POSE", help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
@@ -290,13 +308,15 @@ def robot_goto(
     say(f"model: {used}" + (f" ({note})" if note else ""), err=False)
     say(format_result(res), err=False)
     if not res.reached:
+        why = stall_text(robot, res)
+        say(why, err=False)
         raise UnreachableError(
             f"goal not reached ({res.status}): remaining error {res.pos_error:.3f} mm, {res.rot_error:.3f} deg; "
-            f"closest pose {pose_text(res.pose)}"
+            f"closest pose {pose_text(res.pose)}; " + why.splitlines()[0]
         )
 
 
-@app.command()
+@app.command(epilog=docs("serve"))
 def serve(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file whose robot to drive, e.g. pipelines/quick.toml")],
     host: Annotated[str, typer.Option("--host", help="address to serve on (127.0.0.1: this machine only)")] = "127.0.0.1",
@@ -339,33 +359,15 @@ def _pop_debug(args: list[str]) -> bool:
     return found
 
 
-#: The signals that stop a command as Ctrl-C does: it unwinds (the run's workers killed, its
-#: temporary folders removed, the lock released) and exits with 128 + the signal.
-STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
-
-
-class _Stopped(SystemExit):
-    """Raised in the main thread by a stop signal; its code is 128 + the signal."""
-
-
-def _stop(signum, frame):
-    if _STATE.get("stopping"):  # the first one is unwinding: let it finish
-        return
-    _STATE["stopping"] = signum
-    raise _Stopped(128 + signum)
-
-
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
     args = list(sys.argv[1:] if argv is None else argv)
     _STATE["debug"] = _pop_debug(args)
-    _STATE["stopping"] = 0
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = {s: signal.signal(s, _stop) for s in STOP_SIGNALS} if in_main else {}
     try:
-        app(args=args, prog_name="metasheet")
-    except _Stopped as stop:
-        _exit_stopped(stop.code)
+        with stop_on_signals():
+            app(args=args, prog_name="metasheet")
+    except Stopped as stop:
+        exit_now(stop.code, lambda text: say(text, prefix="interrupted: "))
     except MetasheetError as err:
         if _STATE["debug"]:
             traceback.print_exc()
@@ -377,20 +379,6 @@ def main(argv: list[str] | None = None) -> None:
         where = f"{err.filename}: " if err.filename else ""
         say(f"{where}{err.strerror or err}", prefix="error: ", style="bold red")
         sys.exit(2)
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-
-
-def _exit_stopped(code: int) -> None:
-    """Say so and end the process now: a stage thread still computing in this process (its
-    temporary folder already removed) or a server's solver thread must not keep it alive."""
-    name = signal.Signals(code - 128).name
-    say(f"stopped by {name}", prefix="interrupted: ")
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    os._exit(code)
 
 
 if __name__ == "__main__":

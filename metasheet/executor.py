@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .errors import ConfigError
-from .priority_pool import PriorityPool
+from .priority_pool import PriorityPool, kill_workers
 
 
 def _noop(done: int, total: int) -> None:
@@ -249,21 +249,6 @@ def _exit_with_parent(parent: int) -> None:
     while os.getppid() == parent:
         time.sleep(PARENT_CHECK_S)
     os._exit(1)
-
-
-def kill_workers(pool: ProcessPoolExecutor, grace: float = 5.0) -> None:
-    """Terminate ``pool``'s worker processes now (their running units are lost) and shut it
-    down without waiting for them; a worker still alive ``grace`` seconds later is killed."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    for p in processes:
-        with contextlib.suppress(Exception):
-            p.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in processes:
-        with contextlib.suppress(Exception):
-            p.join(grace)
-            if p.is_alive():
-                p.kill()
 
 
 def _pool(workers: int, threads: int) -> ProcessPoolExecutor:

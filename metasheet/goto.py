@@ -36,7 +36,7 @@ def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, material_mode
         from .pipeline.artefacts import read_orient
 
         return six_dof_robot(read_orient(Path(orient)).sheets(), density=paper.FOAM_DENSITY, model=material_model)
-    from .sheet.geometry import SheetParams
+    from .sheet.outline import SheetParams
 
     return six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=mesh_size)), paper.PAPER_FOAM,
                          density=paper.FOAM_DENSITY, model=material_model)
@@ -106,3 +106,11 @@ def parse_pose(values: list[str]) -> list[float]:
             raise ConfigError(f"pose component {i} of 6 ({name}): {text!r}: allowed range is [{-bound:g}, {bound:g}]")
         pose.append(v)
     return pose
+
+
+def stall_text(robot, res) -> str:
+    """``limited by: ...`` lines naming why ``res`` (an unreached goal) stopped, the primary
+    cause first (:func:`metasheet.robot.stall.diagnose`)."""
+    from .robot.stall import diagnose
+
+    return "\n".join(f"limited by: {line}" for line in diagnose(robot, res).text().splitlines())

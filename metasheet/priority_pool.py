@@ -7,11 +7,13 @@ downstream needs, held the workers while the reduce stage, which every study wai
 queued behind it. Here the pool runs exactly ``slots`` units at a time (one per worker) and,
 when one finishes, starts the waiting unit of lowest priority number (the stage's place in
 the pipeline), first come first within a priority. A stage with nothing to run leaves the
-workers to the next.
+workers to the next. :func:`kill_workers` stops a pool's workers at once (an interrupted run,
+here and in :mod:`metasheet.executor`'s own pools).
 """
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import itertools
 import threading
@@ -69,8 +71,6 @@ class PriorityPool:
     def shutdown(self, *, kill: bool = False) -> None:
         """Cancel the waiting units and shut the pool down: waiting for the running ones, or
         with ``kill`` terminating its workers at once (an interrupted run)."""
-        from .executor import kill_workers
-
         with self._lock:
             waiting, self._waiting = self._waiting, []
         for *_, future in waiting:
@@ -79,3 +79,18 @@ class PriorityPool:
             kill_workers(self.pool)
         else:
             self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def kill_workers(pool: ProcessPoolExecutor, grace: float = 5.0) -> None:
+    """Terminate ``pool``'s worker processes now (their running units are lost) and shut it
+    down without waiting for them; a worker still alive ``grace`` seconds later is killed."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.join(grace)
+            if p.is_alive():
+                p.kill()

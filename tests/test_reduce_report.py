@@ -1,6 +1,6 @@
 """The report's section on the reduced model: the certificate's numbers as reduce.json has them."""
 
-from metasheet.robot.rom_certificate import Comparison, summarize
+from metasheet.rom.certificate import Comparison, summarize
 from metasheet.studies.report import build_report
 from metasheet.studies.reduce_report import reduce_section
 
@@ -38,7 +38,7 @@ def test_the_surface_has_its_own_certificate_and_difference():
     import numpy as np
     import pytest
 
-    from metasheet.robot.rom_certificate import surface_check
+    from metasheet.rom.certificate import surface_check
 
     rows = [Comparison((0.0,), 0.01, 0.004, 0.011, 0.02, 0.2)]
     red = _reduce_json(rows)

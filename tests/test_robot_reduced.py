@@ -12,14 +12,15 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError, ConvergenceError
-from metasheet.robot.ecsw import ecsw
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
 from metasheet.robot.kinematics import kinematics
-from metasheet.robot.reduced import ReducedBasis, ReducedRobot, robot_key
-from metasheet.robot.rom_basis import add_sensitivities, nodal_error, pod_basis
-from metasheet.robot.rom_certificate import TARGETS, Comparison, held_out_angles, summarize
-from metasheet.robot.rom_training import motor_design, sensitivity, static_modes, train
+from metasheet.rom.basis import add_sensitivities, nodal_error, pod_basis
+from metasheet.rom.certificate import TARGETS, Comparison, held_out_angles, summarize
+from metasheet.rom.coordinates import ReducedBasis, robot_key
+from metasheet.rom.ecsw import ecsw
+from metasheet.rom.model import ReducedRobot
+from metasheet.rom.training import motor_design, sensitivity, static_modes, train
 from metasheet.studies.adapter import paper_robot_spec
 
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConvergenceError
-from metasheet.robot.equilibrium import residual_floor, solve_equilibrium
-from metasheet.robot.statics import Linearization, RobotState
+from metasheet.robot.equilibrium import solve_equilibrium
+from metasheet.robot.statics import Linearization, RobotState, residual_floor
 
 MOVE_DEG = np.array([3.0, -2.0, 4.0, 1.0, -3.0, 2.0])  # a few degrees on each motor
 

@@ -10,10 +10,10 @@ import pytest
 from metasheet.errors import ConfigError
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.kinematics import jacobian_from_schur
-from metasheet.robot.rom_surface import (EquilibriumData, choose_degree, errors, exponents, fit_surface,
-                                         left_jacobian, monomials)
-from metasheet.robot.rom_surface_robot import SurfaceRobot, equilibrium_data
 from metasheet.robot.equilibrium import solve_equilibrium
+from metasheet.rom.surface import (EquilibriumData, choose_degree, errors, exponents, fit_surface,
+                                   left_jacobian, monomials)
+from metasheet.rom.surface_robot import SurfaceRobot, equilibrium_data
 from metasheet.rotations import rotation_matrix, rotation_vector
 
 NA = 3
@@ -51,7 +51,7 @@ def _data(angles):
 
 
 def _sobol(n, seed):
-    from metasheet.robot.rom_training import motor_design
+    from metasheet.rom.training import motor_design
 
     return motor_design(LO, HI, n, seed, corners=False)
 
@@ -165,7 +165,7 @@ def test_fitted_on_a_coarse_robot_it_matches_the_robot_on_unseen_angles():
     equilibria far below the certificate's targets (0.1 mm, 0.1 deg, 2 %)."""
     from metasheet import paper
     from metasheet.robot.builder import SheetPair, six_dof_robot
-    from metasheet.robot.rom_training import motor_design
+    from metasheet.rom.training import motor_design
     from metasheet.sheet.geometry import SheetParams
 
     rob = six_dof_robot(SheetPair.spiral(SheetParams(mesh_size=14)), paper.PAPER_FOAM, density=paper.FOAM_DENSITY)

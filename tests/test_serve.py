@@ -202,6 +202,8 @@ def test_an_unreachable_goal_shows_the_closest_pose(session):
     snap = session.wait_idle(60)
     assert snap.status == "unreachable" and "unreachable" in snap.message and "closest pose" in snap.message
     assert snap.pos_error + snap.rot_error > 1.0
+    causes = ("motors at their stroke", "near-singular Jacobian", "the equilibrium solver", "the step rule")
+    assert "limited by " in snap.message and any(c in snap.message for c in causes)  # why, as goto says
     # the closest pose pulls the sheets far beyond their strain limit, where the loop may not
     # find its way back (the model's, not the page's: goto from there stalls too); the reset
     # button's forward solve brings the robot back, and the worker is alive

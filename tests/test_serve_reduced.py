@@ -17,7 +17,8 @@ import pytest
 from metasheet.errors import ConfigError
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
-from metasheet.robot.reduced import ReducedRobot, robot_key
+from metasheet.rom.coordinates import robot_key
+from metasheet.rom.model import ReducedRobot
 from metasheet.serve.loading import find_outputs, load_robot
 from metasheet.serve.models import OUTSIDE_BOX
 from metasheet.serve.panel import status_markdown

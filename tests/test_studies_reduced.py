@@ -27,7 +27,7 @@ LOG = "metasheet.studies.reduced_adapter"
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     from metasheet.robot.equilibrium import solve_equilibrium
-    from metasheet.robot.rom_training import motor_design, train
+    from metasheet.rom.training import motor_design, train
 
     spec = paper_robot_spec(mesh_size=16.0)
     fem = FemRobot(spec)

@@ -35,7 +35,8 @@ from ..material import CONSTANT_NAMES, TransverseIsotropic
 from ..material_model import authors_effective, check_model, model_stiffness
 from ..robot.builder import SheetPair
 from ..robot.scenes import RobotScene  # noqa: F401  (the robot stage's scene; read_robot_scene returns it)
-from ..sheet.geometry import SheetMesh, SheetParams
+from ..sheet.geometry import SheetMesh
+from ..sheet.outline import SheetParams
 from .manifest import read_manifest, write_json_atomic
 
 SHEET_FILES = {"normal": "sheet.vtu", "mirrored": "sheet_mirrored.vtu"}

@@ -156,16 +156,25 @@ def is_fresh(directory: Path, key: str) -> bool:
 
 
 def write_json_atomic(path: Path, obj: Any) -> None:
-    """Write JSON to a temporary name, flush it to disk, then rename it into place.
+    """Write JSON with :func:`write_bytes_atomic`: ``path`` holds the old content or the new
+    one, never a part."""
+    text = json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n"
+    write_bytes_atomic(path, text.encode())
+
+
+def write_bytes_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary name, flush it to disk, then rename it into place; the
+    folder is made if missing.
 
     A failed write (a full disk, say) removes the temporary file and re-raises: ``path``
     holds the old content or the new one, never a part.
     """
-    text = json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n"
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with open(tmp, "w") as fh:
-            fh.write(text)
+        with open(tmp, "wb") as fh:
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)

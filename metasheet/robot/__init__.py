@@ -14,7 +14,7 @@ _PUBLIC = {
     "SheetPair": "builder", "six_dof_robot": "builder",
     "RobotState": "statics", "Equilibrium": "equilibrium", "Linearizer": "statics", "solve_equilibrium": "equilibrium",
     "Kinematics": "kinematics", "kinematics": "kinematics",
-    "InverseController": "inverse", "InverseSettings": "inverse", "InverseResult": "inverse",
+    "InverseController": "inverse", "InverseSettings": "inverse_settings", "InverseResult": "inverse",
     "QPStep": "qp", "solve_step_qp": "qp", "TangentCache": "tangent",
     "MaterialCase": "compare", "evaluate": "compare",
 }

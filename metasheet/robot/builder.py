@@ -20,7 +20,8 @@ from ..errors import ConfigError
 from ..material import Isotropic, TransverseIsotropic
 from ..material_model import check_model, model_stiffness
 from ..sheet.elements import as_element, check_element
-from ..sheet.geometry import SheetMesh, SheetParams
+from ..sheet.geometry import SheetMesh
+from ..sheet.outline import SheetParams
 from ..voigt import stiffness_along
 from .robots import Robot, ServoGeometry, six_dof
 

@@ -38,7 +38,7 @@ FIGURES = ("singular_values", "rod_rotation_deg_per_deg", "rod_compliance_mm_per
 class Level:
     """One mesh of the sequence: element "p1" | "p2", size [mm], layers through the thickness
     (0: free mesh) and size at the grip borders [mm] (0: uniform), as in
-    :class:`~metasheet.sheet.geometry.SheetParams`."""
+    :class:`~metasheet.sheet.outline.SheetParams`."""
 
     element: str
     mesh_size: float

@@ -3,7 +3,7 @@
 Each Newton step is the linearisation's (:class:`.statics.Linearization`); the line search
 backtracks on the reduced residual's norm, or accepts a step along which the residual's
 projection has dropped (:func:`slope`); motor motions are taken in increments, halved when
-one fails; the solve stops at the residual's round-off floor (:func:`residual_floor`).
+one fails; the solve stops at the residual's round-off floor (:func:`.statics.residual_floor`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ class Equilibrium:
     residuals : reduced residual norm [N] before each iteration and at the end.
     reference : force scale the relative tolerance refers to [N].
     time : wall time [s].
-    floor : round-off floor [N] of the reduced residual at ``state`` (:func:`residual_floor`).
+    floor : round-off floor [N] of the reduced residual at ``state`` (:func:`.statics.residual_floor`).
     at_floor : True when ``tol`` asked for less than round-off allows and the solve stopped
         where Newton stalls, at a residual ``residuals[-1] <= floor``, instead of at
         ``tol * reference``; False when the tolerance itself was met.
@@ -52,57 +52,10 @@ class Equilibrium:
         return float(self.residuals[-1])
 
 
-
-
 def slope(lin: Linearization, dq_e, dx_f) -> float:
     """The reduced residual at ``lin`` projected on the step (dq_e, dx_f): the work [N mm] the
     residual forces and moments do along it (negative along an exact Newton step)."""
     return float(dq_e @ lin.res_e + dx_f @ lin.res_f)
-
-
-
-
-def force_scale(robot, lin: Linearization) -> float:
-    """Force scale [N] the equilibrium tolerances are relative to: the norm of the forces on
-    the rigid nodes plus that of the external loads (gravity) at ``lin``'s state."""
-    f = lin.r + robot.f_ext
-    return float(np.linalg.norm(f[robot.coupling.rigid_nodes]) + np.linalg.norm(robot.f_ext))
-
-
-def residual_floor(robot, lin: Linearization) -> float:
-    """Round-off floor [N] of the reduced residual norm (:attr:`Linearization.residual_norm`)
-    at ``lin``'s state: no residual below it can be told from zero, and Newton stalls there.
-
-    Each entry of the internal force carries an error of order ``eps |K_e| |x|``: the element
-    force ``R K_e (R^T x_e - X_e)`` (:mod:`.kernels`; at a quadrature point, the strain from
-    ``F = sum_a x_a g_a^T``) cancels positions of size ``|x|`` [mm] down to a displacement,
-    and the positions themselves are only known to ``eps |x|``. It is not ``eps`` times the
-    forces: at the light foam robot's equilibria (nodal forces <= 0.64 N) the residual stalls
-    at 2e-12 N, and one-ulp changes of the free positions move it by 5e-12 N, a thousand times
-    ``eps |f|_max sqrt(dofs)`` = 6e-15 N. With the body's per-entry bound
-    ``delta = 10 eps |K_e|_max max|x|`` (``|K_e|_max`` the body's ``stiffness_scale``; as
-    :attr:`~.body.ElasticBody.force_floor`, but at the current positions) and errors summing
-    in quadrature, the reduced residual ``[J_e^T r ; r_f]`` has 3 n_f free entries, 3 n_e in
-    the effector's force sum and 3 n_e in its moment divided by ``moment_scale`` (the rms
-    lever arm, so these count about once each):
-
-        floor = delta sqrt(3 n_f + 6 n_e) + eps (sum_i |r_i| + sum_i |a_i| |r_i| / L)
-
-    the last term the round-off of summing the effector nodes' (large, cancelling) forces
-    r_i and moments about the reference point, a_i = x_i - p, L = ``moment_scale`` [mm].
-    On the foam robot this is 9e-11 N, some 40 times the stall level measured above.
-    """
-    c = robot.coupling
-    eps = np.finfo(float).eps
-    body = robot.body
-    k = getattr(body, "stiffness_scale", None)  # [N/mm]; P1-only bodies carry K_e instead
-    k = float(np.abs(body.Ke).max()) if k is None else float(k)
-    delta = 10 * eps * k * float(np.abs(lin.state.x).max())  # [N]
-    e = c.effector_nodes
-    r_e = np.linalg.norm(lin.r[e], axis=1)  # [N]
-    a_e = np.linalg.norm(lin.state.x[e] - lin.state.p, axis=1)  # [mm]
-    summed = eps * float(r_e.sum() + (a_e * r_e).sum() / lin.moment_scale)
-    return float(delta * np.sqrt(3 * len(c.free) + 6 * len(e)) + summed)
 
 
 def solve_equilibrium(robot, angles, *, state=None, max_angle_step: float = np.radians(10.0),
@@ -167,7 +120,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
     last are converged to ``max(tol, path_tol)`` only (:data:`PATH_TOL`), the last to ``tol``.
     Converged when the reduced residual is below ``tol`` times the force scale (forces on
     the rigid nodes plus the external loads); when that scale is itself below the residual's
-    round-off floor (:func:`residual_floor`; no loads, no motion), below the floor:
+    round-off floor (:func:`.statics.residual_floor`; no loads, no motion), below the floor:
     an unloaded rest state is an equilibrium as it stands, whatever BLAS evaluated its forces.
     The test is on the true residual, whatever tangent was used.
 
@@ -179,7 +132,7 @@ def solve_increments(robot, angles, *, state=None, tol: float = 1e-8, max_iter: 
 
     ``exact_tangent=False`` starts each increment, and its predictor, on the linearizer's
     inexact tangent (``linearize(state, exact=False)``: the reduced model's nearest stored
-    one, :mod:`.rom_tangents`), and takes an exact one only when a chord step cuts the
+    one, :mod:`metasheet.rom.tangents`), and takes an exact one only when a chord step cuts the
     residual by less than ``reuse_ratio`` or the line search fails on it.
 
     Raises :class:`ConvergenceError` (with the residual history) when an increment fails

@@ -48,7 +48,7 @@ certifying (a Newton solve) only to step on cost ~3 s a time on the paper robot.
 
 The reported pose is always an equilibrium at the final motor angles within a stated
 residual tolerance: the reduced residual (the norm of :attr:`.statics.Linearization.
-residual_norm`) at most ``eq_tol`` times the force scale of :func:`.equilibrium.force_scale`.
+residual_norm`) at most ``eq_tol`` times the force scale of :func:`.statics.force_scale`.
 :meth:`InverseController.certify` gets there with the loop's own kept tangent: chord
 (modified-Newton) corrections at fixed motor angles, each judged on the true residual, at
 most ``polish_iters`` of them (a few ms each), and only when they fail with the full Newton
@@ -64,7 +64,8 @@ state produced by this controller (a control step or a certification; the last
 tangent: the refresh tests above (angle moved since the tangent, residual, drift) still
 run on it. Any other state set from outside forces a fresh linearisation.
 
-Settings: :attr:`InverseController.settings` are the defaults of every call; ``goto``,
+Settings (:class:`.inverse_settings.InverseSettings`, with the defaults named above):
+:attr:`InverseController.settings` are the defaults of every call; ``goto``,
 ``step`` and ``certify`` take a per-call ``settings`` override (a study's tolerances for one
 goal) that leaves the controller's own unchanged.
 """
@@ -76,62 +77,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, ConvergenceError, check_range
-from ..fem.solvers import resolve
+from ..errors import ConfigError, ConvergenceError
 from ..rotations import rotation_matrix, rotation_vector
-from .qp import SOLVERS as QP_SOLVERS
+from .equilibrium import solve_equilibrium
+from .inverse_settings import InverseSettings
 from .qp import QPStep, pose_error, solve_step_qp, weighted_norm
 from .statics import Linearizer, RobotState
-from .equilibrium import solve_equilibrium
 from .tangent import TangentCache
-
-
-@dataclass(frozen=True)
-class InverseSettings:
-    """Settings of the inverse loop (units in brackets).
-
-    ``solver``: the QP solver (:data:`.qp.SOLVERS`); ``linear_solver``: the sparse one
-    (:data:`metasheet.fem.solvers.FACTOR_SOLVERS`: "superlu", "cholmod", "auto").
-    """
-
-    rot_weight: float = 50.0  # [mm/rad]
-    regularization: float = 1e-6  # [-], relative to the largest eigenvalue of J^T D^2 J
-    max_step_deg: float = 5.0  # [deg] per motor and control step
-    pos_tol: float = 0.1  # [mm]
-    rot_tol_deg: float = 0.2  # [deg]
-    max_steps: int = 200
-    stall_steps: int = 15
-    solver: str = "daqp"
-    refactor_every: int = 20  # 1: a fresh tangent + factor every step; n: keep them <= n steps
-    chord_tol: float = 1.0  # [-] refresh a kept tangent when residual > chord_tol * force scale
-    refresh_angle_deg: float = 8.0  # [deg] refresh when a motor moved this far since the tangent
-    drift_tol: float = 0.5  # [-] refresh when the pending correction |dq_e0| > drift_tol * pos_tol
-    linear_solver: str = "superlu"  # "cholmod" / "auto" (CHOLMOD if installed): slower here, see above
-    eq_tol: float = 1e-5  # [-] reported pose: residual <= eq_tol * force scale (see the module doc)
-    polish_iters: int = 20  # corrections tried before the full Newton solve certifies instead
-    # a kept tangent must cut the residual by this factor per correction, else a fresh one; a
-    # fresh tangent costs ~20 chord corrections on the paper's mesh (~200 vs ~9 ms), so slow
-    # chord contraction (0.4-0.6 on a tangent a few steps old) is still the cheaper way
-    polish_rate: float = 0.7
-
-    def __post_init__(self):
-        check_range("rot_weight", self.rot_weight, 0.0, None, lo_open=True)
-        check_range("regularization", self.regularization, 0.0, 1.0)
-        check_range("max_step_deg", self.max_step_deg, 0.0, 90.0, lo_open=True)
-        check_range("pos_tol", self.pos_tol, 0.0, None, lo_open=True)
-        check_range("rot_tol_deg", self.rot_tol_deg, 0.0, None, lo_open=True)
-        check_range("max_steps", self.max_steps, 1, 100000)
-        check_range("stall_steps", self.stall_steps, 1, 100000)
-        check_range("refactor_every", self.refactor_every, 1, 1000)
-        check_range("chord_tol", self.chord_tol, 0.0, 10.0, lo_open=True)
-        check_range("refresh_angle_deg", self.refresh_angle_deg, 0.0, 90.0, lo_open=True)
-        check_range("drift_tol", self.drift_tol, 0.0, 100.0, lo_open=True)
-        check_range("eq_tol", self.eq_tol, 0.0, 1e-2, lo_open=True)
-        check_range("polish_iters", self.polish_iters, 0, 1000)
-        check_range("polish_rate", self.polish_rate, 0.0, 1.0, lo_open=True, hi_open=True)
-        resolve(self.linear_solver)  # ConfigError naming linear_solver if unknown / not installed
-        if self.solver not in QP_SOLVERS:
-            raise ConfigError(f"solver: {self.solver!r}: allowed {QP_SOLVERS}")
 
 
 @dataclass(frozen=True)

@@ -19,17 +19,32 @@ its diagnostics (status, residuals, objective), as qpsolvers' ``Solution`` does.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import qpsolvers
 
 from ..rotations import rotation_vector
 
-if TYPE_CHECKING:  # the loop's settings (only rot_weight, regularization, max_step_deg, solver are read)
-    from .inverse import InverseSettings
-
 SOLVERS = ("daqp", "quadprog", "proxqp")  # dense QP solvers (through qpsolvers)
+
+
+class StepSettings(Protocol):
+    """What :func:`solve_step_qp` reads of its settings. The control loop passes its
+    :class:`.inverse_settings.InverseSettings`; naming only these four here keeps this module
+    below the loop and its settings (both import the QP, never the other way round)."""
+
+    @property
+    def rot_weight(self) -> float: ...  # [mm/rad]
+
+    @property
+    def regularization(self) -> float: ...  # [-], relative to the largest eigenvalue of J^T D^2 J
+
+    @property
+    def max_step_deg(self) -> float: ...  # [deg] per motor and step
+
+    @property
+    def solver(self) -> str: ...  # one of SOLVERS
 
 
 @dataclass(frozen=True)
@@ -76,7 +91,7 @@ def weighted_norm(e, rot_weight: float) -> float:
     return float(np.sqrt(e[:3] @ e[:3] + w * w * (e[3:] @ e[3:])))
 
 
-def solve_step_qp(J, e, q, q_min, q_max, settings: "InverseSettings") -> QPStep:
+def solve_step_qp(J, e, q, q_min, q_max, settings: StepSettings) -> QPStep:
     """The QP of eq. (8) in motor increments (see the module docstring).
 
     Parameters

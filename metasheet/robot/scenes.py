@@ -52,7 +52,7 @@ from dataclasses import asdict, dataclass, field, fields
 from .. import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError, check_range
-from ..sheet.geometry import SheetParams
+from ..sheet.outline import SheetParams
 from .robots import ServoGeometry
 
 _AUTHORS = "VannesteFelix/anisotropy examples/Tripod/"
@@ -68,7 +68,7 @@ class ScenePreset:
     ----------
     name : the preset's name.
     arm_width, reach, thickness, hole_radius, fillet_radius : sheet geometry [mm]
-        (:class:`~metasheet.sheet.geometry.SheetParams`; fillet 0 = sharp corners).
+        (:class:`~metasheet.sheet.outline.SheetParams`; fillet 0 = sharp corners).
     tip_box : (along the arm, across, z) box of the nodes each horn holds [mm].
     centre_radius : cylinder (r_xy) of the centre nodes tied to the rod [mm].
     law, pitch_deg : fibre law and pitch [deg] (angle between fibre and circle,

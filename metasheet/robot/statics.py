@@ -1,5 +1,5 @@
-"""The coupled robot's state and its linearisation (paper eq. 1 and 6); the Newton solve of
-eq. 1 is in :mod:`.equilibrium`.
+"""The coupled robot's state and its linearisation (paper eq. 1 and 6), with the force scale and
+round-off floor its residual is judged against; the Newton solve of eq. 1 is in :mod:`.equilibrium`.
 
 Unknowns are the effector's 6 rigid DOFs and the free nodes, ``y = (q_e, x_f)``; the motor
 angles ``q_a`` are given. With ``r(x) = f(x) - f_ext`` (internal minus gravity/loads,
@@ -92,15 +92,11 @@ class Linearizer:
         return apply_step(self.robot, state, dq_e, dx_f, dq_a, alpha)
 
     def force_scale(self, lin: "Linearization") -> float:
-        """Force scale [N] of the equilibrium tolerances (:func:`.equilibrium.force_scale`)."""
-        from .equilibrium import force_scale
-
+        """Force scale [N] of the equilibrium tolerances (:func:`force_scale`)."""
         return force_scale(self.robot, lin)
 
     def residual_floor(self, lin: "Linearization") -> float:
-        """Round-off floor [N] of the residual norm (:func:`.equilibrium.residual_floor`)."""
-        from .equilibrium import residual_floor
-
+        """Round-off floor [N] of the residual norm (:func:`residual_floor`)."""
         return residual_floor(self.robot, lin)
 
     def _blocks(self, K):
@@ -240,6 +236,49 @@ class Linearization:
         dq_e = np.linalg.solve(S[:6, :6], rhs)
         dx_f -= self.Y[:, :6] @ dq_e
         return dq_e, dx_f
+
+
+def force_scale(robot, lin: Linearization) -> float:
+    """Force scale [N] the equilibrium tolerances are relative to: the norm of the forces on
+    the rigid nodes plus that of the external loads (gravity) at ``lin``'s state."""
+    f = lin.r + robot.f_ext
+    return float(np.linalg.norm(f[robot.coupling.rigid_nodes]) + np.linalg.norm(robot.f_ext))
+
+
+def residual_floor(robot, lin: Linearization) -> float:
+    """Round-off floor [N] of the reduced residual norm (:attr:`Linearization.residual_norm`)
+    at ``lin``'s state: no residual below it can be told from zero, and Newton stalls there.
+
+    Each entry of the internal force carries an error of order ``eps |K_e| |x|``: the element
+    force ``R K_e (R^T x_e - X_e)`` (:mod:`.kernels`; at a quadrature point, the strain from
+    ``F = sum_a x_a g_a^T``) cancels positions of size ``|x|`` [mm] down to a displacement,
+    and the positions themselves are only known to ``eps |x|``. It is not ``eps`` times the
+    forces: at the light foam robot's equilibria (nodal forces <= 0.64 N) the residual stalls
+    at 2e-12 N, and one-ulp changes of the free positions move it by 5e-12 N, a thousand times
+    ``eps |f|_max sqrt(dofs)`` = 6e-15 N. With the body's per-entry bound
+    ``delta = 10 eps |K_e|_max max|x|`` (``|K_e|_max`` the body's ``stiffness_scale``; as
+    :attr:`~.body.ElasticBody.force_floor`, but at the current positions) and errors summing
+    in quadrature, the reduced residual ``[J_e^T r ; r_f]`` has 3 n_f free entries, 3 n_e in
+    the effector's force sum and 3 n_e in its moment divided by ``moment_scale`` (the rms
+    lever arm, so these count about once each):
+
+        floor = delta sqrt(3 n_f + 6 n_e) + eps (sum_i |r_i| + sum_i |a_i| |r_i| / L)
+
+    the last term the round-off of summing the effector nodes' (large, cancelling) forces
+    r_i and moments about the reference point, a_i = x_i - p, L = ``moment_scale`` [mm].
+    On the foam robot this is 9e-11 N, some 40 times the stall level measured above.
+    """
+    c = robot.coupling
+    eps = np.finfo(float).eps
+    body = robot.body
+    k = getattr(body, "stiffness_scale", None)  # [N/mm]; P1-only bodies carry K_e instead
+    k = float(np.abs(body.Ke).max()) if k is None else float(k)
+    delta = 10 * eps * k * float(np.abs(lin.state.x).max())  # [N]
+    e = c.effector_nodes
+    r_e = np.linalg.norm(lin.r[e], axis=1)  # [N]
+    a_e = np.linalg.norm(lin.state.x[e] - lin.state.p, axis=1)  # [mm]
+    summed = eps * float(r_e.sum() + (a_e * r_e).sum() / lin.moment_scale)
+    return float(delta * np.sqrt(3 * len(c.free) + 6 * len(e)) + summed)
 
 
 def apply_step(robot, state: RobotState, dq_e, dx_f, dq_a=None, alpha: float = 1.0) -> RobotState:

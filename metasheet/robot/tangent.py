@@ -5,12 +5,12 @@ Jacobian ``J = W_ea W_aa^-1``) costs several chord steps, so the inverse loop
 (:mod:`.inverse`) keeps one across control steps and re-evaluates only the forces, with one
 solve on the cached factor (a chord / modified-Newton step, :meth:`.statics.Linearizer.update`).
 It is never trusted blindly: :class:`TangentCache` takes a fresh one when (defaults in
-brackets, from :class:`.inverse.InverseSettings`)
+brackets, from :class:`.inverse_settings.InverseSettings`)
 
 * "age": it is ``refactor_every`` steps old [20];
 * "angle": a motor moved more than ``refresh_angle_deg`` from where it was taken [8 deg];
 * "residual": the reduced residual exceeds ``chord_tol`` times the force scale [1.0]
-  (:func:`.equilibrium.force_scale`; divergence guard);
+  (:func:`.statics.force_scale`; divergence guard);
 * "drift": the pending equilibrium correction of the effector, ``dq_e^0`` [mm, rotations
   weighted by ``rot_weight``], exceeds ``drift_tol * pos_tol`` [0.5 * 0.1 mm];
 
@@ -98,7 +98,7 @@ class TangentCache:
 
     def stale(self, lin: Linearization, state: RobotState, settings) -> str | None:
         """Why the chord update ``lin`` at ``state`` is not good enough (a :data:`REASONS`
-        entry), or None. ``settings``: an :class:`.inverse.InverseSettings`."""
+        entry), or None. ``settings``: an :class:`.inverse_settings.InverseSettings`."""
         s = settings
         if self.age >= s.refactor_every:
             return "age"

@@ -16,7 +16,7 @@ silicone density or the scene's sheet mass.
 
 Every robot is built by :func:`load_robot`, the one place a robot model is chosen (the page
 and ``metasheet robot goto --pipeline``): ``"full"`` is the FEM robot; ``"reduced"`` the
-reduce stage's reduced-order robot (:class:`~metasheet.robot.reduced.ReducedRobot`) on that
+reduce stage's reduced-order robot (:class:`~metasheet.rom.model.ReducedRobot`) on that
 same FEM robot. The reduce stage trains on the robot of
 :func:`metasheet.pipeline.stages._studies.build_spec` (orient's sheets, the robot stage's
 scene, the material stage's constants and density): without ``[reduce]`` overrides of the
@@ -177,8 +177,8 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     """The robot of ``outputs`` as the robot stage built it: ``(robot, RobotInfo)``.
 
     ``model`` : "full" (the FEM robot), "reduced" (the reduce stage's
-    :class:`~metasheet.robot.reduced.ReducedRobot` on it) or "surface" (the reduce stage's
-    :class:`~metasheet.robot.rom_surface_robot.SurfaceRobot`); silicone: the full robot, with
+    :class:`~metasheet.rom.model.ReducedRobot` on it) or "surface" (the reduce stage's
+    :class:`~metasheet.rom.surface_robot.SurfaceRobot`); silicone: the full robot, with
     ``info.note`` saying why; ``material`` : "foam" (the sheets' own constants) or
     "silicone" (the robot stage's silicone case). Raises :class:`ConfigError` for a missing
     artefact (see :func:`check_outputs`), an unknown model or material, a basis trained on
@@ -211,7 +211,7 @@ def surface_robot(red, info: RobotInfo, surface_file: Path):
     """``(SurfaceRobot, RobotInfo)`` of the reduce stage's ``surface.npz`` on its reduced robot."""
     import json
 
-    from ..robot.rom_surface_robot import load_surface
+    from ..rom.surface_robot import load_surface
 
     surf = load_surface(surface_file, red)
     cert = ""
@@ -235,7 +235,8 @@ def surface_robot(red, info: RobotInfo, surface_file: Path):
 def reduced_robot(full, info: RobotInfo, basis_file: Path, run_command: str):
     """``(ReducedRobot, RobotInfo)`` of the basis in ``basis_file`` on the full robot ``full``;
     ConfigError naming the file when it was trained on another robot."""
-    from ..robot.reduced import ReducedBasis, ReducedRobot, robot_key
+    from ..rom.coordinates import ReducedBasis, robot_key
+    from ..rom.model import ReducedRobot
 
     basis = ReducedBasis.load(basis_file)
     if basis.robot_key != robot_key(full):

@@ -1,6 +1,6 @@
 """One material's robot on the page: the reduced model inside its training box, the full one outside.
 
-A reduced-order robot (:class:`~metasheet.robot.reduced.ReducedRobot`) is trained on motor
+A reduced-order robot (:class:`~metasheet.rom.model.ReducedRobot`) is trained on motor
 angles in a box; outside it the model extrapolates, and the page must never show that as an
 answer. :class:`RobotModels` keeps the reduced model's controller and, built on first need,
 the full model's, and solves on the reduced one only where it was trained:
@@ -17,8 +17,8 @@ the full model's, and solves on the reduced one only where it was trained:
   to the reduced model.
 
 The state changes model through the same full-mesh positions: reduced to full by
-:meth:`~metasheet.robot.reduced.ReducedRobot.full_state`, full to reduced by projection on
-the basis (:meth:`~metasheet.robot.reduced.ReducedRobot.project`), each followed by an
+:meth:`~metasheet.rom.model.ReducedRobot.full_state`, full to reduced by projection on
+the basis (:meth:`~metasheet.rom.model.ReducedRobot.project`), each followed by an
 equilibrium solve on the model it enters. A full robot alone (``--model full``, silicone)
 is the trivial case: one controller, never a switch.
 """
@@ -30,7 +30,8 @@ import time
 import numpy as np
 
 from ..robot.equilibrium import solve_equilibrium
-from ..robot.inverse import InverseController, InverseSettings
+from ..robot.inverse import InverseController
+from ..robot.inverse_settings import InverseSettings
 
 #: the page's flag while the full model stands in for the reduced one
 OUTSIDE_BOX = "outside the reduced model's training box: the full model solves here"
@@ -53,7 +54,7 @@ class RobotModels:
 
     Parameters
     ----------
-    robot : a full robot or a :class:`~metasheet.robot.reduced.ReducedRobot`.
+    robot : a full robot or a :class:`~metasheet.rom.model.ReducedRobot`.
     info : its :class:`.loading.RobotInfo`. settings : the inverse loop's settings.
 
     Attributes

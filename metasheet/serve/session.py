@@ -50,7 +50,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConfigError, MetasheetError
-from ..robot.inverse import InverseSettings
+from ..robot.inverse_settings import InverseSettings
 from ..robot.qp import pose_error
 from ..rotations import rotation_matrix
 from .models import RobotModels
@@ -79,7 +79,7 @@ class Snapshot:
         equilibrium at the commanded angles), "playing", "error".
     message : a sentence for the page (what happened, the error's message).
     state : the state drawn: a :class:`~metasheet.robot.statics.RobotState`, or a
-        :class:`~metasheet.robot.reduced.ReducedState` on the reduced model.
+        :class:`~metasheet.rom.coordinates.ReducedState` on the reduced model.
     x : (n, 3) [mm] the full mesh's nodes at ``state`` (what the page draws).
     model : "full" / "reduced": the model ``state`` is on. note : why it is not the model
         asked for (outside the reduced model's training box, silicone), else "".
@@ -348,8 +348,15 @@ class Session:
                 self._publish("inverse", "reached", f"reached in {run.steps} control steps")
             else:
                 self._publish("inverse", "unreachable", f"unreachable ({p.status} after {run.steps} control "
-                              f"steps): closest pose shown, {p.pos_error:.2f} mm and {p.rot_error:.2f} deg away")
+                              f"steps): closest pose shown, {p.pos_error:.2f} mm and {p.rot_error:.2f} deg away; "
+                              f"limited by {self._why(run)}")
             return
+
+    def _why(self, run) -> str:
+        """The primary cause of ``run``'s stall (:mod:`metasheet.robot.stall`), one line."""
+        from ..robot.stall import diagnose_state
+
+        return diagnose_state(run.ctrl.robot, run.ctrl.state).text().splitlines()[0]
 
     def _solve(self, angles) -> float:
         """Forward model: the equilibrium at ``angles`` (na,) [rad] from the current state; [ms]."""

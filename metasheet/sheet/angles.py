@@ -13,14 +13,11 @@ in degrees, lengths in mm.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ConfigError
-
-if TYPE_CHECKING:
-    from .icesl import GridBox
+from .grid import GridBox
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..material import CONSTANT_NAMES
-from . import angles, icesl
+from . import angles, grid, icesl
 
 NU_FLOOR = 0.1
 
@@ -137,7 +137,7 @@ def axis_difference_deg(angle_deg: np.ndarray, fibers: np.ndarray) -> np.ndarray
 
 def round_trip(
     *,
-    box: icesl.GridBox,
+    box: grid.GridBox,
     textures: Mapping[str, np.ndarray],
     constants_at: Callable[[dict], dict],
     centroids: np.ndarray,

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import ConfigError, check_range
 from ..material import CONSTANT_NAMES, TransverseIsotropic, interpolate
-from .geometry import ARM_ANGLES, SheetParams
+from .outline import ARM_ANGLES, SheetParams
 
 REGIONS = ("hub", "arms", "tips")
 _FUNCS = {

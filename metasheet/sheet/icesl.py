@@ -47,9 +47,9 @@ from scipy import ndimage
 from ..errors import ConfigError
 from .angles import AngleBranch, choose_branch
 from .fibers import fiber_angles
-from .geometry import ARM_ANGLES, SheetParams
+from .grid import GridBox, N, grid_box
+from .outline import ARM_ANGLES, SheetParams
 
-N = 64
 LEVELS = 255  # tex3d_r8f: 8 bits per texel
 
 FIELD_SCALE = {"infill_percentage": 100.0, "infill_angle": 360.0, "kgon_x_shrink": 1.0}
@@ -61,43 +61,6 @@ POLYFOAM_DEFAULTS = {"infill_percentage": 20.0, "infill_angle": 0.0, "kgon_x_shr
 #: the foam brush prints no skin: no perimeter, no shells, no top/bottom cover (ICESL.md)
 FOAM_BRUSH = {"print_perimeter": False, "num_shells": 0, "cover_thickness_mm": 0.0}
 FOAM, SOLID = 0, 1  # brush numbers
-
-
-@dataclass(frozen=True)
-class GridBox:
-    """The texture box: ``lo``, ``hi`` (3,) [mm] and ``n`` texels per axis."""
-
-    lo: np.ndarray
-    hi: np.ndarray
-    n: int = N
-
-    @property
-    def spacing(self) -> np.ndarray:
-        """Texel size (3,) [mm]."""
-        return (self.hi - self.lo) / self.n
-
-    def axes(self) -> list[np.ndarray]:
-        """Texel-centre coordinates along x, y, z: three (n,) arrays [mm]."""
-        return [self.lo[a] + (np.arange(self.n) + 0.5) * self.spacing[a] for a in range(3)]
-
-    def centers(self) -> np.ndarray:
-        """Texel centres (n, n, n, 3) [mm], indexed [i, j, k]."""
-        return np.stack(np.meshgrid(*self.axes(), indexing="ij"), axis=-1)
-
-    def index_of(self, points: np.ndarray) -> np.ndarray:
-        """Index (m, 3) int of the texel containing each point (m, 3) [mm] (clipped to the box)."""
-        ijk = np.floor((np.asarray(points) - self.lo) / self.spacing).astype(np.int64)
-        return np.clip(ijk, 0, self.n - 1)
-
-    def texel_coordinates(self, points: np.ndarray) -> np.ndarray:
-        """Continuous texel coordinates (m, 3) of points (m, 3) [mm]: texel centre i -> i."""
-        return (np.asarray(points, dtype=float) - self.lo) / self.spacing - 0.5
-
-
-def grid_box(points: np.ndarray, n: int = N) -> GridBox:
-    """The bounding box of points (k, 3) [mm] as a texture box of n^3 texels."""
-    p = np.asarray(points, dtype=float)
-    return GridBox(p.min(axis=0), p.max(axis=0), int(n))
 
 
 def locate(points: np.ndarray, tets: np.ndarray, box: GridBox) -> np.ndarray:

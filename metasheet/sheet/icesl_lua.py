@@ -14,7 +14,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..errors import ConfigError
-from .icesl import FOAM, SOLID, GridBox
+from .grid import GridBox
+from .icesl import FOAM, SOLID
 
 
 def _lua_value(name: str, value) -> str:

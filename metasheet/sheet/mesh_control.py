@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import ARM_ANGLES, SheetParams
+from .outline import ARM_ANGLES, SheetParams
 
 
 #: growth of the element size away from the grip borders [mm per mm]

@@ -164,7 +164,8 @@ class FemRobot:
 
     def __init__(self, spec: RobotSpec):
         from ..robot.builder import six_dof_robot
-        from ..robot.inverse import InverseController, InverseSettings
+        from ..robot.inverse import InverseController
+        from ..robot.inverse_settings import InverseSettings
         from ..robot.robots import ServoGeometry
 
         self.spec = spec
@@ -273,7 +274,7 @@ def paper_robot_spec(*, mesh_size: float = 5.0, rest_angle: float = paper.REST_A
     paper's foam (or ``material``), motors at rest at ``rest_angle`` [deg] on every mesh.
     For tests and benchmarks; the stages build their spec from the orient stage's sheets.
     """
-    from ..sheet.geometry import SheetParams
+    from ..sheet.outline import SheetParams
 
     sheets = SheetPair.spiral(SheetParams(mesh_size=mesh_size, layers=layers), element, pitch_deg=pitch_deg)
     return RobotSpec.from_sheets(sheets, material or paper.PAPER_FOAM, rest_angle=float(rest_angle), **kw)

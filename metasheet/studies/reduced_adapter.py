@@ -1,10 +1,10 @@
-"""The reduced-order robot (:mod:`metasheet.robot.reduced`) as a :class:`~.model.RobotModel`.
+"""The reduced-order robot (:mod:`metasheet.rom`) as a :class:`~.model.RobotModel`.
 
 :class:`ReducedSpec` is the picklable recipe: the full robot's :class:`~.adapter.RobotSpec`,
 the path of the ``reduce`` stage's ``basis.npz`` and that file's content hash (both in
 :attr:`ReducedSpec.key`, so another basis is another model). :class:`ReducedFem` is the live
 model built from it in each worker: the full :class:`~.adapter.FemRobot` (kept for the
-fallbacks and the certificate), the :class:`~metasheet.robot.reduced.ReducedRobot` on it and
+fallbacks and the certificate), the :class:`~metasheet.rom.model.ReducedRobot` on it and
 the eq. (8) controller on the reduced robot, limited to the spec's motor range.
 
 Outside its training box (``basis.box_lo``, ``basis.box_hi`` [rad]) the reduced model would
@@ -14,7 +14,7 @@ reach is stopped before the control step that would leave the box (``stop`` of
 mesh, the full model carries the reach on (a warning is logged once per model when the full
 model takes over; :attr:`ReducedFem.fallbacks` counts those). Such a result carries a full
 :class:`~metasheet.robot.statics.RobotState`; a reach given a full state continues on the
-reduced model from its projection (:meth:`~metasheet.robot.reduced.ReducedRobot.project`)
+reduced model from its projection (:meth:`~metasheet.rom.model.ReducedRobot.project`)
 when it lies in the box, else on the full model.
 
 With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
@@ -139,13 +139,14 @@ class ReducedFem(FemRobot):
     Attributes
     ----------
     full : the full :class:`~.adapter.FemRobot` (fallbacks, strains, certificate).
-    robot : the :class:`~metasheet.robot.reduced.ReducedRobot`, limits = the spec's motor range.
-    basis : its :class:`~metasheet.robot.reduced.ReducedBasis`. fallbacks : calls redone by the full model.
+    robot : the :class:`~metasheet.rom.model.ReducedRobot`, limits = the spec's motor range.
+    basis : its :class:`~metasheet.rom.coordinates.ReducedBasis`. fallbacks : calls redone by the full model.
     """
 
     def __init__(self, spec: ReducedSpec):
         from ..robot.inverse import InverseController
-        from ..robot.reduced import ReducedBasis, ReducedRobot, robot_key
+        from ..rom.coordinates import ReducedBasis, robot_key
+        from ..rom.model import ReducedRobot
 
         if file_hash(spec.basis_path) != spec.basis_hash:
             raise ConfigError(f"model 'reduced': {spec.basis_path} changed since the study started; run it again")

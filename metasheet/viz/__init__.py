@@ -30,3 +30,16 @@ def one_at_a_time(fn):
             return fn(*args, **kwargs)
 
     return wrapper
+
+
+def figure_png(fig, *, dpi: int = 100, tight: bool = True) -> bytes:
+    """A matplotlib figure as PNG bytes, with fixed metadata (the same figure gives the same
+    bytes); the figure is closed."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight" if tight else None, metadata={"Software": None})
+    plt.close(fig)
+    return buf.getvalue()

@@ -145,7 +145,7 @@ def model_record(spec) -> dict:
 
     if not isinstance(spec, ReducedSpec):
         return {"model": "standin" if type(spec).__name__ == "StandInSpec" else "robot"}
-    from ...robot.reduced import ReducedBasis
+    from ...rom.coordinates import ReducedBasis
 
     b = ReducedBasis.load(Path(spec.basis_path))
     return {"model": "reduced", "k": b.k, "elements": int(len(b.elements)), "basis_key": spec.basis_hash,

@@ -4,13 +4,13 @@ Builds the study robot (:func:`._studies.build_spec`: the orient stage's mesh an
 the robot stage's scene, the material stage's constants), solves full-model equilibria at
 motor angles spread over the training box (through the executor: a local pool or
 ``--scheduler`` on dask; resumable), trains the basis and the element sample by their error
-targets (:mod:`metasheet.robot.rom_training`) and certifies the result on held-out angles
-(:mod:`metasheet.robot.rom_certificate`). Writes
+targets (:mod:`metasheet.rom.training`) and certifies the result on held-out angles
+(:mod:`metasheet.rom.certificate`). Writes
 
 * ``basis.npz``: the basis, the sampled elements and weights, the training box, the robot's key;
 * ``reduce.json``: sizes, targets, training record and the certificate (worst and p95 of the
   position, orientation, Jacobian and inverse-model errors), and the rows of the held-out set;
-* ``surface.npz``: the equilibrium surface (:mod:`metasheet.robot.rom_surface`, the real-time
+* ``surface.npz``: the equilibrium surface (:mod:`metasheet.rom.surface`, the real-time
   loop's model), fitted on reduced-model equilibria over its box (``surface_box_deg``, inside
   the training box), its degree chosen on equilibria not fitted, checked on further ones
   (``surface_check``) and certified by that check's bound with the reduced model's own error,
@@ -31,7 +31,7 @@ from pydantic import Field
 from ...errors import ConfigError, ConvergenceError
 from ...robot.equilibrium import solve_equilibrium
 from ...robot.kinematics import kinematics
-from ...robot.rom_certificate import TARGETS, compare, compare_surface, held_out_angles, summarize, surface_check
+from ...rom.certificate import TARGETS, compare, compare_surface, held_out_angles, summarize, surface_check
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
 from ._studies import StudyRobotParams, build_spec, drop_cache, unit_cache
@@ -70,7 +70,7 @@ def _snapshot(unit):
     """Work unit: the full model's equilibrium at motor angles [rad] from rest, compactly
     (p, R, angles, free displacements, and for ``kind`` "training" its static responses
     (3 n_f, 6 + na) float32 and Jacobian (6, na)), or None."""
-    from ...robot.rom_training import sensitivity_and_jacobian
+    from ...rom.training import sensitivity_and_jacobian
     from ...studies.model import MODELS
 
     spec, angles, kind = unit
@@ -104,10 +104,10 @@ def _states(fem, rows):
 
 
 def _surface_unit(unit):
-    """Work unit: the reduced model's equilibria (:class:`~metasheet.robot.rom_surface.
+    """Work unit: the reduced model's equilibria (:class:`~metasheet.rom.surface.
     EquilibriumData`) at motor angles (s, na) [rad], by continuation from its rest equilibrium."""
-    from ...robot.reduced import ReducedRobot
-    from ...robot.rom_surface_robot import equilibrium_data
+    from ...rom.model import ReducedRobot
+    from ...rom.surface_robot import equilibrium_data
     from ...robot.validity import validity_strain
     from ...studies.model import MODELS
 
@@ -121,13 +121,13 @@ def _surface_unit(unit):
 
 
 def surface_equilibria(ctx, spec, basis, lo, hi, p):
-    """(fit, choose, check) :class:`~metasheet.robot.rom_surface.EquilibriumData` of the
+    """(fit, choose, check) :class:`~metasheet.rom.surface.EquilibriumData` of the
     reduced model for the equilibrium surface on the box [lo, hi]: ``p.surface_equilibria``
     Sobol points (seed + 2) to fit, half as many (seed + 3) to choose the degree on and
     ``p.surface_check`` (seed + 4) to check it on (those within the strain limit), solved
     through the executor in chunks of about 24."""
-    from ...robot.rom_surface import EquilibriumData
-    from ...robot.rom_training import motor_design
+    from ...rom.surface import EquilibriumData
+    from ...rom.training import motor_design
 
     sets = [motor_design(lo, hi, p.surface_equilibria, p.seed + 2),
             motor_design(lo, hi, p.surface_equilibria // 2, p.seed + 3, corners=False)]
@@ -165,10 +165,10 @@ def training_box(robot, box_deg: float | None):
 
 
 def run(ctx: StageContext) -> dict:
-    from ...robot.reduced import ReducedRobot
-    from ...robot.rom_surface import errors
-    from ...robot.rom_surface_robot import fit_surface_robot
-    from ...robot.rom_training import motor_design, train
+    from ...rom.model import ReducedRobot
+    from ...rom.surface import errors
+    from ...rom.surface_robot import fit_surface_robot
+    from ...rom.training import motor_design, train
 
     p: ReduceParams = ctx.params
     if p.model != "robot":

@@ -54,7 +54,7 @@ _SCENE = "; None: the orient stage's scene (sheet.json)"
 class ConvergenceLevel(NamedTuple):
     """One ``[robot] convergence`` entry, ``[element, mesh_size, layers, grip_size]``: the
     :class:`~metasheet.robot.convergence.Level` it becomes, with the ranges of
-    :class:`~metasheet.sheet.geometry.SheetParams`, checked at load (a size of 0 was a
+    :class:`~metasheet.sheet.outline.SheetParams`, checked at load (a size of 0 was a
     ZeroDivisionError 30 s into the stage)."""
 
     element: Literal["p1", "p2"]

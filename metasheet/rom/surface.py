@@ -2,9 +2,9 @@
 
 A quasi-static robot driven by ``na`` motors has, on one branch, one equilibrium per motor
 vector q: its effector pose P(q) and its condensed tangent S(q) (eq. 6) are smooth functions
-on the motor box. Fitted once, on equilibria of the reduced model (:mod:`.reduced`), they give
+on the motor box. Fitted once, on equilibria of the reduced model (:mod:`.model`), they give
 an equilibrium and a Jacobian in microseconds: the real-time loop's model
-(:mod:`.rom_surface_robot`), a second level of reduction on top of the basis and sample.
+(:mod:`.surface_robot`), a second level of reduction on top of the basis and sample.
 
 The fit is gradient-enhanced least squares in the monomials of total degree <= ``degree`` of
 the normalised angles u = (q - centre) / half (na,) in [-1, 1]: each training equilibrium

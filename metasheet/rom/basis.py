@@ -1,4 +1,4 @@
-"""The reduced basis of the sheets' free nodes (:mod:`.reduced`): static modes plus POD of snapshots.
+"""The reduced basis of the sheets' free nodes (:mod:`.model`): static modes plus POD of snapshots.
 
 Two parts, orthonormal together (Euclidean inner product on the free dofs, so ``a`` is in mm
 and ``V^T r_f`` in N):

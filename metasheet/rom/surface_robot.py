@@ -1,9 +1,10 @@
 """The equilibrium surface as a robot: the interface the equilibrium solver and the inverse
-controller use (:class:`.robots.Robot`, :class:`.statics.Linearizer`), on a :class:`.rom_surface.Surface`.
+controller use (:class:`metasheet.robot.robots.Robot`, :class:`metasheet.robot.statics.Linearizer`),
+on a :class:`.surface.Surface`.
 
 A state is the effector pose and the motor angles; the sheets are not represented. Its
 "residual" is the effector's offset e from the surface at the state's angles, as a force:
-``res_e = -S_ee e``, so that one Newton step (:meth:`.statics.Linearization.newton_step`,
+``res_e = -S_ee e``, so that one Newton step (:meth:`metasheet.robot.statics.Linearization.newton_step`,
 ``dq_e = e + J dq_a``) lands on the surface and the control loop's predictor is the surface's
 own tangent. Every linearisation is exact and costs one polynomial evaluation: there is no
 factorisation to keep, and no tangent refresh lands in a control step.
@@ -20,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
+from ..robot.statics import Linearization
 from ..rotations import rotation_matrix, rotation_vector
-from .rom_surface import EquilibriumData, Surface
-from .statics import Linearization
+from .surface import EquilibriumData, Surface
 
 
 @dataclass(frozen=True)
@@ -40,10 +41,10 @@ class SurfaceState:
 
 
 class SurfaceRobot:
-    """A :class:`.rom_surface.Surface` behind the robot interface (see the module docstring).
+    """A :class:`.surface.Surface` behind the robot interface (see the module docstring).
 
     ``robot`` : the full or reduced robot it was fitted on (coupling, name, motor range);
-    ``force_scale`` [N]: the rest equilibrium's force scale (:func:`.equilibrium.force_scale`),
+    ``force_scale`` [N]: the rest equilibrium's force scale (:func:`metasheet.robot.statics.force_scale`),
     the reference of the equilibrium tolerance.
     """
 
@@ -65,7 +66,7 @@ class SurfaceRobot:
 
     def evaluate(self, angles) -> tuple:
         """The surface's (p, R, J, S) at motor ``angles`` (na,) [rad] inside its box
-        (:meth:`.rom_surface.Surface.evaluate`); the last one is kept: an equilibrium solve
+        (:meth:`.surface.Surface.evaluate`); the last one is kept: an equilibrium solve
         and a control step evaluate the same angles several times."""
         a = self.check(angles)
         key = a.tobytes()
@@ -97,7 +98,7 @@ class SurfaceRobot:
 
 
 class SurfaceLinearizer:
-    """The :class:`.statics.Linearizer` interface on a :class:`SurfaceRobot`: dense, exact, cheap."""
+    """The :class:`metasheet.robot.statics.Linearizer` interface on a :class:`SurfaceRobot`: dense, exact, cheap."""
 
     solver_name = "surface"
 
@@ -140,8 +141,8 @@ def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None, 
     from the nearest one already solved (the first from ``start``, default the rest state),
     with its Jacobian, condensed tangent and, given ``strain`` (state -> [-]), strain. Raises :class:`~metasheet.errors.ConvergenceError`
     naming the angles where no equilibrium is found."""
-    from .equilibrium import solve_equilibrium
-    from .kinematics import jacobian_from_schur
+    from ..robot.equilibrium import solve_equilibrium
+    from ..robot.kinematics import jacobian_from_schur
 
     lz = linearizer or robot.linearizer()
     angles = np.atleast_2d(np.asarray(angles, float))
@@ -171,12 +172,12 @@ def equilibrium_data(robot, angles: np.ndarray, *, linearizer=None, start=None, 
 def fit_surface_robot(robot, train: EquilibriumData, check: EquilibriumData, box_lo, box_hi, targets: dict, *,
                       strain_limit: float | None = None) -> SurfaceRobot:
     """The :class:`SurfaceRobot` of ``robot`` fitted on ``train``, its degree chosen on ``check``
-    (:func:`.rom_surface.choose_degree`) over the box [lo, hi] (na,) [rad]; its rest equilibrium's
+    (:func:`.surface.choose_degree`) over the box [lo, hi] (na,) [rad]; its rest equilibrium's
     force scale, the equilibrium tolerance's reference, goes into the surface's record."""
     from dataclasses import replace
 
-    from .equilibrium import solve_equilibrium
-    from .rom_surface import choose_degree
+    from ..robot.equilibrium import solve_equilibrium
+    from .surface import choose_degree
 
     lz = robot.linearizer()
     rest = solve_equilibrium(robot, robot.coupling.rest_angles, linearizer=lz).state

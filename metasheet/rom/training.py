@@ -1,11 +1,11 @@
-"""Training a :class:`.reduced.ReducedRobot`: snapshots, basis, element sample, each by an error target.
+"""Training a :class:`.model.ReducedRobot`: snapshots, basis, element sample, each by an error target.
 
-1. Snapshots: full-model equilibria (:func:`.equilibrium.solve_equilibrium`) at motor angles
+1. Snapshots: full-model equilibria (:func:`metasheet.robot.equilibrium.solve_equilibrium`) at motor angles
    spread over the motor box (:func:`motor_design`: a scrambled Sobol sequence plus the rest
    angles and the box's all-low / all-high corners, which bend the sheets most).
-2. Basis (:func:`.rom_basis.pod_basis`): the rest equilibrium's static modes plus POD modes
+2. Basis (:func:`.basis.pod_basis`): the rest equilibrium's static modes plus POD modes
    until every snapshot's worst nodal projection error is below ``basis_tol_mm``, then the
-   snapshots' own static responses (:func:`sensitivity`, :func:`.rom_basis.add_sensitivities`)
+   snapshots' own static responses (:func:`sensitivity`, :func:`.basis.add_sensitivities`)
    until each is captured within ``tangent_tol``: the Jacobian's accuracy.
 3. Elements (:func:`.ecsw.ecsw`): per training state, every element's contribution to the
    generalised forces (force rows [N]; moment and torque rows over the effector's length
@@ -17,7 +17,7 @@
    matters: a sample can hold the positions within 0.03 mm and still miss the held-out
    Jacobians by 2 %.
 
-The certificate (:func:`certify`) then compares reduced and full on held-out angles.
+The certificate (:mod:`.certificate`) then compares reduced and full on held-out angles.
 """
 
 from __future__ import annotations
@@ -27,11 +27,12 @@ import time
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
+from ..robot.equilibrium import solve_equilibrium
+from ..robot.kinematics import kinematics
+from .basis import add_sensitivities, pod_basis
+from .coordinates import ReducedBasis, ReducedState, coordinate_jacobian, projected_state, robot_key
 from .ecsw import ecsw_path
-from .equilibrium import solve_equilibrium
-from .kinematics import kinematics
-from .reduced import ReducedBasis, ReducedRobot, ReducedState, coordinate_jacobian, robot_key
-from .rom_basis import add_sensitivities, pod_basis
+from .model import ReducedRobot
 
 
 def motor_design(lo, hi, n: int, seed: int, *, corners: bool = True) -> np.ndarray:
@@ -62,7 +63,7 @@ def static_modes(robot, rest) -> np.ndarray:
 def sensitivity(lz, state) -> np.ndarray:
     """(3 n_f, 6 + na) float32: the free nodes' static response to each rigid coordinate at
     the full equilibrium ``state`` (eq. 6's ``K_ff^-1 K_fr J_r``; one fresh linearisation of
-    the :class:`~.statics.Linearizer` ``lz``). float32: POD keeps it to ~1e-3 anyway."""
+    the :class:`~metasheet.robot.statics.Linearizer` ``lz``). float32: POD keeps it to ~1e-3 anyway."""
     return sensitivity_and_jacobian(lz, state)[0]
 
 
@@ -72,18 +73,10 @@ def sensitivity_and_jacobian(lz, state) -> tuple[np.ndarray, np.ndarray]:
     return lin.Y.astype(np.float32), kinematics(lin).J
 
 
-def projected_state(robot, V: np.ndarray, state) -> ReducedState:
-    """The reduced state closest to a full :class:`~.statics.RobotState` on the basis ``V``
-    (before a :class:`ReducedRobot` exists: :meth:`ReducedRobot.project` afterwards)."""
-    c = robot.coupling
-    u = (state.x[c.free] - c.rest[c.free]).ravel()
-    return ReducedState(state.p, state.R, state.angles, V.T @ u)
-
-
 def element_contributions(robot, V: np.ndarray, st: ReducedState) -> np.ndarray:
     """(6 + na + k, m) every element's generalised internal force ``T_e^T f_e`` at ``st``
     (rows scaled: forces [N], moments and torques over the effector's length scale [N])."""
-    from .quadrature import corotational_quadrature_numpy
+    from ..robot.quadrature import corotational_quadrature_numpy
 
     c, body = robot.coupling, robot.body
     x_f = c.rest[c.free] + (V @ st.a).reshape(-1, 3)
@@ -153,10 +146,10 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
           fit_jacobian_tol: float = 0.01, box=None, max_rounds: int = 9, fit_count: int = 8,
           ecsw_batch: float = 0.02) -> ReducedBasis:
     """A :class:`ReducedBasis` for the full ``robot`` from snapshot equilibria ``snaps`` (full
-    :class:`~.statics.RobotState` s) and the rest equilibrium ``rest``.
+    :class:`~metasheet.robot.statics.RobotState` s) and the rest equilibrium ``rest``.
 
     ``sensitivities`` : (3 n_f, c) the snapshots' static responses (:func:`sensitivity`),
-    added by :func:`.rom_basis.add_sensitivities` to relative nodal error ``tangent_tol``
+    added by :func:`.basis.add_sensitivities` to relative nodal error ``tangent_tol``
     (None: none; the Jacobian away from rest is then only as good as the POD modes make it);
     ``jacobians`` : the snapshots' full Jacobians (each (6, na); None: not known), for the
     record's ``basis_jacobian_rel`` (:func:`galerkin_jacobians`); ``basis_tol_mm`` : POD target

@@ -8,7 +8,7 @@ full model's pose returns motor angles, compared with the ones that produced it 
 Worst and 95th percentile of each, against the targets.
 
 The targets apply where the material model holds: held-out poses whose strain (beyond the
-grips' band, :mod:`.validity`) is within the strain limit. Poses beyond it (the box's mixed
+grips' band, :mod:`metasheet.robot.validity`) is within the strain limit. Poses beyond it (the box's mixed
 corners of a soft foam are far beyond) lie outside the homogenised model's domain, where no
 study keeps a point: their errors are reported apart, as information, not certified.
 """
@@ -20,10 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConvergenceError
+from ..robot.equilibrium import solve_equilibrium
+from ..robot.inverse import InverseController
+from ..robot.inverse_settings import InverseSettings
+from ..robot.kinematics import kinematics
 from ..rotations import rotation_vector
-from .equilibrium import solve_equilibrium
-from .inverse import InverseController, InverseSettings
-from .kinematics import kinematics
 
 #: the certificate's targets: position [mm], orientation [deg], Jacobian [relative], motors [deg]
 TARGETS = {"position_mm": 0.1, "orientation_deg": 0.1, "jacobian_rel": 0.02}
@@ -44,7 +45,7 @@ class Comparison:
 def held_out_angles(lo, hi, n: int, seed: int) -> np.ndarray:
     """(n + 2, na) [rad]: a Sobol set (its own seed) and the two mixed corners (sheet A's
     motors low and B's high, and the reverse)."""
-    from .rom_training import motor_design
+    from .training import motor_design
 
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     half = len(lo) // 2
@@ -55,8 +56,8 @@ def held_out_angles(lo, hi, n: int, seed: int) -> np.ndarray:
 
 def full_strain(full_robot, full_state, strain_elements=None) -> float:
     """The full equilibrium's largest principal strain over ``strain_elements`` (m,) bool
-    (:mod:`.validity`; None: every element) [-]."""
-    from .validity import validity_strain
+    (:mod:`metasheet.robot.validity`; None: every element) [-]."""
+    from ..robot.validity import validity_strain
 
     if strain_elements is None:
         strain_elements = np.ones(len(full_robot.body.tets), bool)
@@ -81,7 +82,7 @@ def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_element
 
 
 def compare_surface(surface_robot, full_state, full_jacobian, strain: float) -> Comparison:
-    """The equilibrium surface (:mod:`.rom_surface_robot`) vs the full model at ``full_state``
+    """The equilibrium surface (:mod:`.surface_robot`) vs the full model at ``full_state``
     (its Jacobian (6, na) and strain given), as :func:`compare`."""
     deg = tuple(np.degrees(full_state.angles).round(4).tolist())
     st = surface_robot.equilibrium(full_state.angles)
@@ -117,7 +118,7 @@ def surface_check(errs: dict, strain, strain_limit: float | None, reduced: dict)
     """The equilibrium surface against the reduced model on equilibria it was not fitted on,
     and from it a bound on its error against the full model.
 
-    ``errs`` : :func:`.rom_surface.errors` on them (each (s,)); ``strain`` (s,) [-] (None: all
+    ``errs`` : :func:`.surface.errors` on them (each (s,)); ``strain`` (s,) [-] (None: all
     count) and ``strain_limit``: only those within count; ``reduced`` : the reduced model's
     certificate (:func:`summarize`). Per measure: worst and p95 against the reduced model and
     ``bound_with_reduced`` = that worst + the reduced model's worst against the full one

@@ -1,4 +1,4 @@
-"""The reduced model's linearizer: the :class:`.statics.Linearizer` interface on dense algebra.
+"""The reduced model's linearizer: the :class:`metasheet.robot.statics.Linearizer` interface on dense algebra.
 
 The equilibrium solver, the Jacobian and the inverse controller call the same methods on it
 as on the full model's; a linearisation's "free" part is the basis coordinates ``a``.
@@ -9,27 +9,29 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
+from ..robot.statics import Linearization
 from ..rotations import rotation_matrix
-from .reduced import ReducedRobot, ReducedState
-from .statics import Linearization
+from .coordinates import ReducedState
+from .tangents import Tangent, TangentLibrary
 
 
 class ReducedLinearizer:
-    """The reduced model's :class:`.statics.Linearizer`: same methods, dense algebra.
+    """The reduced model's :class:`metasheet.robot.statics.Linearizer`: same methods, dense algebra.
 
     A linearisation's ``S`` is the Schur complement of ``a`` in the reduced tangent, ``Y``
     (k, 6 + na) and ``y_r`` (k,) its solves, ``res_f`` (k,) the projected free residual
     ``V^T r_f`` [N] and ``r`` the generalised internal forces (nq,) (the force scale's input).
-    Every exact tangent goes to :attr:`library` (:mod:`.rom_tangents`), which serves the
+    Every exact tangent goes to :attr:`library` (:mod:`.tangents`), which serves the
     inexact requests (``exact=False``: the control loop's modified-Newton matrix) with the
     nearest one; with ``background`` the missing ones are computed off the caller's thread.
+
+    ``robot`` is the :class:`.model.ReducedRobot` it linearises (its ``evaluate``, ``na``,
+    ``coupling``, ``sub``); the model builds its linearizer, so this module names it only here.
     """
 
     solver_name = "dense"
 
-    def __init__(self, robot: ReducedRobot, *, background: bool = False, near_deg: float = 3.0):
-        from .rom_tangents import TangentLibrary
-
+    def __init__(self, robot, *, background: bool = False, near_deg: float = 3.0):
         self.robot = robot
         self.factor = None
         self.factorizations = 0
@@ -41,9 +43,7 @@ class ReducedLinearizer:
         return True  # one dense solver whatever the sparse one asked for
 
     def _exact(self, state: ReducedState):
-        """(:class:`.rom_tangents.Tangent`, g_int, g_ext) at ``state`` (thread-safe: no state kept)."""
-        from .rom_tangents import Tangent
-
+        """(:class:`.tangents.Tangent`, g_int, g_ext) at ``state`` (thread-safe: no state kept)."""
         rob = self.robot
         g_int, g_ext, A = rob.evaluate(state, tangent=True)
         nr = 6 + rob.na
@@ -108,7 +108,7 @@ class ReducedLinearizer:
 
     def residual_floor(self, lin: Linearization) -> float:
         """Round-off floor [N] of the reduced residual: the sampled body's force round-off
-        (:func:`.equilibrium.residual_floor`'s per-entry bound) over its dofs."""
+        (:func:`metasheet.robot.statics.residual_floor`'s per-entry bound) over its dofs."""
         sub = self.robot.sub
         eps = np.finfo(float).eps
         x = self.robot.sub_positions(lin.state)

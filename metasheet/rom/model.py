@@ -1,115 +1,39 @@
 """A reduced-order model of the robot (issue 16): a few coordinates for the sheets, a few elements for their forces.
 
 Coordinates ``q = (q_e (6), q_a (na), a (k))``. The rigid ones are the full model's, exact
-(:mod:`.rigid`: the effector pose and the motor angles place every rigid node); the free nodes
-move in a basis, ``x_f = X_f + V a`` with ``V`` (3 n_f, k) orthonormal (:mod:`.rom_basis`).
+(:mod:`metasheet.robot.rigid`: the effector pose and the motor angles place every rigid node); the free nodes
+move in a basis, ``x_f = X_f + V a`` with ``V`` (3 n_f, k) orthonormal (:mod:`.basis`).
 Eq. (1) projected on these coordinates is the Galerkin residual
 
     G(q) = (dx/dq)^T (f(x(q)) - f_ext),          dx/dq = T = [J_r 0 ; 0 V]
 
-and its tangent ``T^T K T`` plus the rigid bodies' geometric term (as in :mod:`.statics`).
+and its tangent ``T^T K T`` plus the rigid bodies' geometric term (as in :mod:`metasheet.robot.statics`).
 Hyper-reduction (energy-conserving sampling and weighting, :mod:`.ecsw`): the internal part is
 summed over a sample E of the elements with weights w_e >= 0, ``sum_{e in E} w_e T_e^T f_e``.
 A corotational element force is linear in its stiffness tensor, so the weighted sample is
-itself an :class:`~.body.ElasticBody` (the sampled elements, their tensors times w_e, on
+itself an :class:`~metasheet.robot.body.ElasticBody` (the sampled elements, their tensors times w_e, on
 their own nodes): the full model's kernel evaluates it. Gravity is exact and closed-form
 (each rigid body's first mass moment, the projected free-node weights).
 
 :class:`ReducedRobot` has the interface the solvers use (:meth:`ReducedRobot.linearizer`,
 :meth:`~ReducedRobot.rest_state`, ``coupling``, the motor limits), so the equilibrium solver,
 the kinematics and the inverse controller run on it unchanged; its linearisations are
-:class:`.statics.Linearization` objects whose "free" part is ``a``. Its states are
-:class:`ReducedState` (no node positions: :meth:`ReducedRobot.positions` reconstructs them).
+:class:`metasheet.robot.statics.Linearization` objects whose "free" part is ``a``. Its states are
+:class:`~.coordinates.ReducedState` (no node positions: :meth:`ReducedRobot.positions` reconstructs them).
 
 Training data (basis, sample, weights, the motor box it was trained on) is a
-:class:`ReducedBasis`; :mod:`.rom_training` makes one and certifies it against the full model.
+:class:`~.coordinates.ReducedBasis`; :mod:`.training` makes one and :mod:`.certificate`
+compares it with the full model.
 """
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass, field
-from pathlib import Path
-
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import axis_rotation, rotation_vector, skew
-
-
-@dataclass(frozen=True)
-class ReducedBasis:
-    """What training produced (:mod:`.rom_training`).
-
-    Attributes
-    ----------
-    V : (3 n_f, k) orthonormal basis of the free nodes' displacements from rest [-] (free
-        nodes in :attr:`.rigid.RigidCoupling.free` order, node-major).
-    elements : (s,) int sampled elements of the full body; weights : (s,) float > 0 [-].
-    box_lo, box_hi : (na,) the motor box trained on [rad]: outside it the model extrapolates.
-    robot_key : identity of the full robot it was trained on (:func:`robot_key`).
-    info : JSON-able training record (sizes, tolerances, errors).
-    """
-
-    V: np.ndarray
-    elements: np.ndarray
-    weights: np.ndarray
-    box_lo: np.ndarray
-    box_hi: np.ndarray
-    robot_key: str
-    info: dict = field(default_factory=dict)
-
-    @property
-    def k(self) -> int:
-        return int(self.V.shape[1])
-
-    def save(self, path: Path) -> None:
-        """Write ``path`` (.npz) atomically."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, V=self.V, elements=self.elements, weights=self.weights, box_lo=self.box_lo,
-                 box_hi=self.box_hi, robot_key=np.array(self.robot_key), info=np.array(json.dumps(self.info)))
-        tmp.replace(path)
-
-    @classmethod
-    def load(cls, path: Path) -> "ReducedBasis":
-        path = Path(path)
-        if not path.is_file():
-            raise ConfigError(f"reduced model: {path} is missing; run the 'reduce' stage")
-        with np.load(path) as z:
-            return cls(z["V"], z["elements"], z["weights"], z["box_lo"], z["box_hi"], str(z["robot_key"]),
-                       json.loads(str(z["info"])))
-
-
-def robot_key(robot) -> str:
-    """A content hash of the full robot's mesh, tensors, couplings and loads: a basis only
-    fits the robot it was trained on."""
-    import hashlib
-
-    h = hashlib.sha256()
-    b, c = robot.body, robot.coupling
-    for a in (b.rest, b.tets, b.stiffness, b.mass, c.effector_nodes, robot.gravity):
-        h.update(np.ascontiguousarray(a).tobytes())
-    for s in c.servos:
-        h.update(np.ascontiguousarray(np.concatenate([s.axis, s.pivot, [s.rest_angle]])).tobytes())
-        h.update(np.ascontiguousarray(s.nodes).tobytes())
-    return h.hexdigest()[:24]
-
-
-@dataclass(frozen=True)
-class ReducedState:
-    """A configuration of the reduced robot: effector ``p`` (3,) [mm] and ``R`` (3, 3), motor
-    ``angles`` (na,) [rad], and the sheets' reduced coordinates ``a`` (k,) [mm]."""
-
-    p: np.ndarray
-    R: np.ndarray
-    angles: np.ndarray
-    a: np.ndarray
-
-    @property
-    def pose(self) -> np.ndarray:
-        """(6,) effector pose: position [mm] and rotation vector [rad]."""
-        return np.concatenate([self.p, rotation_vector(self.R)])
+from ..rotations import axis_rotation
+from .coordinates import ReducedBasis, ReducedState, coordinate_jacobian, projected_state, robot_key
+from .linearizer import ReducedLinearizer
 
 
 class ReducedRobot:
@@ -117,7 +41,7 @@ class ReducedRobot:
 
     Parameters
     ----------
-    full : the full :class:`~.robots.Robot` the basis was trained on (checked by key).
+    full : the full :class:`~metasheet.robot.robots.Robot` the basis was trained on (checked by key).
     basis : the trained basis, sample and weights.
     tangent_dtype : precision of the tangent's projection ``T^T K T`` (:meth:`evaluate`):
         float32 (default) or float64 (every result to double round-off).
@@ -126,11 +50,11 @@ class ReducedRobot:
     ----------
     full, basis, coupling, body (the full body: strains on reconstructed positions),
     angle_min, angle_max (the full robot's motor limits [rad]), gravity, axis, name, info.
-    sub : the weighted sampled elements as an :class:`~.body.ElasticBody`.
+    sub : the weighted sampled elements as an :class:`~metasheet.robot.body.ElasticBody`.
     """
 
     def __init__(self, full, basis: ReducedBasis, *, check_key: bool = True, tangent_dtype=np.float32):
-        from .body import ElasticBody
+        from ..robot.body import ElasticBody
 
         if np.dtype(tangent_dtype) not in (np.float32, np.float64):
             raise ConfigError(f"tangent_dtype: {tangent_dtype!r}: allowed float32 or float64")
@@ -182,18 +106,16 @@ class ReducedRobot:
         self.f_ext_norm = float(np.linalg.norm(f_ext))
         self._free_rest = c.rest[c.free]
 
-    # -- the interface of :class:`~.robots.Robot` ---------------------------------------------
+    # -- the interface of :class:`~metasheet.robot.robots.Robot` ---------------------------------------------
     def rest_state(self) -> ReducedState:
         """The undeformed configuration (a = 0, motors at their rest angles, no sag)."""
         c = self.coupling
         return ReducedState(c.origin.copy(), np.eye(3), c.rest_angles.copy(), np.zeros(self.k))
 
     def linearizer(self, solver: str = "superlu"):
-        """A :class:`.rom_linearizer.ReducedLinearizer` (dense: ``solver`` is accepted for the interface);
+        """A :class:`.linearizer.ReducedLinearizer` (dense: ``solver`` is accepted for the interface);
         its tangent library computes in the background when :attr:`background_tangents`
         (real-time use; off by default, so the same calls give the same results)."""
-        from .rom_linearizer import ReducedLinearizer
-
         return ReducedLinearizer(self, background=self.background_tangents)
 
     def with_limits(self, lo, hi) -> "ReducedRobot":
@@ -216,16 +138,14 @@ class ReducedRobot:
         return c.positions(st.p, st.R, st.angles, x_f)
 
     def full_state(self, st: ReducedState):
-        """The full model's :class:`~.statics.RobotState` with these positions (a Newton start)."""
-        from .statics import RobotState
+        """The full model's :class:`~metasheet.robot.statics.RobotState` with these positions (a Newton start)."""
+        from ..robot.statics import RobotState
 
         return RobotState(st.p, st.R, st.angles, self.positions(st))
 
     def project(self, state) -> ReducedState:
-        """The reduced state closest to a full :class:`~.statics.RobotState` (rigid coordinates
+        """The reduced state closest to a full :class:`~metasheet.robot.statics.RobotState` (rigid coordinates
         as they are, ``a = V^T (x_f - X_f)``): a Newton start when a solve changes model."""
-        from .rom_training import projected_state
-
         return projected_state(self.full, self.basis.V, state)
 
     def sub_positions(self, st: ReducedState) -> np.ndarray:
@@ -270,7 +190,8 @@ class ReducedRobot:
         return g
 
     def _gravity_geometric(self, st: ReducedState) -> np.ndarray:
-        """(6 + na, 6 + na) the rigid geometric term of the gravity loads (:meth:`.rigid.RigidCoupling.rigid_geometric`)."""
+        """(6 + na, 6 + na) the rigid geometric term of the gravity loads
+        (:meth:`metasheet.robot.rigid.RigidCoupling.rigid_geometric`)."""
         G = np.zeros((6 + self.na, 6 + self.na))
         a = st.R @ self._s_e
         G[3:6, 3:6] = np.outer(a, self._g) - (a @ self._g) * np.eye(3)
@@ -311,33 +232,3 @@ class ReducedRobot:
         nr = 6 + self.na
         A[:nr, :nr] += self._internal_geometric(x, st, r) - self._gravity_geometric(st)
         return g_int, g_ext, A
-
-
-def coordinate_jacobian(coupling, x, p, eff, servo, free, V, *, node_major: bool = False,
-                        dtype=np.float64) -> np.ndarray:
-    """(len(x), 3, 6 + na + k) dx / dq of the nodes at positions ``x`` [mm]: rows ``eff`` move
-    with the effector (reference point ``p`` [mm]), ``servo[k]`` with horn k, ``free`` with the
-    basis rows ``V`` (3 len(free), k) (any other row is zero).
-
-    Stored coordinate-major (``T.reshape(-1, nq)`` a Fortran-ordered view), or with
-    ``node_major`` C-ordered: the same numbers, filled 3x faster, and a sparse stiffness times
-    it runs ~15 % faster with bit-identical results (the reduced tangent's ``K T``: 42 against
-    50 ms on the paper's sample, scipy 1.17). The training keeps the coordinate-major layout:
-    its element sample is sensitive to round-off, and a gemv on the other layout (``T^T f``)
-    sums in another order. ``dtype`` (node-major only): the array's type."""
-    na = coupling.n_act
-    if node_major:
-        T = np.zeros((len(x), 3, 6 + na + V.shape[1]), dtype)
-        T[eff, :, 0:3] = np.eye(3)
-        T[eff, :, 3:6] = -skew(x[eff] - p)
-        for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
-            T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
-        T[free, :, 6 + na:] = V.reshape(len(free), 3, -1)
-        return T
-    Tt = np.zeros((6 + na + V.shape[1], len(x), 3))
-    Tt[0:3, eff, :] = np.eye(3)[:, None, :]
-    Tt[3:6, eff, :] = -skew(x[eff] - p).transpose(2, 0, 1)
-    for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
-        Tt[6 + k, idx, :] = np.cross(s.axis, x[idx] - s.pivot)
-    Tt[6 + na:, free, :] = V.reshape(len(free), 3, -1).transpose(2, 0, 1)
-    return Tt.transpose(1, 2, 0)

@@ -3,7 +3,7 @@
 A fresh reduced tangent (the sampled elements' stiffness projected on the basis, ``T^T K T``,
 and its LU) costs several force evaluations (3.4 ms against 0.6 ms for a chord update on the
 14 mm P1 robot, k 65, 1,419 sampled elements). A modified-Newton matrix may come from another
-state: the control loop (:mod:`.tangent`) and the equilibrium solver judge every step on the
+state: the control loop (:mod:`metasheet.robot.tangent`) and the equilibrium solver judge every step on the
 true residual whatever tangent made it. So the reduced linearizer keeps each exact tangent it
 takes in a :class:`TangentLibrary`, keyed by motor angles, and an inexact request
 (``linearize(state, exact=False)``, the control loop's) is served by the nearest one:
@@ -29,7 +29,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Tangent:
-    """An exact reduced tangent, condensed (see :class:`.rom_linearizer.ReducedLinearizer`).
+    """An exact reduced tangent, condensed (see :class:`.linearizer.ReducedLinearizer`).
 
     angles : (na,) motor angles it was taken at [rad]; S : (6 + na, 6 + na) Schur complement
     of ``a``; Y : (k, 6 + na) its solves; C : (6 + na, k) coupling block; factor : LU of the

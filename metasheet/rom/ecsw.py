@@ -1,6 +1,6 @@
 """Energy-conserving sampling and weighting (ECSW; Farhat, Avery, Chapman, Cortial 2014).
 
-The reduced internal force is a sum over elements, ``G(q) = sum_e G_e(q)`` (:mod:`.reduced`).
+The reduced internal force is a sum over elements, ``G(q) = sum_e G_e(q)`` (:mod:`.model`).
 Given training states ``q_s``, ECSW looks for a sparse non-negative weight vector ``w`` with
 
     || sum_e w_e G_e(q_s) - G(q_s) ||  <=  tol || G(q_s) ||          over all s at once,
