@@ -8,12 +8,11 @@ solid with per-element strains, for ParaView; the stage layer writes both.
 
 from __future__ import annotations
 
-import io
 
 import numpy as np
 
 from ..homogenize.result import LOAD_CASES, HomogenizationResult
-from . import one_at_a_time
+from . import figure_png, one_at_a_time
 
 #: VTK hexahedron order of our local nodes a = ax + 2 ay + 4 az.
 _VTK_HEX = [0, 1, 3, 2, 4, 5, 7, 6]
@@ -117,10 +116,7 @@ def summary_picture(result: HomogenizationResult, title: str = "") -> bytes:
         fig.suptitle(title, fontsize=11)
     fig.tight_layout()
     fig.subplots_adjust(bottom=0.26)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig, dpi=110, tight=False)
 
 
 @one_at_a_time
@@ -162,7 +158,4 @@ def chart_picture(rows, title: str = "") -> bytes:
     if title:
         fig.suptitle(title, fontsize=11)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig, dpi=100, tight=False)

@@ -5,11 +5,10 @@ Functions return PNG bytes (matplotlib, Agg); the stage layer writes them.
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from . import one_at_a_time
+from . import figure_png, one_at_a_time
 
 
 def _figure(ncols: int, nrows: int = 1, size: float = 5.0):
@@ -21,15 +20,6 @@ def _figure(ncols: int, nrows: int = 1, size: float = 5.0):
     fig, axes = plt.subplots(nrows, ncols, figsize=(size * ncols, size * nrows), squeeze=False)
     return fig, axes
 
-
-def _png(fig) -> bytes:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    # fixed metadata so the same inputs give the same bytes
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight", metadata={"Software": None})
-    plt.close(fig)
-    return buf.getvalue()
 
 
 @one_at_a_time
@@ -80,7 +70,7 @@ def sheet_picture(
         ax.set_ylim(lo[1], hi[1])
     cb = fig.colorbar(im, ax=axes[0].tolist(), shrink=0.8, pad=0.02)
     cb.set_label("fibre axis angle [deg] (soft direction l)")
-    return _png(fig)
+    return figure_png(fig, dpi=110)
 
 
 @one_at_a_time
@@ -133,4 +123,4 @@ def printmap_picture(
             fig.colorbar(im, ax=ax, shrink=0.75)
         row[0].set_ylabel("y [mm]")
     fig.suptitle("IceSL print map, mid-plane slice (black: part outline; hatched: solid parts, brush 1)")
-    return _png(fig)
+    return figure_png(fig, dpi=110)

@@ -5,10 +5,9 @@ Agg); the stage layer writes them.
 
 from __future__ import annotations
 
-import io
 
 import numpy as np
-from . import one_at_a_time
+from . import figure_png, one_at_a_time
 
 CLASS_COLOURS = {3: "#1f5fbf", 2: "#2ca02c", 1: "#ff7f0e", 0: "#d62728", -1: "#c8c8c8"}
 CLASS_LABELS = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
@@ -25,12 +24,6 @@ def _plt():
 
     return plt
 
-
-def _png(fig) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight", metadata={"Software": None})
-    _plt().close(fig)
-    return buf.getvalue()
 
 
 def _depth_order(points: np.ndarray, h: int, v: int) -> np.ndarray:
@@ -95,7 +88,7 @@ def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: fl
     axes[0, 0].legend(loc="upper right", fontsize=8, markerscale=1.5)
     fig.suptitle(title or "Workspace (paper Fig. 5)", fontsize=14)
     fig.tight_layout()
-    return _png(fig)
+    return figure_png(fig)
 
 
 @one_at_a_time
@@ -125,7 +118,7 @@ def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
     axes[0, 0].legend(loc="upper right", fontsize=8)
     fig.suptitle(title or "Reachable workspace for several motor ranges (paper Fig. 6)")
     fig.tight_layout(rect=(0, 0, 1, 0.95))  # the equal-aspect panels otherwise meet the title
-    return _png(fig)
+    return figure_png(fig)
 
 
 @one_at_a_time
@@ -146,7 +139,7 @@ def anisotropy_picture(alpha, rod_rotation_deg, lateral_mm, *, pull_deg: float, 
         ax.legend()
     fig.suptitle(title or "Anisotropy sweep: all motors together (paper Fig. 7)")
     fig.tight_layout()
-    return _png(fig)
+    return figure_png(fig)
 
 
 @one_at_a_time
@@ -211,4 +204,4 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
     ax.legend(*handles, loc="upper center", fontsize=8, ncol=2)
     fig.suptitle(title or "Maze: tilt commands solved open loop")
     fig.tight_layout()
-    return _png(fig)
+    return figure_png(fig)
