@@ -282,6 +282,13 @@ def robot_goto(
                                              "--pipeline or --orient")] = 8.0,
     material_model: Annotated[Optional[str], typer.Option("--material-model", help="material model 'ours' or "
                                                           "'authors' (default: the material stage's, else 'ours')")] = None,
+    column: Annotated[str, typer.Option("--column", help="with --pipeline: 'prediction' (the material stage's "
+                                        "constants) or 'reproduction' (the published constants under the authors' "
+                                        "force field, on the same mesh and scene)")] = "prediction",
+    tol_mm: Annotated[float, typer.Option("--tol-mm", min=1e-6, max=100.0, help="position tolerance [mm] "
+                                          "(the paper's test: 1)")] = 0.1,
+    tol_deg: Annotated[float, typer.Option("--tol-deg", min=1e-6, max=90.0, help="rotation tolerance [deg] "
+                                           "(the paper's test: 2)")] = 0.2,
 ) -> None:
     """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles.
 
@@ -289,6 +296,7 @@ def robot_goto(
     and the remaining error.
     """
     from .errors import ConfigError, UnreachableError
+    from .robot.inverse_settings import InverseSettings
     from .serve.loading import GOTO_MODELS
     from .serve.models import goto
 
@@ -298,12 +306,14 @@ def robot_goto(
     if pipeline is not None:
         if orient is not None:
             raise ConfigError("--orient: give either --pipeline (the pipeline's robot) or --orient, not both")
-        robot, info = pipeline_robot(pipeline, out, model, material_model)
+        robot, info = pipeline_robot(pipeline, out, model, material_model, column)
     elif model != "full":
         raise ConfigError(f"--model {model}: needs --pipeline (a pipeline with the reduce stage, run first)")
+    elif column != "prediction":
+        raise ConfigError(f"--column {column}: needs --pipeline (the pipeline's mesh and scene)")
     else:
         robot, info = goto_robot(orient, mesh_size, material_model), None
-    res, note = goto(robot, goal)
+    res, note = goto(robot, goal, InverseSettings(pos_tol=tol_mm, rot_tol_deg=tol_deg))
     used = "full" if info is None or note else info.model
     say(f"model: {used}" + (f" ({note})" if note else ""), err=False)
     say(format_result(res), err=False)

@@ -42,18 +42,29 @@ def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, material_mode
                          density=paper.FOAM_DENSITY, model=material_model)
 
 
-def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full", material_model: str | None = None):
+def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full", material_model: str | None = None,
+                   column: str = "prediction"):
     """``(robot, RobotInfo)`` of a pipeline's outputs as ``metasheet serve`` drives it
     (:func:`metasheet.serve.loading.load_robot`: the robot stage's scene, the material
     stage's density and model); ``model`` "full" / "reduced". ``material_model``, when given,
-    must be the material stage's (the robot, and a reduced basis, are built with that one)."""
+    must be the material stage's (the robot, and a reduced basis, are built with that one).
+    ``column`` "reproduction": the same mesh and scene with the published constants under the
+    authors' force field (:mod:`metasheet.studies.columns`)."""
     from .errors import ConfigError
     from .material_model import check_model
     from .pipeline.artefacts import read_material
     from .serve.loading import find_outputs, load_robot
 
+    from .serve.loading import PUBLISHED
+    from .studies.columns import COLUMNS
+
+    if column not in COLUMNS:
+        raise ConfigError(f"--column: {column!r}: allowed values are {', '.join(COLUMNS)}")
     outputs = find_outputs(pipeline, out)
-    robot, info = load_robot(outputs, model)
+    robot, info = load_robot(outputs, model, PUBLISHED if column == "reproduction" else "foam")
+    if material_model is not None and column == "reproduction":
+        raise ConfigError("--material-model: the reproduction column's model is the authors' force field; "
+                          "drop --material-model")
     if material_model is not None:
         used = read_material(outputs.directory / "material").model
         if check_model(material_model, "--material-model") != used:

@@ -59,6 +59,10 @@ class StageContext:
     timings : phase -> wall-clock seconds the stage may fill; the runner records them in
         the manifest (``timings_s``). Wall-clock times never go into an artefact: the same
         config gives the same bytes.
+    column : which column of the paper a study computes ("prediction": the printed foam's
+        constants; "reproduction": the paper's own model), :mod:`metasheet.studies.columns`.
+    subdir : folder of ``workdir`` the files go to ("": the stage's own folder; a study's
+        second column writes into ``<column>/``).
     """
 
     name: str
@@ -69,10 +73,14 @@ class StageContext:
     executor: Executor = field(default_factory=Executor)
     progress: Callable[[str, int, int], None] = lambda desc, done, total: None
     timings: dict[str, float] = field(default_factory=dict)
+    column: str = "prediction"
+    subdir: str = ""
 
     def path(self, filename: str) -> Path:
         """Where to write the output file ``filename``."""
-        return self.workdir / filename
+        folder = self.workdir / self.subdir if self.subdir else self.workdir
+        folder.mkdir(parents=True, exist_ok=True)
+        return folder / filename
 
 
 @dataclass(frozen=True)

@@ -45,6 +45,9 @@ MODELS = ("full", "reduced")
 GOTO_MODELS = MODELS + ("surface",)
 #: the sheet materials the page switches between
 MATERIALS = ("foam", "silicone")
+#: The reproduction column's sheets (metasheet/studies/columns.py): the published constants
+#: under the authors' force field, on the pipeline's own mesh and scene.
+PUBLISHED = "published"
 #: the artefacts the page needs, per stage
 REQUIRED = {
     "orient": ("sheet.json", "sheet.vtu", "sheet_mirrored.vtu"),
@@ -186,10 +189,13 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     """
     if model not in GOTO_MODELS:
         raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(GOTO_MODELS)}")
-    if material not in MATERIALS:
-        raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
+    if material not in (*MATERIALS, PUBLISHED):
+        raise ConfigError(f"material: {material!r}: allowed values are {', '.join((*MATERIALS, PUBLISHED))}")
     check_outputs(outputs)
-    basis_file = outputs.directory / "reduce" / "basis.npz"
+    from ..studies.columns import column_folder
+
+    column = "reproduction" if material == PUBLISHED else "prediction"
+    basis_file = column_folder(outputs.directory / "reduce", column, "reduce") / "basis.npz"
     needs = {"reduced": basis_file, "surface": basis_file.with_name("surface.npz")}.get(model)
     if needs is not None and not needs.is_file():
         raise ConfigError(f"--model {model}: needs the reduce stage's outputs ({needs}), which are "
@@ -197,7 +203,7 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     robot, info = _full_robot(outputs, material)
     if model == "full":
         return robot, info
-    if material != "foam":
+    if material == "silicone":
         note = (f"the {model} model was trained on the foam and does not fit silicone: "
                 "silicone runs on the full model")
         return robot, replace(info, note=note)
@@ -270,6 +276,7 @@ def certificate(reduce_dir: Path) -> str:
 
 def _full_robot(outputs: Outputs, material: str):
     """The FEM robot of ``outputs`` for ``material`` and its :class:`RobotInfo`."""
+    from .. import paper
     from ..material import Isotropic
     from ..pipeline.artefacts import read_material, read_orient, read_robot_scene
     from ..robot.builder import six_dof_robot
@@ -281,6 +288,13 @@ def _full_robot(outputs: Outputs, material: str):
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": mat.density}
         robot = six_dof_robot(orient.sheets(), model=mat.model, **mass, **scene)
         what = f"foam: the sheets' own constants along their fibres ({mat.source or 'material stage'}, model {mat.model})"
+    elif material == PUBLISHED:
+        from ..studies.columns import column_material
+
+        col = column_material("reproduction")
+        mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": paper.FOAM_DENSITY}
+        robot = six_dof_robot(orient.sheets(need_constants=False), col.material, model=col.model, **mass, **scene)
+        what = f"published constants (the paper's), model {col.model}: the reproduction column"
     else:
         E, nu, density = outputs.silicone
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": density}

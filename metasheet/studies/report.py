@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..material import CONSTANT_NAMES
+from .columns_report import columns_section
 from .constants_report import constants_section
 from .convergence_report import convergence_section
 from .model_report import model_section
@@ -134,6 +135,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     section, found = reduce_section(s.get("reduce_json"), summaries.get("reduce_seconds"))
     lines += section
     diffs += found
+    lines += columns_section(s.get("columns") or {}, pictures)
     if "workspace" in s:
         w = s["workspace"]
         lines += ["## Workspace exploration (reproduces paper Fig. 5)", "",

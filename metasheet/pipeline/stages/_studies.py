@@ -16,10 +16,10 @@ import csv
 import shutil
 from dataclasses import replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, ValidationError, model_validator
 
 from ... import paper
 from ...errors import ConfigError
@@ -65,6 +65,44 @@ class StudyRobotParams(Params):
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     resume: bool = Field(True, description="keep finished work units so an interrupted run resumes")
+    columns: list[Literal["prediction", "reproduction"]] = Field(
+        ["prediction"], min_length=1, max_length=2, description="what the study computes: 'prediction' (the "
+        "material stage's constants and model, within the strain limit) and/or 'reproduction' (the paper's "
+        "published constants under reproduction_model, no strain stop: metasheet/studies/columns.py); the first "
+        "writes into the stage's folder, the second into <stage>/<column>/")
+    reproduction_model: Literal["authors", "ours"] = Field(
+        "authors", description="the reproduction column's material model: 'authors' (their SOFA force field, "
+        "which made the paper's figures) or 'ours' (all five constants)")
+    reproduction: dict[str, Any] = Field(
+        {}, description="this table's keys changed for the reproduction column (e.g. { tilt_deg = 6 }); "
+        "stop_beyond_strain is false there unless given")
+
+    @model_validator(mode="after")
+    def _columns_valid(self):
+        if len(set(self.columns)) != len(self.columns):
+            raise ConfigError(f"columns: {self.columns!r}: a column at most once")
+        if self.reproduction:
+            self.for_column("reproduction")  # the overrides' own errors, at load time
+        return self
+
+    def for_column(self, column: str):
+        """These parameters as ``column`` runs them (the reproduction's own keys applied)."""
+        from ...studies.columns import REPRODUCTION_DEFAULTS
+
+        if column != "reproduction":
+            return self
+        bad = sorted(k for k in self.reproduction if k not in type(self).model_fields or k in ("columns", "reproduction"))
+        if bad:
+            raise ConfigError(f"reproduction: {bad}: not a key of this table that the reproduction column can "
+                              "change")
+        data = {**self.model_dump(), **{k: v for k, v in REPRODUCTION_DEFAULTS.items() if k in type(self).model_fields},
+                **self.reproduction, "columns": ["reproduction"], "reproduction": {}}
+        try:
+            return type(self).model_validate(data)
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            where = ".".join(str(x) for x in err["loc"])
+            raise ConfigError(f"reproduction.{where}: {self.reproduction.get(err['loc'][0])!r}: {err['msg']}") from None
 
     def check_pipeline(self, table: str, params: dict) -> None:
         """The sheet the study's robot is built on (orient's, or re-meshed) within the size limit."""
@@ -111,25 +149,58 @@ def build_spec(ctx: StageContext):
             raise ConfigError(f"{ctx.name}.model: {p.model!r}: the {need!r} stage must be in the pipeline")
     from ...robot.builder import resolve_density
 
+    from ...studies.columns import column_material
+
     orient = read_orient(ctx.inputs["orient"])
     mat = read_material(ctx.inputs["material"])
+    col = column_material(ctx.column, p.reproduction_model)
+    material, model = (mat.material, mat.model) if col.material is None else (col.material, col.model)
     sc = up.with_overrides(rod_length=p.rod_length, rest_angle=p.rest_angle, horn_length=p.horn_length)
     scene = {k: getattr(sc, k) for k in ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth")}
     sheets = orient.sheets(need_constants=orient.graded)
     if any(v is not None for v in (p.mesh_size, p.layers, p.grip_size, p.element)):
         sheets = remesh(orient, orient.sheet_params.mesh_size if p.mesh_size is None else p.mesh_size,
                         p.layers, p.element, p.grip_size)
-    if not (orient.graded and sheets.has_constants):  # uniform design: the material stage's constants
+    if col.material is not None or not (orient.graded and sheets.has_constants):  # one material for all elements
         sheets = replace(sheets, constants=None, constants_mirrored=None)
-    density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat.density, sc.sheet_mass_g)
-    spec = RobotSpec.from_sheets(sheets, mat.material, motor_range=(lo, hi), density=density,
+    mat_density = mat.density if col.material is None else paper.FOAM_DENSITY
+    density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat_density, sc.sheet_mass_g)
+    spec = RobotSpec.from_sheets(sheets, material, motor_range=(lo, hi), density=density,
                                  gravity=tuple(sc.gravity), rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
-                                 model=mat.model, strain_band_mm=p.strain_band_mm, **scene)
+                                 model=model, strain_band_mm=p.strain_band_mm, **scene)
     if p.model == "reduced":
         from ...studies.reduced_adapter import ReducedSpec
 
-        return ReducedSpec.from_file(spec, ctx.inputs["reduce"] / "basis.npz")
+        return ReducedSpec.from_file(spec, basis_file(ctx.inputs["reduce"], ctx.column, f"{ctx.name}.model"))
     return spec
+
+
+def basis_file(reduce_dir: Path, column: str, key: str) -> Path:
+    """The reduce stage's basis for ``column``; a :class:`ConfigError` naming ``key`` when the
+    reduce stage did not train it."""
+    from ...studies.columns import column_folder
+
+    path = column_folder(reduce_dir, column, "reduce") / "basis.npz"
+    if not path.is_file():
+        raise ConfigError(f"{key}: 'reduced': the reduce stage trained no basis for the {column} column "
+                          f"(add {column!r} to [reduce] columns)")
+    return path
+
+
+def run_columns(ctx: StageContext, run_one) -> dict:
+    """Run a study stage's ``run_one(ctx)`` once per column of ``ctx.params.columns``: the first
+    writes into the stage's folder, the next into ``<column>/``, each with its parameters
+    (:meth:`StudyRobotParams.for_column`). Returns the first column's summary, with
+    ``"columns"``: {column: its summary} when there are two."""
+    from dataclasses import replace as dc_replace
+
+    p = ctx.params
+    out = {}
+    for i, col in enumerate(p.columns):
+        sub = dc_replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col)
+        out[col] = run_one(sub)
+    first = out[p.columns[0]]
+    return first if len(out) == 1 else {**first, "columns": out}
 
 
 def study_reads(params) -> tuple[str, ...]:
@@ -211,11 +282,15 @@ def unit_cache(ctx: StageContext) -> UnitCache:
     so they survive an interrupted run); :func:`drop_cache` removes it after success."""
     if not ctx.params.resume:
         return UnitCache(None)
-    return UnitCache(ctx.workdir.parent / f".{ctx.name}.units")
+    return UnitCache(_cache_dir(ctx))
+
+
+def _cache_dir(ctx: StageContext) -> Path:
+    return ctx.workdir.parent / (f".{ctx.name}.units" if not ctx.subdir else f".{ctx.name}-{ctx.subdir}.units")
 
 
 def drop_cache(ctx: StageContext) -> None:
-    shutil.rmtree(ctx.workdir.parent / f".{ctx.name}.units", ignore_errors=True)
+    shutil.rmtree(_cache_dir(ctx), ignore_errors=True)
 
 
 def progress(ctx: StageContext):

@@ -28,7 +28,7 @@ from ...material_model import model_stiffness, other_model
 from ...studies.anisotropy import anisotropy_sweeps
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import (StudyRobotParams, build_spec, drop_cache, model_record, progress, study_reads, unit_cache,
+from ._studies import (run_columns, StudyRobotParams, build_spec, drop_cache, model_record, progress, study_reads, unit_cache,
                        write_csv)
 
 
@@ -44,6 +44,10 @@ class AnisotropyParams(StudyRobotParams):
 
 
 def run(ctx: StageContext) -> dict:
+    return run_columns(ctx, _run_one)
+
+
+def _run_one(ctx: StageContext) -> dict:
     p: AnisotropyParams = ctx.params
     spec = build_spec(ctx)
     info = model_record(spec)
@@ -80,9 +84,10 @@ def run(ctx: StageContext) -> dict:
     applied = res.applied_deg.mean(axis=0)
     ctx.path("anisotropy.png").write_bytes(anisotropy_picture(
         res.alpha, res.rod_rotation_deg, res.lateral_mm, pull_deg=abs(applied[0]), push_deg=abs(applied[1]),
-        title=f"Anisotropy sweep, all motors together (paper Fig. 7) [{p.model}]"))
+        title=f"Anisotropy sweep, all motors together (paper Fig. 7) [{ctx.column}, {p.model}]"))
     failed = np.isnan(res.rod_rotation_deg)
     summary = {
+        "column": ctx.column,
         "alpha_percent": res.alpha.round(4).tolist(),
         "rod_rotation_deg": {"pull": _listed(res.rod_rotation_deg[:, 0]), "push": _listed(res.rod_rotation_deg[:, 1])},
         "lateral_mm": {"pull": _listed(res.lateral_mm[:, 0]), "push": _listed(res.lateral_mm[:, 1])},
@@ -135,7 +140,7 @@ def _listed(values) -> list:
 def _published_spec(ctx: StageContext, spec):
     """The same robot with the paper's published constants, or None (stand-in model, uniform
     published material already, or a graded design whose per-element constants it would erase)."""
-    if ctx.params.model not in ("robot", "reduced") or "material" not in ctx.inputs:
+    if ctx.column != "prediction" or ctx.params.model not in ("robot", "reduced") or "material" not in ctx.inputs:
         return None
     from ..artefacts import read_material, read_orient
 

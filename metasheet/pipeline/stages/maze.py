@@ -19,7 +19,7 @@ from ...material import Isotropic
 from ...studies.maze import MazeSettings, solve_mazes
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import (CertifyParams, build_spec, certification, drop_cache, model_record, progress, scene_of,
+from ._studies import (run_columns, CertifyParams, build_spec, certification, drop_cache, model_record, progress, scene_of,
                        study_reads, unit_cache, write_csv)
 
 #: a small maze walked once round and back to the start: along the rod, across it, diagonals
@@ -61,6 +61,10 @@ HEADER = (["time_s"] + [f"motor{k}_deg" for k in range(6)] + ["segment", "hold",
 
 
 def run(ctx: StageContext) -> dict:
+    return run_columns(ctx, _run_one)
+
+
+def _run_one(ctx: StageContext) -> dict:
     p: MazeParams = ctx.params
     spec = build_spec(ctx)
     s = MazeSettings(tilt_deg=p.tilt_deg, speed=p.speed, dt=p.dt, ramp_s=p.ramp_s, tol_mm=p.tol_mm,
@@ -78,10 +82,11 @@ def run(ctx: StageContext) -> dict:
     ctx.path("maze.png").write_bytes(maze_picture(
         np.asarray(p.path), foam.commands.time, foam.motors_deg, foam.track_mm, foam.track_deg, foam.segment_ok,
         sil.segment_ok, foam.motor_range,
-        title=f"Maze: tilt {p.tilt_deg:g} deg, foam vs silicone sheets [{p.model}]", strain=foam.strain,
+        title=f"Maze: tilt {p.tilt_deg:g} deg, foam vs silicone sheets [{ctx.column}, {p.model}]", strain=foam.strain,
         strain_limit=p.strain_limit))
     lo, hi = foam.motor_range
     summary = {
+        "column": ctx.column, "tilt_deg": p.tilt_deg,
         "segments": int(len(foam.segment_ok)), "samples": int(len(foam.commands.time)),
         "duration_s": float(foam.commands.time[-1]),
         "foam_segments_ok": foam.segment_ok.tolist(), "silicone_segments_ok": sil.segment_ok.tolist(),

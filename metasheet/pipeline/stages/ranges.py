@@ -16,7 +16,7 @@ from ...studies.ranges import motor_range_study
 from ...studies.workspace import WorkspaceSettings
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import (GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
+from ._studies import (run_columns, GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
                        study_reads, unit_cache, write_csv)
 
 class RangesParams(GridParams):
@@ -24,6 +24,10 @@ class RangesParams(GridParams):
         [(0.0, 90.0), (10.0, 80.0), (20.0, 70.0)], description="motor ranges (lo, hi) to compare [deg]")
 
 def run(ctx: StageContext) -> dict:
+    return run_columns(ctx, _run_one)
+
+
+def _run_one(ctx: StageContext) -> dict:
     p: RangesParams = ctx.params
     spec = build_spec(ctx)
     grid = grid_from(p)
@@ -41,9 +45,9 @@ def run(ctx: StageContext) -> dict:
 
     ctx.path("ranges.png").write_bytes(ranges_picture(
         res.goals, res.reached, res.ranges,
-        title=(f"Reachable workspace per motor range (paper Fig. 6), nested: {res.nested} [{p.model}"
+        title=(f"Reachable workspace per motor range (paper Fig. 6), nested: {res.nested} [{ctx.column}, {p.model}"
                + (f"; within the strain limit {p.strain_limit:g}]" if p.stop_beyond_strain else "]"))))
-    summary = {"ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
+    summary = {"column": ctx.column, "ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
                "points": len(grid), "nested": res.nested,
                "violations": [{"wide": names[a], "narrow": names[b], "points": len(pts)} for a, b, pts in res.violations],
                "strain_limit": p.strain_limit, "stop_beyond_strain": p.stop_beyond_strain,

@@ -56,9 +56,32 @@ def run(ctx: StageContext) -> dict:
     if "reduce" in ctx.inputs and (ctx.inputs["reduce"] / "reduce.json").exists():
         summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
         summaries["reduce_seconds"] = (read_manifest(ctx.inputs["reduce"]) or {}).get("wall_time_s")
+    summaries["columns"] = {name: _columns(ctx, name, pictures) for name in STUDIES if name in ctx.inputs}
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}
+
+
+def _columns(ctx: StageContext, name: str, pictures: dict) -> dict:
+    """Column -> summary of the study ``name``: its own folder's and its ``<column>/``
+    folders'; each column's picture copied as ``<name>_<column>.png`` (the first's is
+    ``<name>.png``) and listed in ``pictures`` under "<name>/<column>"."""
+    from ...studies.columns import COLUMNS
+
+    d, out = ctx.inputs[name], {}
+    for folder in (d, *(d / c for c in COLUMNS)):
+        summary = read_summary(folder, name) if (folder / f"{name}.json").exists() else None
+        if summary is None:
+            continue
+        col = summary.get("column", "prediction")
+        out[col] = summary
+        png = folder / f"{name}.png"
+        if png.exists():
+            target = f"{name}.png" if folder == d else f"{name}_{col}.png"
+            if folder != d:
+                shutil.copyfile(png, ctx.path(target))
+            pictures[f"{name}/{col}"] = target
+    return out
 
 
 def _robot_meshes(ctx: StageContext) -> dict:

@@ -23,7 +23,7 @@ from ...studies.model import MODELS
 from ...studies.workspace import CLASS_NAMES, WorkspaceSettings, explore_workspace
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import (GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
+from ._studies import (run_columns, GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
                        study_reads, unit_cache, write_csv)
 
 ROT_COLS = ("+x", "-x", "+y", "-y", "+z", "-z")
@@ -51,6 +51,20 @@ def settings_from(p) -> WorkspaceSettings:
         substeps=p.substeps, hold_orientation=p.hold_orientation)
 
 
+def full_control_region(goals, cls, reached, rest_p) -> dict:
+    """The ball around the rest position (3,) [mm] in which every reachable goal (n, 3) [mm]
+    passes all three rotations (class 3): its radius [mm] (the distance to the nearest reachable
+    goal that does not; None: every one does) and the class-3 goals inside it (paper Fig. 5: "at
+    the initial position ... and in a whole area around it, we have a full 6 DOF control")."""
+    d = np.linalg.norm(np.asarray(goals, float) - np.asarray(rest_p, float), axis=1)
+    full = reached & (np.asarray(cls) == 3)
+    short = reached & ~full
+    radius = float(d[short].min()) if short.any() else None
+    inside = full if radius is None else full & (d < radius)
+    return {"full_control_radius_mm": None if radius is None else round(radius, 4),
+            "full_control_points": int(inside.sum())}
+
+
 def write_vtp(path, points, fields: dict) -> None:
     import pyvista as pv
 
@@ -61,6 +75,10 @@ def write_vtp(path, points, fields: dict) -> None:
 
 
 def run(ctx: StageContext) -> dict:
+    return run_columns(ctx, _run_one)
+
+
+def _run_one(ctx: StageContext) -> dict:
     p: WorkspaceParams = ctx.params
     spec = build_spec(ctx)
     grid = grid_from(p)
@@ -92,12 +110,13 @@ def run(ctx: StageContext) -> dict:
 
     counts = res.counts()
     title = (f"Workspace (paper Fig. 5): {len(grid)} goals, {int(r.reached.sum())} reachable, "
-             f"{res.n_components} connected component(s) [{p.model}, {settings.test} rotation test"
+             f"{res.n_components} connected component(s) [{ctx.column}, {p.model}, {settings.test} rotation test"
              + (f", within the strain limit {p.strain_limit:g}]" if p.stop_beyond_strain else "]"))
     ctx.path("workspace.png").write_bytes(workspace_picture(
         res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title, tried=r.tried))
     reached = r.reached
     summary = {
+        "column": ctx.column,
         "points": len(grid), "rays": int(len(grid.directions)), "counts": counts,
         "reachable": int(reached.sum()), "tried": int(r.tried.sum()),
         "solver_failures": int((r.tried & ~r.converged).sum()),
@@ -109,6 +128,7 @@ def run(ctx: StageContext) -> dict:
         "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
         "components": res.n_components, "edges_tested": res.edges_tested, "edges_passed": res.edges_passed,
         "in_rest_component": int((res.component == 0).sum()),
+        **full_control_region(res.goals, res.cls, r.reached, MODELS.get(spec).rest_pose()[:3]),
         "wall_s": round(wall, 2), "s_per_point": round(wall / max(1, int(r.tried.sum())), 4),
         "executor": ctx.executor.kind, "model": p.model,
         "material_model": getattr(spec, "model", None),

@@ -1,0 +1,91 @@
+"""The report's side-by-side section: each of the paper's claims, its reproduction and the
+printed foam's prediction (:mod:`metasheet.studies.columns`), with a verdict.
+
+A verdict is computed from the numbers, never written by hand: "reproduced" when the
+reproduction column's figure meets the paper's statement as the row's test reads it,
+"not reproduced" with the figure that misses otherwise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+#: The paper's statement behind each figure (paper-6dof-anisotropic-soft-robot.md).
+STATEMENTS = {
+    "workspace": "Fig. 5 / IV-B: \"at the initial position (center of workspace) and in a whole area around it, "
+                 "we have a full 6 DOF control\" (+-10 deg about x, y, z within 2 deg)",
+    "ranges": "Fig. 6: narrower motor ranges give nested, smaller workspaces",
+    "anisotropy": "Fig. 7: the rod rotation appears progressively with alpha (none when isotropic), pulling all "
+                  "motors 15 deg or pushing them 35 deg",
+    "maze": "V-B3: the foam robot guides the marble along the whole maze; silicone sheets cannot",
+}
+
+
+def _workspace(w: Mapping) -> tuple[str, bool]:
+    full = w["counts"].get("3 rotations", 0)
+    inside, radius = w.get("full_control_points", 0), w.get("full_control_radius_mm")
+    region = ("every reachable point does" if radius is None else
+              f"{inside} of them within {radius:.3g} mm of rest, where every reachable point does")
+    return f"{full} of {w['reachable']} reachable points pass all three rotations; {region}", full > 0 and inside > 0
+
+
+def _ranges(r: Mapping) -> tuple[str, bool]:
+    counts = ", ".join(f"{k}: {v}" for k, v in r["reachable"].items())
+    shrinking = list(r["reachable"].values()) == sorted(r["reachable"].values(), reverse=True)
+    return f"reachable {counts}; nested: {r['nested']}", bool(r["nested"] and shrinking)
+
+
+def _anisotropy(a: Mapping) -> tuple[str, bool]:
+    rot = a["rod_rotation_deg"]
+    ends = [abs(v) for v in (rot["pull"][-1], rot["push"][-1]) if v is not None]
+    starts = [abs(v) for v in (rot["pull"][0], rot["push"][0]) if v is not None]
+    if not ends or not starts:
+        return "not converged at the sweep's ends", False
+    grows = max(starts) <= 0.05 * max(ends)
+    app = a["applied_deg"]
+    text = (f"rod rotation {max(starts):.3g} deg isotropic, pull {_deg(rot['pull'][-1])} / push "
+            f"{_deg(rot['push'][-1])} at alpha {a['alpha_percent'][-1]:.3g} % (motors {abs(app['pull']):.3g} / "
+            f"{abs(app['push']):.3g} deg)")
+    req = a["requested_deg"]
+    full_stroke = abs(abs(app["pull"]) - req["pull"]) <= 0.5 and abs(abs(app["push"]) - req["push"]) <= 0.5
+    return text, bool(grows and full_stroke)
+
+
+def _maze(z: Mapping) -> tuple[str, bool]:
+    foam, sil = z["foam_impossible_segments"], z["silicone_impossible_segments"]
+    text = (f"foam: {len(foam)} of {z['segments']} segments impossible; silicone: {len(sil)} impossible "
+            f"(tilt {z.get('tilt_deg', 'n/a')} deg)")
+    return text, not foam and bool(sil)
+
+
+def _deg(v) -> str:
+    return "n/a" if v is None else f"{v:.3g}"
+
+
+ROWS = {"workspace": _workspace, "ranges": _ranges, "anisotropy": _anisotropy, "maze": _maze}
+
+
+def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping[str, str]) -> list[str]:
+    """Markdown lines: per study that ran a reproduction column, the paper's statement, the
+    reproduction, the prediction and the verdict; ``columns`` is study -> column -> summary,
+    ``pictures`` "<study>/<column>" -> picture path. Empty when no study ran a reproduction."""
+    studies = [k for k in ROWS if "reproduction" in columns.get(k, {})]
+    if not studies:
+        return []
+    out = ["## The paper, reproduced and predicted", "",
+           "The **reproduction** runs each study as the paper's figures were made: the published constants under "
+           "the authors' force field, no strain stop (`metasheet/studies/columns.py`). The **prediction** runs it "
+           "on the printed foam's homogenised constants, within the homogenisation's strain limit.", "",
+           "| figure | the paper | reproduction | prediction | verdict |", "|---|---|---|---|---|"]
+    for k in studies:
+        rep_text, ok = ROWS[k](columns[k]["reproduction"])
+        pred = columns[k].get("prediction")
+        pred_text = ROWS[k](pred)[0] if pred else "not run"
+        verdict = "reproduced" if ok else "not reproduced"
+        out.append(f"| {k} | {STATEMENTS[k]} | {rep_text} | {pred_text} | {verdict} |")
+    out.append("")
+    for k in studies:
+        pics = [f"![{k}, {c}]({pictures[f'{k}/{c}']})" for c in ("reproduction", "prediction") if f"{k}/{c}" in pictures]
+        if pics:
+            out += [f"{k}: reproduction (left) and prediction (right)", "", " ".join(pics), ""]
+    return out

@@ -1,0 +1,117 @@
+"""The two columns of every study (metasheet/studies/columns.py): the reproduction runs on the
+published constants under the authors' force field without a strain stop, the prediction on
+the material stage's; each writes its own folder and names its column in its JSON."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from metasheet.errors import ConfigError
+from metasheet.pipeline.config import load_pipeline
+from metasheet.pipeline.runner import run_pipeline
+
+
+def project(tmp_path: Path, text: str, name: str) -> Path:
+    (tmp_path / "cells").mkdir(exist_ok=True)
+    (tmp_path / "pipelines").mkdir(exist_ok=True)
+    p = tmp_path / "pipelines" / f"{name}.toml"
+    p.write_text(text)
+    return p
+
+
+STANDIN = """[pipeline]
+name = "cols"
+stages = ["workspace", "ranges", "report"]
+[workspace]
+model = "standin"
+columns = ["prediction", "reproduction"]
+stop_beyond_strain = true
+continuity = false
+n_azimuth = 4
+n_elevation = 2
+n_steps = 4
+[ranges]
+model = "standin"
+columns = ["reproduction"]
+n_azimuth = 4
+n_elevation = 2
+n_steps = 4
+"""
+
+
+def test_each_column_writes_its_folder_and_names_itself(tmp_path):
+    run_pipeline(load_pipeline(project(tmp_path, STANDIN, "cols")))
+    out = tmp_path / "outputs" / "cols"
+    pred = json.loads((out / "workspace" / "workspace.json").read_text())
+    rep = json.loads((out / "workspace" / "reproduction" / "workspace.json").read_text())
+    assert pred["column"] == "prediction" and rep["column"] == "reproduction"
+    # the paper's protocol: no strain stop in the reproduction, whatever the prediction's
+    assert pred["stop_beyond_strain"] is True and rep["stop_beyond_strain"] is False
+    for f in ("workspace.csv", "workspace.vtp", "workspace.png"):
+        assert (out / "workspace" / "reproduction" / f).stat().st_size > 0
+    # a study run for the reproduction alone writes it into the stage's own folder
+    assert json.loads((out / "ranges" / "ranges.json").read_text())["column"] == "reproduction"
+    assert not list(out.glob(".*.units"))
+    report = (out / "report" / "report.md").read_text()
+    section = report.split("## The paper, reproduced and predicted")[1].split("\n## ")[0]
+    row = next(line for line in section.splitlines() if line.startswith("| workspace |"))
+    n3 = rep["counts"].get("3 rotations", 0)
+    assert f"{n3} of {rep['reachable']} reachable points pass all three rotations" in row
+    verdict = row.strip().strip("|").split("|")[-1].strip()
+    assert verdict == ("reproduced" if n3 > 0 and rep["full_control_points"] > 0 else "not reproduced")
+    assert "| ranges |" in section and "| not run |" in section  # ranges ran the reproduction alone
+    assert (out / "report" / "workspace_reproduction.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("extra, match", [
+    ('columns = ["prediction", "prediction"]', "a column at most once"),
+    ('columns = []', "columns"),
+    ('reproduction = { n_steps = 0 }', r"reproduction\.n_steps"),
+    ('reproduction = { no_such_key = 1 }', "no_such_key"),
+    ('reproduction = { columns = ["prediction"] }', "columns"),
+])
+def test_bad_column_settings_name_the_field(tmp_path, extra, match):
+    text = f'[pipeline]\nname = "bad"\nstages = ["workspace"]\n[workspace]\nmodel = "standin"\n{extra}\n'
+    with pytest.raises(ConfigError, match=match):
+        load_pipeline(project(tmp_path, text, "bad"))
+
+
+ROBOT = """[pipeline]
+name = "rc"
+stages = ["material", "orient", "anisotropy"]
+[material]
+source = "config"
+E_l = 0.3                          # not the published set: the columns must differ
+model = "ours"
+[orient]
+mesh_size = 16
+element = "p1"
+[anisotropy]
+model = "robot"
+n_alpha = 2
+compare_models = false
+columns = ["prediction", "reproduction"]
+"""
+
+
+def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_field(tmp_path):
+    from metasheet import paper
+    from metasheet.pipeline.stages._studies import build_spec
+    from metasheet.pipeline.registry import StageContext
+    from metasheet.pipeline.stages.anisotropy import AnisotropyParams
+
+    run_pipeline(load_pipeline(project(tmp_path, ROBOT, "rc")))
+    out = tmp_path / "outputs" / "rc"
+    inputs = {"orient": out / "orient", "material": out / "material"}
+    p = AnisotropyParams(model="robot")
+    pred = build_spec(StageContext("anisotropy", p, tmp_path, inputs, tmp_path))
+    rep = build_spec(StageContext("anisotropy", p, tmp_path, inputs, tmp_path, column="reproduction"))
+    assert pred.model == "ours" and pred.design[1] == pytest.approx(0.3)
+    assert rep.model == "authors" and rep.design == pytest.approx(paper.PAPER_FOAM.as_tuple())
+    a = json.loads((out / "anisotropy" / "anisotropy.json").read_text())
+    b = json.loads((out / "anisotropy" / "reproduction" / "anisotropy.json").read_text())
+    assert a["column"] == "prediction" and b["column"] == "reproduction"
+    assert "published_end_point" in a and "published_end_point" not in b  # the reproduction is the published set
+    # the published foam (alpha 93 %) turns the rod further than the stiffer E_l = 0.3 (alpha 78 %)
+    assert abs(b["rod_rotation_deg"]["push"][-1]) > abs(a["rod_rotation_deg"]["push"][-1])
