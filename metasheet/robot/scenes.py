@@ -194,9 +194,12 @@ AUTHORS = ScenePreset(
                      "to the circle (the direct scene, direct_simu.py:287-289, has -150: pitch -60)",
         "rod_length": _INV + "utility/tripod.py:139,146: sheet-centre frames at y = 30 - 90 = -60 and "
                       "-30 + 90 = +60 (FACTS.md:50-51)",
-        "rest_angle": "derived per servo from servo_radius, servo_depth and the tip box (~75 deg); their "
-                      "'rest angle ~ 44degree' (utility/tripod.py:36) and initDisplacement 48.15 / 45 deg "
-                      "(:143,:147) are the real servos' readings, unused (commented out at :193,:197,:201)",
+        "rest_angle": "derived per servo from servo_radius, servo_depth and the tip box (73.3 deg: the "
+                      "stress-free horn, their displacement 0); their 'rest angle ~ 44degree' (utility/tripod.py:36) "
+                      "and initDisplacement 48.15 / 45 deg (:143,:147, commented out at :193,:197,:201) are a home "
+                      "~45 deg into their stroke on their displacement scale, not a stress-free angle; this preset "
+                      "meets the paper's facts (90 deg stroke, pull 15 / push 35, +-10 deg tilts within 2 deg) under "
+                      "the authors' force field, measured: docs/paper.md, metasheet/studies/scene_facts.py",
         "horn_length": "not used (the pivots are placed); derived per servo (~31 mm): their arm-tip frames "
                        "sit on the pivots (utility/tripod.py:139,146); FACTS.md:46 gives 25 mm",
         "servo_radius": _INV + "utility/tripod.py:32 (radius=66), :139,:146 (frames at r = 66)",
