@@ -115,3 +115,54 @@ def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_fi
     assert "published_end_point" in a and "published_end_point" not in b  # the reproduction is the published set
     # the published foam (alpha 93 %) turns the rod further than the stiffer E_l = 0.3 (alpha 78 %)
     assert abs(b["rod_rotation_deg"]["push"][-1]) > abs(a["rod_rotation_deg"]["push"][-1])
+
+
+REDUCED = """[pipeline]
+name = "rr"
+stages = ["material", "orient", "reduce", "workspace"]
+[material]
+source = "config"
+[orient]
+mesh_size = 16
+element = "p1"
+[reduce]
+snapshots = 8
+held_out = 2
+surface_equilibria = 16
+surface_check = 8
+columns = ["prediction", "reproduction"]
+reproduction = { box_deg = 12.0 }
+[workspace]
+model = "reduced"
+columns = ["prediction", "reproduction"]
+rotations = false
+continuity = false
+certify = 0
+n_azimuth = 3
+n_elevation = 1
+n_steps = 3
+extent_axial = 4
+extent_lateral = 4
+"""
+
+
+def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs_on_its_own(tmp_path):
+    from metasheet.pipeline.stages._studies import basis_file
+    from metasheet.rom.coordinates import ReducedBasis
+
+    run_pipeline(load_pipeline(project(tmp_path, REDUCED, "rr")))
+    out = tmp_path / "outputs" / "rr"
+    pred, rep = basis_file(out / "reduce", "prediction", "k"), basis_file(out / "reduce", "reproduction", "k")
+    assert pred == out / "reduce" / "basis.npz" and rep == out / "reduce" / "reproduction" / "basis.npz"
+    a, b = ReducedBasis.load(pred), ReducedBasis.load(rep)
+    assert a.robot_key != b.robot_key  # another material model: another robot
+    assert json.loads((out / "reduce" / "reproduction" / "reduce.json").read_text())["column"] == "reproduction"
+    box = json.loads((out / "reduce" / "reproduction" / "reduce.json").read_text())["box_deg"]
+    assert max(h - lo for lo, h in zip(*box)) > 20.0  # the reproduction's own (wider) box
+    for folder, col, basis in ((out / "workspace", "prediction", a), (out / "workspace" / "reproduction",
+                                                                       "reproduction", b)):
+        w = json.loads((folder / "workspace.json").read_text())
+        assert w["column"] == col and w["model_info"]["robot_key"] == basis.robot_key
+        # the full model of the column's own robot agrees with every reachable point of its basis
+        cert = w["certification"]
+        assert cert["certified"] == w["reachable"] > 0 and cert["disagree"] == 0

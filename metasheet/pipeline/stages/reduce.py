@@ -34,7 +34,7 @@ from ...robot.kinematics import kinematics
 from ...rom.certificate import TARGETS, compare, compare_surface, held_out_angles, summarize, surface_check
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import StudyRobotParams, build_spec, drop_cache, unit_cache
+from ._studies import StudyRobotParams, build_spec, drop_cache, run_columns, unit_cache
 
 
 class ReduceParams(StudyRobotParams):
@@ -234,7 +234,7 @@ def run(ctx: StageContext) -> dict:
     info = {k: v for k, v in basis.info.items() if k != "seconds"}
     ctx.timings.update({f"training_{k}": v for k, v in basis.info.get("seconds", {}).items()})
     replace(basis, info=info).save(ctx.path("basis.npz"))
-    out = {"box_deg": [np.degrees(lo).round(4).tolist(), np.degrees(hi).round(4).tolist()],
+    out = {"column": ctx.column, "box_deg": [np.degrees(lo).round(4).tolist(), np.degrees(hi).round(4).tolist()],
            "k": basis.k, "elements": int(len(basis.elements)), "elements_total": int(rob.body.n_elements),
            "free_dofs": int(basis.V.shape[0]), "training": info,
            "snapshots_failed": int(sum(r is None for r in rows)), "targets": TARGETS, "certificate": cert,
@@ -248,8 +248,13 @@ def run(ctx: StageContext) -> dict:
             "position_mm_worst": cert["position_mm"]["worst"], "jacobian_rel_worst": cert["jacobian_rel"]["worst"]}
 
 
+def run_all(ctx: StageContext) -> dict:
+    """One basis per column of ``columns`` (the reproduction's in ``reproduction/``)."""
+    return run_columns(ctx, run)
+
+
 register(Stage(
-    name="reduce", params=ReduceParams, run=run, requires=("orient", "material"), optional=("robot",),
+    name="reduce", params=ReduceParams, run=run_all, requires=("orient", "material"), optional=("robot",),
     outputs=("basis.npz", "reduce.json", "surface.npz"),
     doc="reduced-order robot: POD basis + ECSW element sample, certified on held-out poses",
 ))
