@@ -119,7 +119,7 @@ def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_fi
 
 REDUCED = """[pipeline]
 name = "rr"
-stages = ["material", "orient", "reduce", "workspace"]
+stages = ["material", "orient", "reduce", "workspace", "report"]
 [material]
 source = "config"
 [orient]
@@ -166,3 +166,5 @@ def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs
         # the full model of the column's own robot agrees with every reachable point of its basis
         cert = w["certification"]
         assert cert["certified"] == w["reachable"] > 0 and cert["disagree"] == 0
+    report = (out / "report" / "report.md").read_text()
+    assert report.count("## Reduced-order robot") == 2 and "the reproduction column's basis" in report

@@ -135,6 +135,11 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     section, found = reduce_section(s.get("reduce_json"), summaries.get("reduce_seconds"))
     lines += section
     diffs += found
+    section, found = reduce_section(s.get("reduce_reproduction_json"))
+    if section:  # the reproduction column's own basis
+        section[0] += ": the reproduction column's basis"
+    lines += section
+    diffs += [f"Reproduction column: {d}" for d in found]
     lines += columns_section(s.get("columns") or {}, pictures)
     if "workspace" in s:
         w = s["workspace"]

@@ -56,6 +56,9 @@ def run(ctx: StageContext) -> dict:
     if "reduce" in ctx.inputs and (ctx.inputs["reduce"] / "reduce.json").exists():
         summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
         summaries["reduce_seconds"] = (read_manifest(ctx.inputs["reduce"]) or {}).get("wall_time_s")
+        second = ctx.inputs["reduce"] / "reproduction" / "reduce.json"
+        if second.exists():  # the reproduction column's basis (metasheet/studies/columns.py)
+            summaries["reduce_reproduction_json"] = json.loads(second.read_text())
     summaries["columns"] = {name: _columns(ctx, name, pictures) for name in STUDIES if name in ctx.inputs}
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
