@@ -15,7 +15,7 @@ study keeps a point: their errors are reported apart, as information, not certif
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,10 +65,12 @@ def full_strain(full_robot, full_state, strain_elements=None) -> float:
 
 
 def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_elements=None, *,
-            full_jacobian=None) -> Comparison:
+            full_jacobian=None, inverse: bool = True) -> Comparison:
     """Reduced vs full at the full model's equilibrium ``full_state``; its strain over
     ``strain_elements`` (:func:`full_strain`); ``full_jacobian`` (6, na): the full model's
-    Jacobian there, when already computed."""
+    Jacobian there, when already computed; ``inverse`` False: the inverse model's error is
+    left out (nan; :func:`with_inverse` adds it): it has no target, and its QP solve costs more
+    than the rest together, so the reduce stage's rounds judge without it."""
     nan = float("nan")
     deg = tuple(np.degrees(full_state.angles).round(4).tolist())
     strain = full_strain(full_robot, full_state, strain_elements)
@@ -78,7 +80,7 @@ def compare(full_robot, full_state, reduced, reduced_lz, full_lz, strain_element
         return Comparison(deg, nan, nan, nan, nan, strain)
     Jf = kinematics(full_lz.linearize(full_state)).J if full_jacobian is None else full_jacobian
     Jr = kinematics(reduced_lz.linearize(r)).J
-    return _comparison(deg, r, Jr, full_state, Jf, reduced, strain)
+    return _comparison(deg, r, Jr, full_state, Jf, reduced if inverse else None, strain)
 
 
 def compare_surface(surface_robot, full_state, full_jacobian, strain: float) -> Comparison:
@@ -94,11 +96,26 @@ def _comparison(deg, st, J, full_state, Jf, robot, strain) -> Comparison:
     pos = float(np.linalg.norm(st.p - full_state.p))
     rot = float(np.degrees(np.linalg.norm(rotation_vector(st.R @ full_state.R.T))))
     jrel = float(np.linalg.norm(J - Jf) / np.linalg.norm(Jf))
+    motors = float("nan") if robot is None else inverse_error(robot, full_state)
+    return Comparison(deg, pos, rot, jrel, motors, strain)
+
+
+def inverse_error(robot, full_state) -> float:
+    """The inverse model's error [deg]: ``robot``'s QP driven to the full equilibrium
+    ``full_state``'s pose returns motor angles, compared (largest difference) with the ones
+    that produced it; nan when it does not reach the pose."""
     goal = np.concatenate([full_state.p, np.degrees(full_state.pose[3:])])
     settings = InverseSettings(pos_tol=0.01, rot_tol_deg=0.01, max_steps=400, stall_steps=30)
     inv = InverseController(robot, settings=settings).goto(goal)
-    motors = float(np.abs(inv.angles_deg - np.degrees(full_state.angles)).max()) if inv.reached else float("nan")
-    return Comparison(deg, pos, rot, jrel, motors, strain)
+    return float(np.abs(inv.angles_deg - np.degrees(full_state.angles)).max()) if inv.reached else float("nan")
+
+
+def with_inverse(row: Comparison, robot, full_state) -> Comparison:
+    """``row`` (from :func:`compare` with ``inverse=False``) with the inverse model's error of
+    ``robot`` at ``full_state`` (:func:`inverse_error`); a pose the reduced model failed stays nan."""
+    if not np.isfinite(row.position_mm):
+        return row
+    return replace(row, inverse_motor_deg=inverse_error(robot, full_state))
 
 
 def summarize(rows: list[Comparison], strain_limit: float | None = None) -> dict:

@@ -144,7 +144,7 @@ def fit_error(reduced: ReducedRobot, snaps, reference_jacobians=None) -> tuple[f
 def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_mm: float = 0.01,
           tangent_tol: float = 0.01, ecsw_tol: float = 1e-3, fit_tol_mm: float = 0.02,
           fit_jacobian_tol: float = 0.01, box=None, max_rounds: int = 9, fit_count: int = 8,
-          ecsw_batch: float = 0.02) -> ReducedBasis:
+          ecsw_batch: float = 0.02, max_elements: int | None = None) -> ReducedBasis:
     """A :class:`ReducedBasis` for the full ``robot`` from snapshot equilibria ``snaps`` (full
     :class:`~metasheet.robot.statics.RobotState` s) and the rest equilibrium ``rest``.
 
@@ -160,7 +160,10 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
     never met, the round with the smallest Jacobian error among those meeting the positions'
     is kept, ``info["fit_jacobian_met"]`` False; the held-out certificate judges it);
     ``box`` : (lo, hi) motor box [rad] (default: the robot's limits);
-    ``ecsw_batch`` : :func:`.ecsw.ecsw_path`'s ``batch`` (elements entered per gradient).
+    ``ecsw_batch`` : :func:`.ecsw.ecsw_path`'s ``batch`` (elements entered per gradient);
+    ``max_elements`` : the element budget (None: every element): the tolerances a sample within
+    it cannot meet are not tried, the rounds before are judged as above and
+    ``info["element_budget_spent"]`` is True (none within it: :class:`ConvergenceError`).
     """
     t0 = time.perf_counter()
     c = robot.coupling
@@ -193,28 +196,38 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
     # the sample answers for its own share of the Jacobian error: against the basis's model
     # with every element, whose own error against the full one no sample can remove
     check_J, basis_jac = galerkin_jacobians(robot, V, check, None if jacobians is None else list(jacobians)[:fit_count])
-    samples = []
-    for tol, sample in zip(tols, ecsw_path(A, tols, batch=ecsw_batch)):
-        basis = ReducedBasis(V, sample.elements, sample.weights, np.asarray(lo, float), np.asarray(hi, float), key)
-        err, jerr = fit_error(ReducedRobot(robot, basis), check, check_J)
-        rounds.append({"ecsw_tol": tol, "elements": int(len(sample.elements)), "force_error": sample.error,
-                       "fit_error_mm": err, "fit_jacobian_rel": jerr})
-        samples.append(sample)
-        if err <= fit_tol_mm and jerr <= fit_jacobian_tol:
-            break
-    else:
+    samples, met, budget_spent = [], False, None
+    try:
+        for tol, sample in zip(tols, ecsw_path(A, tols, batch=ecsw_batch, max_elements=max_elements)):
+            basis = ReducedBasis(V, sample.elements, sample.weights, np.asarray(lo, float), np.asarray(hi, float), key)
+            err, jerr = fit_error(ReducedRobot(robot, basis), check, check_J)
+            rounds.append({"ecsw_tol": tol, "elements": int(len(sample.elements)), "force_error": sample.error,
+                           "fit_error_mm": err, "fit_jacobian_rel": jerr})
+            samples.append(sample)
+            if err <= fit_tol_mm and jerr <= fit_jacobian_tol:
+                met = True
+                break
+    except ConvergenceError as exc:  # the element budget (or a stalled path) ends the halving early
+        if not rounds:
+            raise ConvergenceError(f"reduce: no element sample within the budget meets the first ECSW tolerance "
+                                   f"{ecsw_tol:.1e}: {exc}") from exc
+        budget_spent = str(exc)
+    if not met:
         # force rows pin the tangent only along the pushes: with few training states the
         # Jacobian's error can stall above its target; the positions' target is the hard one
         ok = [i for i, r in enumerate(rounds) if r["fit_error_mm"] <= fit_tol_mm]
         if not ok:
             raise ConvergenceError(f"reduce: the reduced model misses the training equilibria by {err:.3g} mm "
-                                   f"> {fit_tol_mm:g} mm after {max_rounds} ECSW rounds (tol {tol:.1e})", rounds)
+                                   f"> {fit_tol_mm:g} mm after {len(rounds)} ECSW rounds (tol {tol:.1e})"
+                                   + (f"; {budget_spent}" if budget_spent else ""), rounds)
         best = min(ok, key=lambda i: rounds[i]["fit_jacobian_rel"])
         sample, rounds[best]["chosen"] = samples[best], True
-    jacobian_met = not any(r.get("chosen") for r in rounds)
+    jacobian_met = met
     info = {**record, "k": int(V.shape[1]), "snapshots": len(snaps), "training_states": len(blocks),
             "elements": int(len(sample.elements)), "elements_total": int(robot.body.n_elements),
             "ecsw_rounds": rounds, "fit_tol_mm": fit_tol_mm, "fit_jacobian_tol": fit_jacobian_tol,
             "fit_jacobian_met": jacobian_met, "basis_jacobian_rel": basis_jac,
+            "element_budget": None if max_elements is None else int(max_elements),
+            "element_budget_spent": budget_spent is not None,
             "seconds": {"basis": t_basis, "ecsw_rows": t_rows, "ecsw_and_fit": time.perf_counter() - t0 - t_basis - t_rows}}
     return ReducedBasis(V, sample.elements, sample.weights, np.asarray(lo, float), np.asarray(hi, float), key, info)

@@ -3,7 +3,9 @@
 The basis and element sample the studies ran on, what training cost, and the certificate:
 reduced against full on held-out poses, worst and 95th percentile of each measure against its
 target, over the poses within the strain limit (the material model's domain; the others
-follow as information, outside every study's domain).
+follow as information, outside every study's domain), and the training rounds that led there
+(issue 41: the stage grows the basis and the element sample until the targets are met or its
+budget is spent, and a budget spent without them is said here, not hidden).
 """
 
 from __future__ import annotations
@@ -52,15 +54,37 @@ def reduce_section(red: Mapping | None, seconds: float | None = None) -> tuple[l
              + (f"; beyond it: {cert.get('poses_beyond_strain', 0)}." if limit is not None else "."), "",
              "| measure | worst | p95 | failed | target | verdict |", "|---|---|---|---|---|---|",
              *_rows(cert, True), "",
-             f"Certificate: **{'met' if cert.get('met') else 'NOT met'}**."]
+             f"Certificate: **{'met' if cert.get('met') else 'NOT met'}**.", *_rounds(red.get("adaptation"))]
     if cert.get("beyond_strain"):
         lines += ["", f"Beyond the strain limit (outside the homogenised model's domain; information only, "
                   f"{cert['beyond_strain']['poses']} poses, strain up to {_g(cert['beyond_strain'].get('max_strain'))}):",
                   "", "| measure | worst | p95 | failed |", "|---|---|---|---|", *_rows(cert["beyond_strain"], False)]
+    ad = red.get("adaptation") or {}
+    spent = f", after {len(ad['rounds'])} training round(s): {ad['reason']}" if ad.get("rounds") else ""
     diffs = [] if cert.get("met") else [
-        f"reduced model (issue 16): the certificate is not met on the held-out poses {where} (see its section)."]
+        f"reduced model (issue 16): the certificate is not met on the held-out poses {where}{spent} (see its section)."]
     surf_lines, surf_diffs = _surface(red.get("surface"), where)
     return [*lines, "", *surf_lines], diffs + surf_diffs
+
+
+def _rounds(ad: Mapping | None) -> list[str]:
+    """The training rounds (``reduce.json`` ``adaptation``): one row each, the verdict, why
+    they stopped; nothing for an older reduce.json without them."""
+    if not ad or not ad.get("rounds"):
+        return []
+    rows = [f"| {r['round']} | {r['snapshots']} | {r['k']} | {r['elements']} | {_g(r['tangent_tol'])} | "
+            f"{_g(r['fit_jacobian_tol'])} | {_g(r['position_mm'])} | {_g(r['orientation_deg'])} | "
+            f"{_g(r['jacobian_rel'])} | {'met' if r['met'] else 'NOT met'} |" for r in ad["rounds"]]
+    b, n, kept = ad.get("budget", {}), len(ad["rounds"]), ad.get("chosen_round")
+    met = any(r["met"] for r in ad["rounds"])
+    verdict = (f"the targets were met in round {kept}" if met else
+               f"**the targets were NOT met within the budget**; the model kept is round {kept}'s, the closest "
+               "to them")
+    return ["", f"Training rounds: {n} (budget: {b.get('rounds')} rounds, {b.get('max_snapshots')} snapshots, "
+            f"{b.get('max_elements')} elements); {verdict}. Stopped: {ad.get('reason')}. Worst errors over the "
+            "held-out poses within the strain limit:", "",
+            "| round | snapshots | k | elements | tangent_tol | fit_jacobian_tol | position [mm] | orientation [deg] "
+            "| Jacobian | certificate |", "|---|---|---|---|---|---|---|---|---|---|", *rows]
 
 
 def _surface(surf: Mapping | None, where: str) -> tuple[list[str], list[str]]:

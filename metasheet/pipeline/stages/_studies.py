@@ -148,7 +148,6 @@ def build_spec(ctx: StageContext):
         if need not in ctx.inputs:
             raise ConfigError(f"{ctx.name}.model: {p.model!r}: the {need!r} stage must be in the pipeline")
     from ...robot.builder import resolve_density
-
     from ...studies.columns import column_material
 
     orient = read_orient(ctx.inputs["orient"])
@@ -192,12 +191,11 @@ def run_columns(ctx: StageContext, run_one) -> dict:
     writes into the stage's folder, the next into ``<column>/``, each with its parameters
     (:meth:`StudyRobotParams.for_column`). Returns the first column's summary, with
     ``"columns"``: {column: its summary} when there are two."""
-    from dataclasses import replace as dc_replace
-
     p = ctx.params
     out = {}
     for i, col in enumerate(p.columns):
-        sub = dc_replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col)
+        say = ctx.progress if len(p.columns) == 1 else (lambda d, k, n, col=col: ctx.progress(f"{col}: {d}", k, n))
+        sub = replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col, progress=say)
         out[col] = run_one(sub)
     first = out[p.columns[0]]
     return first if len(out) == 1 else {**first, "columns": out}

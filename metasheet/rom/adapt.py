@@ -1,0 +1,123 @@
+"""Growing a reduced model until its certificate is met (issue 41): the round-by-round schedule.
+
+The reduce stage trains on its settings (round 1) and certifies the result on held-out poses
+(:mod:`.certificate`). Its defaults must hold on any robot, not only on settings tuned for one,
+so when a target is missed the next round trains again with
+
+* more snapshots (``growth`` times as many, at most ``max_snapshots``): the held-out error is
+  the basis's generalisation between training states (on the quick robot every POD mode of
+  the first 50 snapshots is kept, yet a held-out pose is 0.16 mm off), and each snapshot adds
+  its static responses, the Jacobian's data;
+* when the Jacobian is missed, ``tangent_tol`` halved (more of those static responses in the
+  basis) and ``fit_jacobian_tol`` halved (the element sample's share of the Jacobian error);
+* when a position or orientation is missed, ``fit_tol_mm`` halved (the sample's share of it),
+
+until the targets are met or the budget is spent: ``rounds`` rounds, ``max_snapshots``
+snapshots, or an element sample at its budget (a sample that large hardly reduces the cost).
+Every decision depends on the certificate's figures only (no clock): the same configuration
+gives the same rounds. The round kept is the one that met the targets, else the one closest to
+them (:func:`chosen`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from .certificate import TARGETS
+
+#: why the rounds stopped: code -> sentence (reduce.json ``stopped``, the report)
+STOP_REASONS = {
+    "met": "the certificate's targets are met",
+    "no_poses": "no held-out pose lies within the strain limit: there is nothing to certify, more training cannot help",
+    "rounds": "the round budget (adapt_rounds) is spent",
+    "snapshots": "the snapshot budget (max_snapshots) is spent",
+    "elements": "the element sample reached its budget (max_elements_fraction of the mesh's elements)",
+    "failed": "the next round's training failed",
+}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """One round's training settings: ``snapshots`` (Sobol points, besides the box's two
+    corners), ``tangent_tol`` [-], ``fit_tol_mm`` [mm], ``fit_jacobian_tol`` [-] (see
+    :func:`.training.train`)."""
+
+    snapshots: int
+    tangent_tol: float
+    fit_tol_mm: float
+    fit_jacobian_tol: float
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What the rounds may spend: ``rounds`` (1: no adaptation), ``max_snapshots``, the
+    snapshots' ``growth`` factor per round (> 1), ``max_elements`` in the element sample."""
+
+    rounds: int
+    max_snapshots: int
+    growth: float
+    max_elements: int
+
+
+def missed(cert: dict) -> tuple[str, ...]:
+    """The :data:`TARGETS` a certificate (:func:`.certificate.summarize`) misses, in their order."""
+    return tuple(name for name in TARGETS if not (cert.get(name) or {}).get("met"))
+
+
+def miss_ratio(cert: dict) -> float:
+    """The certificate's distance from its targets: the largest worst / target over the
+    measures (<= 1: met; inf: a pose failed or none was compared)."""
+    ratios = []
+    for name, target in TARGETS.items():
+        m = cert.get(name) or {}
+        if m.get("worst") is None or m.get("failed"):
+            return math.inf
+        ratios.append(m["worst"] / target)
+    return max(ratios) if ratios and cert.get("poses") else math.inf
+
+
+def next_round(s: Settings, cert: dict, info: dict, budget: Budget, done: int) -> tuple[Settings | None, str]:
+    """The next round's :class:`Settings` after round ``done`` (1-based) trained with ``s``,
+    gave the certificate ``cert`` and the training record ``info`` (:func:`.training.train`'s
+    ``info``), or ``(None, code)`` with the :data:`STOP_REASONS` code that ends the rounds."""
+    if cert.get("met"):
+        return None, "met"
+    if not cert.get("poses"):
+        return None, "no_poses"
+    if done >= budget.rounds:
+        return None, "rounds"
+    if info.get("element_budget_spent") or info.get("elements", 0) >= budget.max_elements:
+        return None, "elements"
+    n = min(budget.max_snapshots, math.ceil(s.snapshots * budget.growth))
+    if n <= s.snapshots:
+        return None, "snapshots"
+    miss = missed(cert)
+    jac = "jacobian_rel" in miss
+    pose = "position_mm" in miss or "orientation_deg" in miss
+    return replace(s, snapshots=n, tangent_tol=s.tangent_tol / 2 if jac else s.tangent_tol,
+                   fit_jacobian_tol=s.fit_jacobian_tol / 2 if jac else s.fit_jacobian_tol,
+                   fit_tol_mm=s.fit_tol_mm / 2 if pose else s.fit_tol_mm), ""
+
+
+def chosen(certs: list[dict]) -> int:
+    """Index of the round to keep: the first that met its targets, else the one with the
+    smallest :func:`miss_ratio` (the earliest of equals: the smaller model)."""
+    for i, c in enumerate(certs):
+        if c.get("met"):
+            return i
+    return min(range(len(certs)), key=lambda i: (miss_ratio(certs[i]), i))
+
+
+def round_record(number: int, s: Settings, info: dict, cert: dict, snapshots_failed: int) -> dict:
+    """One round's entry of reduce.json ``rounds``: its settings, basis and sample sizes, and
+    the certificate's worst figures (poses within the strain limit) and verdict."""
+    return {"round": number, "snapshots": s.snapshots, "snapshots_failed": int(snapshots_failed),
+            "tangent_tol": s.tangent_tol, "fit_tol_mm": s.fit_tol_mm, "fit_jacobian_tol": s.fit_jacobian_tol,
+            "k": info.get("k"), "static_modes": info.get("static_modes"), "pod_modes": info.get("pod_modes"),
+            "sensitivity_modes": info.get("sensitivity_modes"), "elements": info.get("elements"),
+            "basis_jacobian_rel": info.get("basis_jacobian_rel"), "fit_jacobian_met": info.get("fit_jacobian_met"),
+            "element_budget_spent": bool(info.get("element_budget_spent")), "poses": cert.get("poses"),
+            **{name: (cert.get(name) or {}).get("worst") for name in TARGETS},
+            "failed_poses": int(sum((cert.get(name) or {}).get("failed", 0) for name in TARGETS)),
+            "missed": list(missed(cert)), "met": bool(cert.get("met"))}
