@@ -168,3 +168,33 @@ def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs
         assert cert["certified"] == w["reachable"] > 0 and cert["disagree"] == 0
     report = (out / "report" / "report.md").read_text()
     assert report.count("## Reduced-order robot") == 2 and "the reproduction column's basis" in report
+
+
+def test_rest_rotations_are_the_papers_test_at_rest(tmp_path):
+    run_pipeline(load_pipeline(project(tmp_path, STANDIN, "cols")))
+    w = json.loads((tmp_path / "outputs" / "cols" / "workspace" / "workspace.json").read_text())
+    t = w["rest_rotations"]
+    assert t["rot_deg"] == 10.0 and t["tol_rot_deg"] == 2.0
+    for axis in "xyz":
+        errs = [(t["error_mm"][s + axis], t["error_deg"][s + axis]) for s in "+-"]
+        within = all(mm is not None and mm <= t["tol_mm"] and deg <= t["tol_rot_deg"] for mm, deg in errs)
+        assert t["ok"][axis] == within
+
+
+def test_scene_facts_section_judges_each_fact_from_the_numbers():
+    from metasheet.studies.columns_report import scene_facts_section
+
+    scene = {"name": "authors", "values": {"angle_min": 0.0, "angle_max": 90.0}}
+    robot = {"rest_angles_deg": [73.3] * 6}
+    errs = {k: 1.5 for k in ("+x", "-x", "+y", "-y", "+z", "-z")}
+    ws = {"rest_rotations": {"ok": {"x": True, "y": True, "z": False}, "error_deg": errs, "error_mm": errs}}
+    ranges = {"reachable": {"0-90": 30, "10-80": 20, "20-70": 10}, "nested": True}
+    maze = {"segments": 4, "foam_impossible_segments": [], "silicone_impossible_segments": [2], "tilt_deg": 5.0}
+    cols = {"workspace": {"reproduction": ws}, "ranges": {"reproduction": ranges}, "maze": {"reproduction": maze}}
+    rows = [line for line in scene_facts_section(scene, robot, cols) if line.startswith("| (")]
+    holds = [line.rstrip(" |").rsplit("|", 1)[1].strip() for line in rows]
+    # (i) 0-90; (ii) room 16.7 / 73.3; (iii) z failed; (iv) nested and shrinking; (v) foam solves, silicone not
+    assert holds == ["yes", "yes", "no", "yes", "yes"]
+    robot_far = {"rest_angles_deg": [80.0] * 6}  # 10 deg of pull room only
+    rows = [line for line in scene_facts_section(scene, robot_far, {}) if line.startswith("| (")]
+    assert [line.rstrip(" |").rsplit("|", 1)[1].strip() for line in rows] == ["yes", "no", "-", "-", "-"]

@@ -89,3 +89,42 @@ def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping
         if pics:
             out += [f"{k}: reproduction (left) and prediction (right)", "", " ".join(pics), ""]
     return out
+
+
+def _rest_test(w: Mapping | None) -> tuple[str, bool | None]:
+    t = (w or {}).get("rest_rotations")
+    if not t:
+        return "not run", None
+    turned = " ".join(f"{k} {_deg(v)}" for k, v in t["error_deg"].items())
+    return f"errors [deg] {turned}; axes passed: {sum(t['ok'].values())}/3", all(t["ok"].values())
+
+
+def scene_facts_section(scene: Mapping | None, robot: Mapping | None, columns: Mapping[str, Mapping]) -> list[str]:
+    """Markdown lines: the paper's stated facts about the motors and the rest pose (issue 41:
+    i-v) on the pipeline's robot, from its own artefacts: the scene's stroke, the robot stage's
+    rest angles, the workspace's test at rest, the ranges' nesting, the maze."""
+    if not scene or not robot or "rest_angles_deg" not in robot:
+        return []
+    v = scene["values"]
+    lo, hi, rest = v["angle_min"], v["angle_max"], robot["rest_angles_deg"]
+    pull, push = hi - max(rest), min(rest) - lo
+    rows = [("(i) a 90 deg stroke, 0 = horizontal horn, 90 = vertical (IV-A)", f"[{lo:g}, {hi:g}] deg",
+             f"[{lo:g}, {hi:g}] deg", lo == 0 and hi == 90),
+            ("(ii) all motors pull 15 deg or push 35 deg from rest (Fig. 7)", f"room {pull:.3g} / {push:.3g} deg",
+             f"room {pull:.3g} / {push:.3g} deg", pull >= 15 and push >= 35)]
+    get = {c: {k: columns.get(k, {}).get(c) for k in ROWS} for c in ("reproduction", "prediction")}
+    rep_text, ok = _rest_test(get["reproduction"]["workspace"])
+    rows.append(("(iii) +-10 deg about x, y, z from rest, within 2 deg and 1 mm (IV-B)", rep_text,
+                 _rest_test(get["prediction"]["workspace"])[0], ok))
+    for k, fact in (("ranges", "(iv) Fig. 6's ranges give nested workspaces"),
+                    ("maze", "(v) the maze solved at a tilt that rolls a marble (V-B3)")):
+        rep, pred = get["reproduction"][k], get["prediction"][k]
+        rows.append((fact, ROWS[k](rep)[0] if rep else "not run", ROWS[k](pred)[0] if pred else "not run",
+                     ROWS[k](rep)[1] if rep else None))
+    out = [f"## The scene against the paper's facts ({scene.get('name', '')} scene)", "",
+           "Each fact on this pipeline's robot, computed from its artefacts (the reproduction column: published "
+           "constants, the authors' force field, no strain stop). How the candidates of the scene compare: "
+           "docs/paper.md, `python -m metasheet.studies.scene_facts`.", "",
+           "| fact | reproduction | prediction | holds (reproduction) |", "|---|---|---|---|"]
+    out += [f"| {f} | {r} | {p} | {'-' if h is None else 'yes' if h else 'no'} |" for f, r, p, h in rows]
+    return [*out, ""]

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..material import CONSTANT_NAMES
-from .columns_report import columns_section
+from .columns_report import columns_section, scene_facts_section
 from .constants_report import constants_section
 from .convergence_report import convergence_section
 from .model_report import model_section
@@ -140,6 +140,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         section[0] += ": the reproduction column's basis"
     lines += section
     diffs += [f"Reproduction column: {d}" for d in found]
+    lines += scene_facts_section(s.get("scene"), s.get("robot"), s.get("columns") or {})
     lines += columns_section(s.get("columns") or {}, pictures)
     if "workspace" in s:
         w = s["workspace"]

@@ -91,6 +91,11 @@ def _run_one(ctx: StageContext) -> dict:
     rest_rot = MODELS.get(spec).rest_pose()[3:]
     cert = certification(ctx, spec, np.column_stack([res.goals[ids], np.tile(rest_rot, (len(ids), 1))]),
                          r.motors_deg[ids], tol_mm=settings.tol_mm, labels=ids.tolist())
+    if settings.rotations:  # the paper's test at the rest pose itself (the grid starts a step out)
+        from ...studies.rest_rotations import rest_rotations
+        from ...studies.workspace import domain_spec
+
+        at_rest = rest_rotations(domain_spec(spec, settings), settings)
     wall = time.perf_counter() - t0
     header = (["point", "ray", "step", "x_mm", "y_mm", "z_mm", "class", "class_name", "tried", "reached",
                "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
@@ -140,6 +145,8 @@ def _run_one(ctx: StageContext) -> dict:
     }
     if cert is not None:
         summary["certification"] = cert
+    if settings.rotations:
+        summary["rest_rotations"] = at_rest
     write_json_atomic(ctx.path("workspace.json"), summary)
     drop_cache(ctx)
     return summary
