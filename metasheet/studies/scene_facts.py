@@ -119,14 +119,16 @@ def measure(robot, cand: Candidate) -> dict:
     return {"candidate": cand.name, "source": cand.source, **stroke_facts(rob, start), **tilt_facts(rob, start)}
 
 
-def authors_robot(mesh_size: float = 10.0, element: str = "p1", model: str = "ours"):
-    """The authors' scene with the published constants and an unbounded stroke."""
+def authors_robot(mesh_size: float = 10.0, element: str = "p1", model: str = "ours", grip_size: float = 0.0):
+    """The authors' scene with the published constants and an unbounded stroke (sheets meshed
+    at ``mesh_size``, ``grip_size`` at the grips' borders (0: uniform) [mm])."""
     from .. import paper
     from ..robot import SheetPair, six_dof_robot
     from ..robot.robots import ServoGeometry
     from ..robot.scenes import AUTHORS as A
 
-    pair = SheetPair.spiral(A.sheet_params(mesh_size), element=element, **A.fiber_settings())
+    params = dataclasses.replace(A.sheet_params(mesh_size), grip_size=grip_size)
+    pair = SheetPair.spiral(params, element=element, **A.fiber_settings())
     geo = ServoGeometry(None, A.horn_length, -180.0, 180.0, servo_radius=A.servo_radius, servo_depth=A.servo_depth)
     return six_dof_robot(pair, paper.PAPER_FOAM, sheet_mass_g=A.sheet_mass_g, rod_length=A.rod_length,
                          geometry=geo, gravity=A.gravity, model=model)
@@ -148,11 +150,13 @@ def table(rows: list[dict]) -> str:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", type=float, default=10.0, help="sheet mesh size [mm]")
+    ap.add_argument("--grip", type=float, default=0.0, help="element size at the grips [mm] (0: uniform; the paper "
+                    "pipeline's mesh: --element p2 --mesh 10 --grip 3)")
     ap.add_argument("--element", default="p1", choices=("p1", "p2"))
     ap.add_argument("--model", default="ours", choices=("ours", "authors"))
     ap.add_argument("--cases", default=",".join(c.name for c in CANDIDATES))
     args = ap.parse_args(argv)
-    robot = authors_robot(args.mesh, args.element, args.model)
+    robot = authors_robot(args.mesh, args.element, args.model, args.grip)
     by_name = {c.name: c for c in CANDIDATES}
     rows = [measure(robot, by_name[n]) for n in args.cases.split(",")]
     print(table(rows))
