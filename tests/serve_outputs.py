@@ -31,7 +31,9 @@ def write_outputs(root, mesh_size: float = 15.0, pipeline: str = PIPELINE):
         fib = spiral_fibers(sh.centroids(), mirrored=mir)
         meshio.write(orient / name, meshio.Mesh(sh.points, [("tetra", sh.tets)], point_data={"attach": sh.attach},
                                                 cell_data={"fiber": [fib], **{k: [v] for k, v in consts.items()}}))
-    (orient / "sheet.json").write_text(json.dumps({"arm_angles_deg": [0.0, 120.0, 240.0], "element": "p1"}))
+    (orient / "sheet.json").write_text(json.dumps({"arm_angles_deg": [0.0, 120.0, 240.0], "element": "p1",
+                                                   "geometry": SheetParams(mesh_size=mesh_size).to_dict(),
+                                                   "fibers": {}}))  # the default spiral, as above
     write_material(material / "material.json", paper.PAPER_FOAM, density=paper.FOAM_DENSITY, source="config")
     write_jacobian(robot / "jacobian.json", {"geometry": {
         "rod_length_mm": paper.ROD_LENGTH, "scene": "metasheet", "sheet_mass_g": None,

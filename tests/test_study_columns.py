@@ -166,6 +166,9 @@ def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs
         # the full model of the column's own robot agrees with every reachable point of its basis
         cert = w["certification"]
         assert cert["certified"] == w["reachable"] > 0 and cert["disagree"] == 0
+    tets = [json.loads((f / "workspace.json").read_text())["n_tets_per_sheet"]
+            for f in (out / "workspace", out / "workspace" / "reproduction")]
+    assert tets[1] > 2 * tets[0]  # the reproduction on the authors' mesh kind: P1, 5 mm (orient's: 16 mm)
     report = (out / "report" / "report.md").read_text()
     assert report.count("## Reduced-order robot") == 2 and "the reproduction column's basis" in report
 

@@ -284,23 +284,29 @@ def _full_robot(outputs: Outputs, material: str):
     d = outputs.directory
     orient, mat, sc = read_orient(d / "orient"), read_material(d / "material"), read_robot_scene(d / "robot")
     scene = {"rod_length": sc.rod_length, "geometry": sc.servo_geometry(), "gravity": sc.gravity}
+    fibers, element = (orient.normal.fibers, orient.mirrored.fibers), orient.element
     if material == "foam":
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": mat.density}
         robot = six_dof_robot(orient.sheets(), model=mat.model, **mass, **scene)
         what = f"foam: the sheets' own constants along their fibres ({mat.source or 'material stage'}, model {mat.model})"
     elif material == PUBLISHED:
-        from ..studies.columns import column_material
+        from ..pipeline.stages._studies import remesh
+        from ..studies.columns import REPRODUCTION_MESH, column_material
 
-        col = column_material("reproduction")
+        col, m = column_material("reproduction"), REPRODUCTION_MESH
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": paper.FOAM_DENSITY}
-        robot = six_dof_robot(orient.sheets(need_constants=False), col.material, model=col.model, **mass, **scene)
-        what = f"published constants (the paper's), model {col.model}: the reproduction column"
+        sheets = remesh(orient, m["mesh_size"], element=m["element"], grip_size=m["grip_size"])
+        robot = six_dof_robot(replace(sheets, constants=None, constants_mirrored=None), col.material, model=col.model,
+                              **mass, **scene)
+        what = (f"published constants (the paper's), model {col.model}, {m['element']} {m['mesh_size']:g} mm sheets: "
+                "the reproduction column")
+        fibers, element = (sheets.fibers, sheets.fibers_mirrored), m["element"]
     else:
         E, nu, density = outputs.silicone
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": density}
         robot = six_dof_robot(orient.sheets(need_constants=False), Isotropic(E, nu), **mass, **scene)
         what = f"silicone: isotropic E = {E:g} MPa, nu = {nu:g}"
-    geometry = robot_geometry(robot, (orient.normal.fibers, orient.mirrored.fibers))
+    geometry = robot_geometry(robot, fibers)
     description = (f"{what}; scene {sc.scene}, rod {sc.rod_length:g} mm, stroke "
-                   f"[{sc.angle_min:g}, {sc.angle_max:g}] deg; {len(geometry.tets)} {orient.element} elements")
+                   f"[{sc.angle_min:g}, {sc.angle_max:g}] deg; {len(geometry.tets)} {element} elements")
     return robot, RobotInfo("full", material, description, geometry)

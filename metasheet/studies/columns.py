@@ -8,8 +8,12 @@ constants, all five of them, within the strain range the homogenisation holds in
 computes either or both:
 
 ``reproduction``
-    the published constants, the authors' force field (``reproduction_model``), no strain
-    stop: the paper's protocol, so its counts can be compared with the paper's own.
+    the published constants, the authors' force field (``reproduction_model``), the authors'
+    kind of mesh (uniform linear tetrahedra, 5 mm: their ``tripod_coarse_04.vtk`` has 2,711),
+    no strain stop: the paper's model and protocol, so its counts can be compared with the
+    paper's own. (Its coarse linear sheets are stiffer than the converged ones: the report's
+    "Mesh convergence" says by how much; the paper's facts hold on both under this force
+    field, docs/paper.md.)
 ``prediction``
     the material stage's constants and model, the strain-validity limit where the study has
     one: what the printed robot should do.
@@ -48,9 +52,11 @@ def column_material(column: str, reproduction_model: str = "authors") -> ColumnM
     raise ConfigError(f"column: {column!r}: allowed values are {list(COLUMNS)}")
 
 
-#: What each column's parameters change unless the study's ``reproduction`` table says
-#: otherwise: the paper's protocol has no strain stop.
-REPRODUCTION_DEFAULTS = {"stop_beyond_strain": False}
+#: The reproduction's sheets: the authors' kind of mesh (see the module docstring).
+REPRODUCTION_MESH = {"element": "p1", "mesh_size": 5.0, "grip_size": 0.0}
+#: What the reproduction column changes in a study's parameters unless its ``reproduction``
+#: table says otherwise: the paper's mesh kind, and no strain stop.
+REPRODUCTION_DEFAULTS = {"stop_beyond_strain": False, **REPRODUCTION_MESH}
 
 
 def column_folder(stage_dir, column: str, name: str):
