@@ -127,6 +127,22 @@ def test_ecsw_recovers_sparse_nonnegative_weights_through_drops(batch):
     assert np.abs(w - w_true).max() < 1e-10
 
 
+@pytest.mark.parametrize("batch", [0.0, 0.2, 0.5])
+def test_ecsw_refuses_columns_in_the_span_of_its_sample(batch):
+    """Twin elements (identical contributions, as a symmetric mesh has) entered in one batch made
+    the Gram factor's new diagonal round-off and the weights NaN: ``min`` of an empty array in
+    the inner loop (benchmarks/bench_reduced.py crashed there). A column in the sample's span is
+    refused; the tolerance is met with non-negative weights."""
+    rng = np.random.default_rng(33)
+    A = rng.random((30, 200))
+    A[:, 100:] = A[:, :100]
+    s = ecsw(A, 1e-8, batch=batch)
+    w = np.zeros(200)
+    w[s.elements] = s.weights
+    b = A.sum(axis=1)
+    assert np.all(s.weights > 0) and np.linalg.norm(A @ w - b) <= 1e-8 * np.linalg.norm(b) * (1 + 1e-9)
+
+
 def test_held_out_set_is_the_mixed_corners_without_sobol_points():
     lo, hi = np.zeros(6), np.ones(6)
     h = held_out_angles(lo, hi, 0, 1)  # held_out = 0: the two mixed corners only

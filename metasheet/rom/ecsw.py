@@ -96,6 +96,7 @@ def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements:
                                    f"{act.n} elements (max_elements {limit})", history)
         grad = A.T @ r
         grad[act.P[:act.n]] = -np.inf
+        grad[act.dependent] = -np.inf
         nb_enter = min(max(1, int(batch * act.n)), limit - act.n)
         cand = np.argpartition(-grad, nb_enter - 1)[:nb_enter] if nb_enter > 1 else [int(np.argmax(grad))]
         cand = [int(e) for e in cand if grad[e] > 1e-14 * nb * np.linalg.norm(A[:, e])]
@@ -110,10 +111,18 @@ def ecsw_path(A: np.ndarray, tols, *, b: np.ndarray | None = None, max_elements:
 class _Active:
     """The passive set of Lawson-Hanson's NNLS: element indices ``P``, weights ``w``, their
     columns of A (``cols``, rows x capacity) and the lower Cholesky factor ``L`` of the
-    columns' Gram matrix, all in buffers of doubling capacity; ``n`` of them in use."""
+    columns' Gram matrix, all in buffers of doubling capacity; ``n`` of them in use.
+    ``dependent`` (m,) bool: columns refused for lying in the passive set's span (until an
+    element leaves it)."""
+
+    #: a column whose part outside the passive set's span has a squared norm below this
+    #: fraction of its own (a norm below 1e-6 of it) is refused: entering it made the factor's
+    #: new diagonal round-off and the weights NaN (a batch of twin elements crashed, issue 41)
+    DEPENDENT = 1e-12
 
     def __init__(self, A: np.ndarray, b: np.ndarray):
         self.A, self.Atb, self.n = A, A.T @ b, 0
+        self.dependent = np.zeros(A.shape[1], bool)
         self._grow(64)
 
     def _grow(self, cap: int) -> None:
@@ -139,16 +148,25 @@ class _Active:
 
         for e in elements:
             if self.n == len(self.P):
-                self._grow(2 * len(self.P))
+                self._grow(min(2 * len(self.P), self.A.shape[1]))  # never more columns than A has
             n, a = self.n, self.A[:, e]
             g = self.columns().T @ a
             l = solve_triangular(self.L[:n, :n], g, lower=True, check_finite=False) if n else np.zeros(0)
+            aa = float(a @ a)
+            d2 = aa - float(l @ l)  # squared norm of a's part outside the passive columns' span
+            if not d2 > self.DEPENDENT * aa:
+                # in the span of the passive set (an element's twin, or another of the batch):
+                # it adds nothing the weights cannot already do, and would make the Gram singular
+                self.dependent[e] = True
+                continue
             self.L[n, :n] = l
-            self.L[n, n] = np.sqrt(max(float(a @ a) - l @ l, 1e-300))
+            self.L[n, n] = np.sqrt(d2)
             self.cols[:, n], self.P[n], self.w[n] = a, e, 0.0
             self.n = n + 1
         while True:
             z = self._lsq()
+            if not np.all(np.isfinite(z)):
+                raise ConvergenceError("ecsw: the passive set's least squares lost precision (non-finite weights)")
             w = self.w[:self.n]
             if np.all(z > 0):
                 w[:] = z
@@ -185,3 +203,4 @@ class _Active:
         self.cols[:, i:n - 1] = self.cols[:, i + 1:n]
         self.P[i:n - 1], self.w[i:n - 1] = self.P[i + 1:n], self.w[i + 1:n]
         self.n = n - 1
+        self.dependent[:] = False  # the span shrank: a refused column may be independent now

@@ -94,6 +94,20 @@ def element_contributions(robot, V: np.ndarray, st: ReducedState) -> np.ndarray:
     return out
 
 
+def force_rows(robot, V: np.ndarray, states) -> np.ndarray:
+    """(len(states) (6 + na + k), m) float64, Fortran order: ECSW's matrix, each state's
+    :func:`element_contributions` over the norm of their sum, written in place. The training's
+    largest array (on the quick robot, 194 states at k 331: 2.0 GB): one copy of it, in the
+    order :func:`.ecsw.ecsw_path` reads (column by column), not a list, a stack and a reordered
+    copy."""
+    nq = 6 + robot.coupling.n_act + V.shape[1]
+    A = np.empty((len(states) * nq, robot.body.n_elements), order="F")
+    for i, st in enumerate(states):
+        b = element_contributions(robot, V, st)
+        A[i * nq:(i + 1) * nq] = b / max(np.linalg.norm(b.sum(axis=1)), 1e-300)
+    return A
+
+
 def _equilibrium_at(reduced: ReducedRobot, snap, lz):
     """The reduced equilibrium at the snapshot's angles, solved from its projection."""
     return solve_equilibrium(reduced, snap.angles, state=reduced.project(snap), linearizer=lz).state
@@ -144,7 +158,8 @@ def fit_error(reduced: ReducedRobot, snaps, reference_jacobians=None) -> tuple[f
 def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_mm: float = 0.01,
           tangent_tol: float = 0.01, ecsw_tol: float = 1e-3, fit_tol_mm: float = 0.02,
           fit_jacobian_tol: float = 0.01, box=None, max_rounds: int = 9, fit_count: int = 8,
-          ecsw_batch: float = 0.02, max_elements: int | None = None) -> ReducedBasis:
+          ecsw_batch: float = 0.02, max_elements: int | None = None,
+          ecsw_snapshots: int | None = None) -> ReducedBasis:
     """A :class:`ReducedBasis` for the full ``robot`` from snapshot equilibria ``snaps`` (full
     :class:`~metasheet.robot.statics.RobotState` s) and the rest equilibrium ``rest``.
 
@@ -163,7 +178,11 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
     ``ecsw_batch`` : :func:`.ecsw.ecsw_path`'s ``batch`` (elements entered per gradient);
     ``max_elements`` : the element budget (None: every element): the tolerances a sample within
     it cannot meet are not tried, the rounds before are judged as above and
-    ``info["element_budget_spent"]`` is True (none within it: :class:`ConvergenceError`).
+    ``info["element_budget_spent"]`` is True (none within it: :class:`ConvergenceError`);
+    ``ecsw_snapshots`` : the element sample is fitted on the rest state and at most this many
+    snapshots (the first: the box's corners and the design's first points, spread over the
+    box), each also pushed (None: all). ECSW's matrix grows with states x k x elements; the
+    basis takes every snapshot.
     """
     t0 = time.perf_counter()
     c = robot.coupling
@@ -175,7 +194,8 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
         V, more = add_sensitivities(V, np.asarray(sensitivities, float), tangent_tol)
         record.update(more)
     t_basis = time.perf_counter() - t0
-    states = [projected_state(robot, V, s) for s in [rest, *snaps]]
+    fitted = snaps if ecsw_snapshots is None else snaps[:ecsw_snapshots]
+    states = [projected_state(robot, V, s) for s in [rest, *fitted]]
     # off-equilibrium states: each snapshot pushed along the static response (the tangent's data)
     k_st = record["static_modes"]
     rng = np.random.default_rng(0)
@@ -184,8 +204,7 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
         da = np.zeros(V.shape[1])
         da[:k_st] = rng.normal(scale=0.5, size=k_st)
         pushed.append(ReducedState(st.p, st.R, st.angles, st.a + da))
-    blocks = [element_contributions(robot, V, st) for st in states + pushed]
-    A = np.vstack([b / max(np.linalg.norm(b.sum(axis=1)), 1e-300) for b in blocks])
+    A = force_rows(robot, V, states + pushed)
     t_rows = time.perf_counter() - t0 - t_basis
     key = robot_key(robot)
     # halving (not quartering) the tolerance: a sample barely past the target costs every
@@ -223,7 +242,7 @@ def train(robot, snaps, rest, *, sensitivities=None, jacobians=None, basis_tol_m
         best = min(ok, key=lambda i: rounds[i]["fit_jacobian_rel"])
         sample, rounds[best]["chosen"] = samples[best], True
     jacobian_met = met
-    info = {**record, "k": int(V.shape[1]), "snapshots": len(snaps), "training_states": len(blocks),
+    info = {**record, "k": int(V.shape[1]), "snapshots": len(snaps), "training_states": len(states) + len(pushed),
             "elements": int(len(sample.elements)), "elements_total": int(robot.body.n_elements),
             "ecsw_rounds": rounds, "fit_tol_mm": fit_tol_mm, "fit_jacobian_tol": fit_jacobian_tol,
             "fit_jacobian_met": jacobian_met, "basis_jacobian_rel": basis_jac,
