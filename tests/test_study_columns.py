@@ -3,7 +3,6 @@ published constants under the authors' force field without a strain stop, the pr
 the material stage's; each writes its own folder and names its column in its JSON."""
 
 import json
-from pathlib import Path
 
 import pytest
 
@@ -11,13 +10,7 @@ from metasheet.errors import ConfigError
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
 
-
-def project(tmp_path: Path, text: str, name: str) -> Path:
-    (tmp_path / "cells").mkdir(exist_ok=True)
-    (tmp_path / "pipelines").mkdir(exist_ok=True)
-    p = tmp_path / "pipelines" / f"{name}.toml"
-    p.write_text(text)
-    return p
+from test_studies_stages import project
 
 
 STANDIN = """[pipeline]
