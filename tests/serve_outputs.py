@@ -55,7 +55,9 @@ def write_reduce(root, out, *, snapshots: int = 8, box_deg: float = 8.0, held_ou
     base = out / "tiny"
     work = base / "reduce"
     work.mkdir()
-    params = stage.ReduceParams(snapshots=snapshots, box_deg=box_deg, held_out=held_out, resume=False)
+    # one training round: these tests serve a basis, they do not certify one (tests/test_reduce_adapt.py
+    # does; the defaults' second round made this 5 s fixture 55 s)
+    params = stage.ReduceParams(snapshots=snapshots, box_deg=box_deg, held_out=held_out, resume=False, adapt_rounds=1)
     inputs = {name: base / name for name in ("orient", "material", "robot")}
     return stage.run(StageContext("reduce", params, work, inputs, root))
 

@@ -285,6 +285,7 @@ mesh_size = 16
 snapshots = 6
 box_deg = 10
 held_out = 1
+adapt_rounds = 1  # the studies on a basis, not its certificate (tests/test_reduce_adapt.py)
 surface_box_deg = 7
 surface_check = 20
 [ranges]

@@ -121,6 +121,7 @@ element = "p1"
 [reduce]
 snapshots = 8
 held_out = 2
+adapt_rounds = 1  # the columns' bases, not their certificates (tests/test_reduce_adapt.py)
 surface_equilibria = 16
 surface_check = 8
 columns = ["prediction", "reproduction"]
