@@ -52,7 +52,9 @@ def test_each_column_writes_its_folder_and_names_itself(tmp_path):
     n3 = rep["counts"].get("3 rotations", 0)
     assert f"{n3} of {rep['reachable']} reachable points pass all three rotations" in row
     verdict = row.strip().strip("|").split("|")[-1].strip()
-    assert verdict == ("reproduced" if n3 > 0 and rep["full_control_points"] > 0 else "not reproduced")
+    near, at_rest = rep["near_rest"], rep["rest_rotations"]["ok"]
+    held = all(at_rest.values()) and near["reachable"] > 0 and near["full_control"] > near["reachable"] / 2
+    assert verdict == ("reproduced" if held else "not reproduced")
     assert "| ranges |" in section and "| not run |" in section  # ranges ran the reproduction alone
     assert (out / "report" / "workspace_reproduction.png").stat().st_size > 0
 
@@ -195,3 +197,30 @@ def test_scene_facts_section_judges_each_fact_from_the_numbers():
     robot_far = {"rest_angles_deg": [80.0] * 6}  # 10 deg of pull room only
     rows = [line for line in scene_facts_section(scene, robot_far, {}) if line.startswith("| (")]
     assert [line.rstrip(" |").rsplit("|", 1)[1].strip() for line in rows] == ["yes", "no", "-", "-", "-"]
+
+
+def test_near_rest_control_counts_the_reachable_points_within_the_radius():
+    from metasheet.pipeline.stages.workspace import near_rest_control
+
+    goals = [[1, 0, 0], [0, 2, 0], [0, 0, 2.9], [3.1, 0, 0], [0, 1, 0], [0, 0, 0.5]]
+    cls = [3, 3, 1, 3, 3, 0]
+    reached = [True, True, True, True, True, False]  # the last is within the radius but unreachable
+    got = near_rest_control(goals, cls, reached, [0, 0, 0], 3.0)
+    assert got == {"radius_mm": 3.0, "reachable": 4, "full_control": 3, "share": 0.75}
+    assert near_rest_control(goals, cls, reached, [10, 10, 10], 3.0)["share"] is None
+
+
+@pytest.mark.parametrize("rest_ok, full, verdict", [
+    ({"x": True, "y": True, "z": True}, 46, "reproduced"),
+    ({"x": True, "y": True, "z": True}, 31, "not reproduced"),   # half of them: not "a whole area"
+    ({"x": True, "y": False, "z": True}, 62, "not reproduced"),  # the rest pose itself fails one axis
+])
+def test_the_fig5_verdict_needs_the_rest_pose_and_most_points_near_it(rest_ok, full, verdict):
+    from metasheet.studies.columns_report import columns_section
+
+    ws = {"counts": {"3 rotations": 47}, "reachable": 609, "rest_rotations": {"ok": rest_ok},
+          "near_rest": {"radius_mm": 3.0, "reachable": 62, "full_control": full, "share": full / 62}}
+    row = next(line for line in columns_section({"workspace": {"reproduction": ws}}, {})
+               if line.startswith("| workspace |"))
+    assert f"within 3 mm of rest {full} of 62 reachable points do" in row
+    assert row.strip().strip("|").split("|")[-1].strip() == verdict

@@ -21,12 +21,24 @@ STATEMENTS = {
 }
 
 
+#: The share of the reachable points near rest with full control that reads as "a whole area
+#: around it": most of them, so that one grid point next to rest does not decide the verdict.
+NEAR_REST_SHARE = 0.5
+
+
 def _workspace(w: Mapping) -> tuple[str, bool]:
     full = w["counts"].get("3 rotations", 0)
-    inside, radius = w.get("full_control_points", 0), w.get("full_control_radius_mm")
-    region = ("every reachable point does" if radius is None else
-              f"{inside} of them within {radius:.3g} mm of rest, where every reachable point does")
-    return f"{full} of {w['reachable']} reachable points pass all three rotations; {region}", full > 0 and inside > 0
+    text = f"{full} of {w['reachable']} reachable points pass all three rotations"
+    rest = (w.get("rest_rotations") or {}).get("ok")
+    if rest is not None:
+        text += f"; at rest {sum(rest.values())}/3 axes"
+    near = w.get("near_rest")
+    if near:
+        text += (f"; within {near['radius_mm']:g} mm of rest {near['full_control']} of {near['reachable']} "
+                 "reachable points do")
+    share = (near or {}).get("share")
+    ok = bool(rest and all(rest.values()) and share is not None and share > NEAR_REST_SHARE)
+    return text, ok
 
 
 def _ranges(r: Mapping) -> tuple[str, bool]:
