@@ -39,7 +39,7 @@ from rich.table import Table
 from rich.text import Text
 
 from .errors import MetasheetError
-from .goto import format_result, goto_robot, parse_pose, pipeline_robot, pose_text, stall_text
+from .goto import format_result, goto_robot, goto_tolerances, parse_pose, pipeline_robot, pose_text, stall_text
 from .stop_signals import Stopped, exit_now, stop_on_signals
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
@@ -285,10 +285,12 @@ def robot_goto(
     column: Annotated[str, typer.Option("--column", help="with --pipeline: 'prediction' (the material stage's "
                                         "constants) or 'reproduction' (the published constants under the authors' "
                                         "force field, on the same mesh and scene)")] = "prediction",
-    tol_mm: Annotated[float, typer.Option("--tol-mm", min=1e-6, max=100.0, help="position tolerance [mm] "
-                                          "(the paper's test: 1)")] = 0.1,
-    tol_deg: Annotated[float, typer.Option("--tol-deg", min=1e-6, max=90.0, help="rotation tolerance [deg] "
-                                           "(the paper's test: 2)")] = 0.2,
+    tol_mm: Annotated[Optional[float], typer.Option("--tol-mm", min=1e-6, max=100.0, help="position tolerance "
+                                                    "[mm]; default 0.1, the reproduction column's the paper's "
+                                                    "test: 1")] = None,
+    tol_deg: Annotated[Optional[float], typer.Option("--tol-deg", min=1e-6, max=90.0, help="rotation tolerance "
+                                                     "[deg]; default 0.2, the reproduction column's the paper's "
+                                                     "test: 2")] = None,
 ) -> None:
     """Solve the inverse model (paper eq. 8) from rest to a pose and print the motor angles.
 
@@ -313,9 +315,11 @@ def robot_goto(
         raise ConfigError(f"--column {column}: needs --pipeline (the pipeline's mesh and scene)")
     else:
         robot, info = goto_robot(orient, mesh_size, material_model), None
+    tol_mm, tol_deg = goto_tolerances(column, tol_mm, tol_deg)
     res, note = goto(robot, goal, InverseSettings(pos_tol=tol_mm, rot_tol_deg=tol_deg))
     used = "full" if info is None or note else info.model
-    say(f"model: {used}" + (f" ({note})" if note else ""), err=False)
+    say(f"model: {used}" + (f" ({note})" if note else "") + f"; {column}, tolerance {tol_mm:g} mm, {tol_deg:g} deg",
+        err=False)
     say(format_result(res), err=False)
     if not res.reached:
         why = stall_text(robot, res)

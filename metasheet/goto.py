@@ -73,6 +73,17 @@ def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full",
     return robot, info
 
 
+#: ``robot goto``'s tolerances [mm], [deg] per column: the reproduction follows the paper's
+#: test (Section IV-B: +-10 deg "within 2 deg", the position within 1 mm).
+GOTO_TOLERANCES = {"prediction": (0.1, 0.2), "reproduction": (1.0, 2.0)}
+
+
+def goto_tolerances(column: str, tol_mm: float | None, tol_deg: float | None) -> tuple[float, float]:
+    """The position [mm] and rotation [deg] tolerances of a goto: those given, else the column's."""
+    mm, deg = GOTO_TOLERANCES.get(column, GOTO_TOLERANCES["prediction"])
+    return (mm if tol_mm is None else tol_mm), (deg if tol_deg is None else tol_deg)
+
+
 def pose_text(pose) -> str:
     return ("X Y Z [mm] " + " ".join(f"{v:.3f}" for v in pose[:3])
             + " | RX RY RZ [deg] " + " ".join(f"{v:.3f}" for v in pose[3:]))

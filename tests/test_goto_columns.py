@@ -69,6 +69,18 @@ def test_goto_tolerances_decide_when_it_stops(outputs, capsys):
     assert steps_l < steps_t and max(mm_l, deg_l) > 0.01
 
 
+def test_the_reproduction_column_defaults_to_the_papers_tolerances(outputs, capsys):
+    toml, out = outputs
+    goal = ["--", "0", "0", "0", "0", "6", "0"]
+    code_d, text_d = _goto(capsys, toml, out, "--column", "reproduction", *goal)
+    code_l, text_l = _goto(capsys, toml, out, "--column", "reproduction", "--tol-mm", "1", "--tol-deg", "2", *goal)
+    assert code_d in (0, None), text_d
+    assert "reproduction, tolerance 1 mm, 2 deg" in text_d
+    assert _steps_and_errors(text_d) == _steps_and_errors(text_l)  # the same loop, stopped at the same pose
+    code_p, text_p = _goto(capsys, toml, out, *goal)
+    assert "prediction, tolerance 0.1 mm, 0.2 deg" in text_p
+
+
 def test_bad_column_is_named(outputs, capsys):
     toml, out = outputs
     with pytest.raises(ConfigError, match="--column"):
