@@ -8,6 +8,8 @@ Names, everywhere (reports, settings, statistics):
   Windows), for SPD systems: sparse Cholesky of the upper triangle.
 - ``"superlu"``: scipy's SuperLU (always there).
 - ``"amg-cg"``: smoothed-aggregation AMG (pyamg) preconditioning CG, SPD only (:mod:`.amg`).
+- ``"voxel"``: matrix-free geometric-multigrid CG on the voxel grid itself (:mod:`.voxel`), for the
+  periodic homogenisation of voxel cells only (:func:`solve_voxel_correctors`); named, never "auto".
 
 The direct back-ends are the entries of :data:`BACKENDS`, best first, each probed once at
 import (:func:`available`); adding one (e.g. PARDISO through pypardiso) is one more entry.
@@ -230,6 +232,12 @@ HAVE_CHOLMOD = available("cholmod")
 
 #: What :func:`solve_spd` accepts: a policy, or one back-end by name (benchmarks, comparisons).
 SPD_SOLVERS = ("auto", "direct", "amg", *BACKENDS)
+#: Matrix-free solvers of voxel grids (:mod:`metasheet.fem.voxel`): they never see an assembled
+#: matrix, so they are chosen before assembly (:func:`solve_voxel_correctors`), by name only
+#: ("auto" does not pick them: not yet measured against PARDISO at the sizes it serves).
+GRID_SOLVERS = ("voxel",)
+#: What the voxel homogenisation accepts: the SPD solvers and the grid solvers.
+HOMOGENIZE_SOLVERS = (*SPD_SOLVERS, *GRID_SOLVERS)
 
 
 @dataclass(frozen=True)
@@ -283,6 +291,9 @@ def factor_fits(name: str, n_dof: int, free_gb: float | None = None) -> bool:
 def choose_solver(solver: str, n_dof: int, free_gb: float | None = None) -> str:
     """The concrete solver (a key of :data:`BACKENDS` or "amg-cg") for a request in :data:`SPD_SOLVERS`
     and a system size; ``free_gb``: the memory to plan with (default: what is available now)."""
+    if solver in GRID_SOLVERS:
+        raise ConfigError(f"solver: {solver!r}: matrix-free on a voxel grid, not for an assembled matrix "
+                          f"(use solve_voxel_correctors); allowed here: {', '.join(SPD_SOLVERS)}")
     if solver not in SPD_SOLVERS:
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(SPD_SOLVERS)}")
     if solver == "amg":
@@ -346,6 +357,32 @@ def solve_spd(A: sp.spmatrix, B: np.ndarray, *, solver: str = "auto", rtol: floa
             history=res.tolist(),
         )
     return X, report
+
+
+def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solver: str = "voxel",
+                           rtol: float = 1e-8, maxiter: int = 500):
+    """The six periodic corrector problems of a voxel cell, matrix-free (:mod:`metasheet.fem.voxel`).
+
+    Parameters
+    ----------
+    phases : (nx, ny, nz) int, 0 = void, k > 0 = phase k; the percolating solid only.
+    size : (3,) float [mm]; stiffnesses : dict phase -> (6, 6) Voigt stiffness [MPa].
+    solver : a name in :data:`GRID_SOLVERS`; rtol : relative residual per load case.
+
+    Returns
+    -------
+    C (6, 6) [MPa], C_raw (6, 6) [MPa], U (nx ny nz * 3, 6) corrector displacements on every
+    grid node (flat dof ``3 ((i ny + j) nz + k) + c``, zero on nodes without solid), and the
+    :class:`SolveReport` (solver "voxel", CG iterations per load case).
+    """
+    if solver not in GRID_SOLVERS:
+        raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(GRID_SOLVERS)}")
+    # imported here: its numba kernels are compiled (or loaded from cache) on first use only
+    from .voxel import periodic_stiffness
+
+    r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter)
+    report = SolveReport(solver, r.iterations, r.residuals, r.setup_seconds, r.solve_seconds, r.n_dof)
+    return r.C, r.C_raw, r.U.reshape(-1, 6), report
 
 
 # --------------------------------------------------------------------------- general factorisation

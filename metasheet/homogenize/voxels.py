@@ -20,7 +20,8 @@ import time
 import numpy as np
 
 from ..errors import ConfigError
-from ..fem.assembly import SparsityPattern
+from ..fem.assembly import SparsityPattern, element_dofs
+from ..fem.solvers import GRID_SOLVERS, solve_voxel_correctors
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices
 from .corrector import check_and_fit, material_stiffness, solve_correctors, symmetry_error
 from .localisation import localisation
@@ -84,7 +85,8 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     size : (3,) float [mm], the box's edge lengths.
     materials : dict phase -> :class:`~metasheet.material.Isotropic` or
         :class:`~metasheet.material.TransverseIsotropic` (its axis 3 = global z).
-    solver : "auto", "direct" or "amg" (:func:`metasheet.fem.solvers.solve_spd`).
+    solver : "auto", "direct" or "amg" (:func:`metasheet.fem.solvers.solve_spd`), or "voxel"
+        (matrix-free multigrid CG, :func:`metasheet.fem.solvers.solve_voxel_correctors`).
     rtol : relative residual asked of the linear solver; ``C`` is computed in energy
         form, so its relative error is of the order of rtol squared times the condition.
     axis : (3,) the transverse-isotropic fit's axis, or None to search the best one.
@@ -112,16 +114,23 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     Ke = np.array([m[0] for m in mats])
     Fe = np.array([m[1] for m in mats])
     Bm = np.array([m[2] for m in mats])
-    pattern = SparsityPattern.from_elements(nodes, len(grid_nodes))
-    dofs = pattern.dofs
-    K = pattern.assemble(Ke, kind)
-    F = pattern.assemble_vector(Fe, kind)
-    counts = np.bincount(kind, minlength=len(present))
-    c_vol = np.einsum("p,pij->ij", counts * v_el, Cs)
-    coords = np.stack(np.unravel_index(grid_nodes, ph.shape), axis=1) * h
-    t1 = time.perf_counter()
     volume = float(np.prod(size))
-    C, C_raw, U, report = solve_correctors(K, F, c_vol, volume, coords=coords, solver=solver, rtol=rtol)
+    if solver in GRID_SOLVERS:  # matrix-free on the grid: nothing to assemble
+        dofs = element_dofs(nodes)
+        t1 = time.perf_counter()
+        C, C_raw, U_grid, report = solve_voxel_correctors(np.where(keep, ph, 0), size, dict(zip(present, Cs)),
+                                                          solver=solver, rtol=rtol)
+        U = U_grid.reshape(-1, 3, 6)[grid_nodes].reshape(-1, 6)
+    else:
+        pattern = SparsityPattern.from_elements(nodes, len(grid_nodes))
+        dofs = pattern.dofs
+        K = pattern.assemble(Ke, kind)
+        F = pattern.assemble_vector(Fe, kind)
+        counts = np.bincount(kind, minlength=len(present))
+        c_vol = np.einsum("p,pij->ij", counts * v_el, Cs)
+        coords = np.stack(np.unravel_index(grid_nodes, ph.shape), axis=1) * h
+        t1 = time.perf_counter()
+        C, C_raw, U, report = solve_correctors(K, F, c_vol, volume, coords=coords, solver=solver, rtol=rtol)
     t2 = time.perf_counter()
     fit = check_and_fit(C, axis)
     loc = None

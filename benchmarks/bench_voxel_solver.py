@@ -1,0 +1,132 @@
+"""Benchmark: matrix-free multigrid CG (solver "voxel") against PARDISO and AMG-CG on voxel foams.
+
+One table, same run. Every row runs in a fresh subprocess so that its peak memory (ru_maxrss)
+is its own; wall seconds are medians over ``--repeat`` runs inside it. The cell is the open-cell
+15 % foam of ``cells/iso_foam.toml`` at resolution n, tiled ``--tile`` times per direction (more
+cells at the same voxel size: the iteration count must stay flat). Every route gets the same
+percolating voxels and rtol; "C err" is the relative Frobenius distance of C* to PARDISO's.
+
+    python benchmarks/bench_voxel_solver.py --quick            # n = 40, one tile: a smoke test
+    python benchmarks/bench_voxel_solver.py --sizes 48 64 --tile 1 2 --repeat 3 [--save]
+    python benchmarks/bench_voxel_solver.py --solvers pardiso voxel voxel:1   # voxel on 1 numba thread
+
+"voxel:T" runs the voxel solver with T numba threads (NUMBA_NUM_THREADS in its child; plain
+"voxel": numba's default, one per core). The six load cases run in lockstep, one operator
+sweep for all six; its bits do not depend on T.
+"""
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from _results import add_save_option, saved_output
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def foam(n: int, tile: int):
+    """(phases, size [mm], materials) of the iso foam at resolution n, tiled, percolating solid only."""
+    from metasheet.cells.design import design_cell, parse_design
+    from metasheet.homogenize.percolation import percolating_solid
+
+    cell = design_cell(parse_design(tomllib.loads((ROOT / "cells" / "iso_foam.toml").read_text()),
+                                    overrides={"resolution": n}))
+    ph = np.tile(np.asarray(cell.phases, np.int64), (tile, tile, tile))
+    keep, _ = percolating_solid(ph > 0)
+    return np.where(keep, ph, 0), np.asarray(cell.size, float) * tile, cell.materials
+
+
+def one(n: int, tile: int, solver: str, repeat: int, rtol: float) -> dict:
+    """Child process: homogenise one case with one solver, print JSON."""
+    from metasheet.fem.voxel import periodic_stiffness
+    from metasheet.homogenize import homogenize_voxels
+
+    ph, size, mats = foam(n, tile)
+    rows = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        if solver == "voxel":
+            r = periodic_stiffness(ph, size, {k: m.stiffness() for k, m in mats.items()}, rtol=rtol)
+            setup, solve, dofs, iters, C = r.setup_seconds, r.solve_seconds, r.n_dof, max(r.iterations), r.C
+        else:
+            r = homogenize_voxels(ph, size, mats, solver=solver, rtol=rtol, localise=False)
+            setup, solve, dofs, C = r.timings["setup"], r.timings["solve"], r.n_dof, r.C
+            iters = max(lc.iterations for lc in r.load_cases)
+        rows.append({"s": time.perf_counter() - t, "setup": setup, "solve": solve, "dofs": dofs, "iters": iters,
+                     "C": C.tolist()})
+    out = {k: statistics.median(x[k] for x in rows) if isinstance(rows[0][k], float) else rows[0][k]
+           for k in rows[0]}
+    out["peak_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    return out
+
+
+def run_child(n, tile, solver, repeat, rtol, timeout):
+    solver, _, threads = solver.partition(":")
+    env = dict(os.environ, **({"NUMBA_NUM_THREADS": threads} if threads else {}))
+    cmd = [sys.executable, __file__, "--one", str(n), str(tile), solver, "--repeat", str(repeat), "--rtol", str(rtol)]
+    try:
+        p = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=timeout, env=env)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timeout {timeout:.0f} s"}
+    if p.returncode != 0:
+        return {"error": (p.stderr.strip().splitlines() or ["?"])[-1][:70]}
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", type=int, nargs="*", default=[48, 64], help="resolutions n of one cell")
+    ap.add_argument("--tile", type=int, nargs="*", default=[1], help="cells per direction (1, 2, 3...)")
+    ap.add_argument("--solvers", nargs="*", default=["pardiso", "voxel", "amg"])
+    ap.add_argument("--quick", action="store_true", help="n = 40 (the coarsest feasible), one tile, one repeat: checks that it runs")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--rtol", type=float, default=1e-8)
+    ap.add_argument("--timeout", type=float, default=1800.0, help="per row [s]")
+    ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
+    add_save_option(ap)
+    args = ap.parse_args()
+    if args.one:
+        n, tile, solver = args.one
+        print(json.dumps(one(int(n), int(tile), solver, args.repeat, args.rtol)))
+        return
+    if args.quick:
+        args.sizes, args.tile, args.repeat = [40], [1], 1
+    from metasheet.fem.solvers import available
+
+    solvers = [s for s in args.solvers if s != "pardiso" or available("pardiso")]
+    with saved_output(__file__, args.save, fenced=True):
+        print(f"cores={os.cpu_count()} load={os.getloadavg()[0]:.1f} repeat={args.repeat} rtol={args.rtol:g} "
+              f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '-')}")
+        print(f"{'n':>4} {'tile':>4} {'solver':>8} {'dofs':>9} {'iters':>6} {'setup s':>8} {'solve s':>8} "
+              f"{'median s':>9} {'peak GB':>8} {'t/pardiso':>9} {'GB/pardiso':>10} {'C err':>9}")
+        for n in args.sizes:
+            for tile in args.tile:
+                ref = None
+                for solver in solvers:
+                    r = run_child(n, tile, solver, args.repeat, args.rtol, args.timeout)
+                    if "error" in r:
+                        print(f"{n:>4} {tile:>4} {solver:>8} failed: {r['error']}", flush=True)
+                        continue
+                    if solver == "pardiso":
+                        ref = r
+                    base = ref or {}
+                    C, Cref = np.array(r["C"]), np.array(base.get("C", np.full((6, 6), np.nan)))
+                    err = np.linalg.norm(C - Cref) / np.linalg.norm(Cref)
+                    tr = r["s"] / base["s"] if base else float("nan")
+                    mr = r["peak_gb"] / base["peak_gb"] if base else float("nan")
+                    print(f"{n:>4} {tile:>4} {solver:>8} {r['dofs']:>9} {r['iters']:>6} {r['setup']:>8.2f} "
+                          f"{r['solve']:>8.2f} {r['s']:>9.2f} {r['peak_gb']:>8.2f} {tr:>9.2f} {mr:>10.2f} {err:>9.1e}",
+                          flush=True)
+        print("ratios and C err: against the PARDISO row of the same case (listed first in --solvers)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,16 @@
+"""Matrix-free linear elasticity on voxel grids with geometric-multigrid-preconditioned CG.
+
+- :mod:`.element`: the trilinear voxel's matrices per phase;
+- :mod:`.operator`: ``K u`` voxel by voxel (numba, m right-hand sides at once, threads
+  without changing bits), periodic or not;
+- :mod:`.coarsen`: cells, trilinear transfer, Galerkin coarse voxel matrices;
+- :mod:`.multigrid`: the hierarchy, Chebyshev/Jacobi smoothers, the V-cycle;
+- :mod:`.pcg`: CG with the null space projected out, several right-hand sides in lockstep;
+- :mod:`.homogenize`: the six periodic load cases -> C*;
+- :mod:`.clamped`: clamped and rigid-tied nodes -> a rigid body's condensed 6 x 6 stiffness.
+"""
+
+from .clamped import RigidBodyStiffness, rigid_body_stiffness
+from .homogenize import VoxelHomogenization, periodic_stiffness
+
+__all__ = ["RigidBodyStiffness", "VoxelHomogenization", "periodic_stiffness", "rigid_body_stiffness"]

@@ -1,0 +1,82 @@
+"""The voxel element: one trilinear hexahedron, its matrices per phase.
+
+Every voxel of a grid is the same box, so the (24, 24) stiffness, the (24, 6) unit-strain
+forces and the mean strain operator exist once per phase
+(:func:`metasheet.fem.hex8.hex8_box_matrices`, 2 x 2 x 2 Gauss, exact for the box). A voxel
+then stores only its phase index and, optionally, a modulus scale: the matrix-free operator
+(:mod:`.operator`) multiplies the phase's matrix by the scale. A phase may be anisotropic
+(a transversely isotropic material), so the table holds one full matrix per phase rather
+than one unit-modulus matrix times a Young's modulus.
+
+Local node ``a = ax + 2 ay + 4 az`` (``metasheet.fem.hex8``), local dof ``3 a + i``: the
+same numbering as the assembled homogenisation path, so both see the same element.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import ConfigError
+from ..hex8 import hex8_box_matrices
+
+
+@dataclass(frozen=True)
+class PhaseTable:
+    """Element matrices of every phase on one box.
+
+    Attributes
+    ----------
+    K : (p, 24, 24) float [N/mm], stiffness ``int B^T C B dV`` of each phase.
+    F : (p, 24, 6) float [N], nodal forces of the six unit macro strains ``int B^T C dV``.
+    C : (p, 6, 6) float [MPa], the phases' Voigt stiffnesses (order 11, 22, 33, 23, 13, 12,
+        engineering shear: :mod:`metasheet.conventions`).
+    h : (3,) float [mm], the voxel's edge lengths.
+    """
+
+    K: np.ndarray
+    F: np.ndarray
+    C: np.ndarray
+    h: np.ndarray
+
+    @property
+    def volume(self) -> float:
+        """Volume of one voxel [mm^3]."""
+        return float(np.prod(self.h))
+
+
+def phase_table(stiffnesses, h) -> PhaseTable:
+    """Element matrices of phases with Voigt stiffnesses ``stiffnesses`` on a box ``h``.
+
+    Parameters
+    ----------
+    stiffnesses : (p, 6, 6) float [MPa], symmetric positive definite, global axes.
+    h : (3,) float [mm], > 0.
+
+    Returns
+    -------
+    :class:`PhaseTable`.
+
+    Raises
+    ------
+    ConfigError : wrong shapes, a non-finite or non-positive-definite stiffness, h <= 0.
+    """
+    C = np.asarray(stiffnesses, float)
+    if C.ndim == 2:
+        C = C[None]
+    if C.ndim != 3 or C.shape[1:] != (6, 6) or len(C) == 0:
+        raise ConfigError(f"stiffnesses: shape is {np.shape(stiffnesses)} and should be (p, 6, 6)")
+    h = np.asarray(h, float).reshape(-1)
+    if h.shape != (3,) or not np.all(np.isfinite(h)) or np.any(h <= 0):
+        raise ConfigError(f"h: {h.tolist()}: must be three finite voxel edge lengths > 0 [mm]")
+    for p, Cp in enumerate(C):
+        if not np.all(np.isfinite(Cp)) or np.abs(Cp - Cp.T).max() > 1e-9 * np.abs(Cp).max():
+            raise ConfigError(f"stiffnesses[{p}]: must be a finite symmetric (6, 6) matrix [MPa]")
+        if np.linalg.eigvalsh(Cp)[0] <= 0:
+            raise ConfigError(f"stiffnesses[{p}]: not positive definite (eigenvalues "
+                              f"{np.linalg.eigvalsh(Cp).round(6).tolist()} MPa)")
+    mats = [hex8_box_matrices(Cp, h) for Cp in C]
+    K = np.ascontiguousarray([m[0] for m in mats])
+    F = np.ascontiguousarray([m[1] for m in mats])
+    return PhaseTable(K=K, F=F, C=C, h=h)

@@ -1,0 +1,206 @@
+"""Geometric multigrid on the voxel hierarchy: one symmetric V-cycle, CG's preconditioner.
+
+Choices (measured iteration counts in ``docs/voxel.md``):
+
+- coarse operators: Galerkin ``P^T K P`` with trilinear ``P`` (:mod:`.coarsen`), built voxel
+  by voxel, so thin walls and edge hinges keep their true coarse stiffness;
+- smoother: Chebyshev polynomial of the Jacobi-preconditioned operator ``D^-1 K`` (degree 2
+  by default) on ``[1.1 lambda_max / ratio, 1.1 lambda_max]``, ``lambda_max`` from a fixed-start
+  power iteration; damped Jacobi is kept as the simple alternative. Both are symmetric, the
+  same pre and post, so the V-cycle is a symmetric preconditioner;
+- coarsest level: a dense pseudo-inverse (eigen-decomposition) of the few hundred coarse
+  unknowns. It is pseudo- rather than plain inverse because the periodic operator is
+  singular: translations are exactly interpolated by ``P``, so every level keeps them in its
+  null space, and the right-hand sides, orthogonal to them on the fine level, stay so.
+
+Every sum has a fixed order (the operator's slab sweep, :mod:`.operator`; serial transfers; one
+BLAS thread for the dense coarsest solve): the same bits on every run and thread count.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import ConfigError
+from .coarsen import choose_directions, coarse_operator, prolong, restrict
+from .operator import VoxelOperator, diagonal
+
+#: Smoothers accepted by :func:`build_hierarchy`.
+SMOOTHERS = ("chebyshev", "jacobi")
+#: Coarsen until at most this many unknowns remain, then solve densely.
+COARSEST_UNKNOWNS = 1000
+#: Refuse a dense coarsest level above this many unknowns (a grid that cannot be coarsened).
+COARSEST_LIMIT = 6000
+
+
+@dataclass(frozen=True)
+class Level:
+    """One level above the coarsest: its operator, smoother data and the way down."""
+
+    op: VoxelOperator
+    dinv: np.ndarray  # (Nx, Ny, Nz, 3) free / diag [mm/N]
+    lmax: float  # largest eigenvalue estimate of D^-1 K [-]
+    transfer: tuple  # 1D interpolations to the next coarser level (:mod:`.coarsen`)
+    coarse_nodes: tuple
+
+
+@dataclass(frozen=True)
+class Hierarchy:
+    """A multigrid hierarchy, finest level first.
+
+    Attributes
+    ----------
+    levels : the smoothed levels; coarsest : the last operator;
+    coarse_dofs : (c,) flat free dofs of the coarsest level; coarse_inverse : (c, c) pseudo-inverse;
+    smoother, degree, ratio, omega : the smoother's settings.
+    """
+
+    levels: tuple[Level, ...]
+    coarsest: VoxelOperator
+    coarse_dofs: np.ndarray
+    coarse_inverse: np.ndarray
+    smoother: str
+    degree: int
+    ratio: float
+    omega: float
+
+    @property
+    def shapes(self) -> tuple[tuple[int, int, int], ...]:
+        """Voxel grid shape of every level, finest first."""
+        return tuple(lv.op.index.shape for lv in self.levels) + (self.coarsest.index.shape,)
+
+    @property
+    def unknowns(self) -> tuple[int, ...]:
+        return tuple(lv.op.n_free for lv in self.levels) + (self.coarsest.n_free,)
+
+    def precondition(self, r: np.ndarray) -> np.ndarray:
+        """One V-cycle from zero: ``z ~ K^-1 r`` for ``r`` (Nx, Ny, Nz, 3[, m]) [N] -> [mm].
+
+        ``m`` right-hand sides go down and up the hierarchy together, column by column the
+        same arithmetic as one at a time."""
+        z = _vcycle(self, 0, r if r.ndim == 5 else r[..., None])
+        return z if r.ndim == 5 else z[..., 0]
+
+
+def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoother: str = "chebyshev",
+                    degree: int = 2, ratio: float = 20.0, omega: float = 2.0 / 3.0,
+                    coarsest_unknowns: int = COARSEST_UNKNOWNS) -> Hierarchy:
+    """Coarsen ``op`` into a Galerkin hierarchy with its smoothers and coarse pseudo-inverse.
+
+    Parameters
+    ----------
+    op : the finest level.
+    fixed : (Nx, Ny, Nz, 3) bool prescribed dofs (None: none).
+    smoother : "chebyshev" or "jacobi"; degree : polynomial degree or number of Jacobi sweeps, >= 1.
+    ratio : Chebyshev's smoothing range ``lambda_max / lambda_min`` (> 1).
+    omega : Jacobi's step as a fraction of the stable ``2 / lambda_max``, in (0, 1].
+    coarsest_unknowns : stop coarsening at this many unknowns.
+    """
+    if smoother not in SMOOTHERS:
+        raise ConfigError(f"smoother: {smoother!r}: allowed values are {', '.join(SMOOTHERS)}")
+    if int(degree) != degree or not 1 <= degree <= 10:
+        raise ConfigError(f"degree: {degree!r}: allowed integers 1 to 10")
+    if not ratio > 1:
+        raise ConfigError(f"ratio: {ratio!r}: must be > 1")
+    if not 0 < omega <= 1:
+        raise ConfigError(f"omega: {omega!r}: allowed range (0, 1]")
+    fixed = np.zeros(op.node_shape + (3,), bool) if fixed is None else np.asarray(fixed, bool)
+    levels = []
+    while op.n_free > coarsest_unknowns:
+        dirs = choose_directions(op.index.shape, op.h, op.periodic)
+        if not any(dirs):
+            break
+        coarse, fixed_c, transfer = coarse_operator(op, fixed, dirs)
+        d = diagonal(op)
+        dinv = np.where(d > 0, op.free / np.where(d > 0, d, 1.0), 0.0)
+        levels.append(Level(op, dinv, _lambda_max(op, dinv), transfer, coarse.node_shape))
+        op, fixed = coarse, fixed_c
+    if op.n_free > COARSEST_LIMIT:
+        raise ConfigError(f"grid {op.index.shape}: cannot be coarsened below {op.n_free} unknowns "
+                          f"(dense coarsest solve allows {COARSEST_LIMIT}); use more voxels per direction")
+    dofs, pinv = _coarse_pseudo_inverse(op)
+    return Hierarchy(tuple(levels), op, dofs, pinv, smoother, int(degree), float(ratio), float(omega))
+
+
+def _lambda_max(op: VoxelOperator, dinv: np.ndarray, steps: int = 12) -> float:
+    """Power-iteration estimate of the largest eigenvalue of ``D^-1 K`` from a fixed start."""
+    v = op.free * np.random.default_rng(12345).standard_normal(op.free.shape)
+    lam = 0.0
+    for _ in range(steps):
+        nv = np.linalg.norm(v)
+        if nv == 0:
+            return 1.0
+        v = v / nv
+        w = dinv * op.apply(v)
+        lam = float(np.vdot(v, w))
+        v = w
+    return max(lam, float(np.linalg.norm(v)))
+
+
+def _coarse_pseudo_inverse(op: VoxelOperator) -> tuple[np.ndarray, np.ndarray]:
+    """Dense pseudo-inverse of the coarsest operator on its free dofs."""
+    N = op.node_shape
+    n = 3 * int(np.prod(N))
+    occupied = np.argwhere(op.index >= 0)
+    corners = np.array([[a & 1, (a >> 1) & 1, (a >> 2) & 1] for a in range(8)])
+    nodes = (occupied[:, None, :] + corners[None]) % np.array(N)
+    flat = (nodes[..., 0] * N[1] + nodes[..., 1]) * N[2] + nodes[..., 2]
+    dofs = (3 * flat[..., None] + np.arange(3)).reshape(len(occupied), 24)
+    Ke = op.matrices[op.index[tuple(occupied.T)]] * op.scale[tuple(occupied.T)][:, None, None]
+    A = np.zeros((n, n))
+    np.add.at(A, (dofs[:, :, None], dofs[:, None, :]), Ke)
+    free = np.flatnonzero(op.free.ravel() > 0)
+    A = A[np.ix_(free, free)]
+    w, V = np.linalg.eigh(0.5 * (A + A.T))
+    keep = w > 1e-11 * max(w[-1], 0.0) if len(w) else np.zeros(0, bool)
+    pinv = (V[:, keep] / w[keep]) @ V[:, keep].T
+    return free, pinv
+
+
+def _smooth(H: Hierarchy, lv: Level, x: np.ndarray | None, b: np.ndarray) -> np.ndarray:
+    """A few smoothing steps on ``K x = b`` (Nx, Ny, Nz, 3, m) from ``x`` (None: zero); the new x."""
+    r = b.copy() if x is None else b - lv.op.apply(x)
+    x = np.zeros_like(b) if x is None else x
+    dinv = lv.dinv[..., None]
+    if H.smoother == "jacobi":
+        for s in range(H.degree):
+            dx = (2.0 * H.omega / lv.lmax) * (dinv * r)  # omega of the stable range 2 / lmax
+            x = x + dx
+            if s + 1 < H.degree:
+                r = r - lv.op.apply(dx)
+        return x
+    # Chebyshev on [1.1 lmax / ratio, 1.1 lmax] (Saad, Iterative Methods, alg. 12.1; Adams et al. 2003)
+    hi = 1.1 * lv.lmax
+    lo = hi / H.ratio
+    theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    sigma = theta / delta
+    rho = 1.0 / sigma
+    d = dinv * r / theta
+    x = x + d
+    for _ in range(H.degree - 1):
+        r = r - lv.op.apply(d)
+        rho_new = 1.0 / (2.0 * sigma - rho)
+        d = rho_new * rho * d + (2.0 * rho_new / delta) * (dinv * r)
+        x = x + d
+        rho = rho_new
+    return x
+
+
+def _vcycle(H: Hierarchy, k: int, b: np.ndarray) -> np.ndarray:
+    """V-cycle from level k on ``b`` (Nx, Ny, Nz, 3, m)."""
+    m = b.shape[4]
+    if k == len(H.levels):
+        x = np.zeros(H.coarsest.node_shape + (3, m))
+        flat = x.reshape(-1, m)
+        flat[H.coarse_dofs] = H.coarse_inverse @ b.reshape(-1, m)[H.coarse_dofs]
+        return x
+    lv = H.levels[k]
+    x = _smooth(H, lv, None, b)
+    r = b - lv.op.apply(x)
+    below = H.levels[k + 1].op if k + 1 < len(H.levels) else H.coarsest
+    rc = below.free[..., None] * restrict(r, lv.transfer, lv.coarse_nodes)
+    xc = _vcycle(H, k + 1, rc)
+    x = x + lv.op.free[..., None] * prolong(xc, lv.transfer, lv.op.node_shape)
+    return _smooth(H, lv, x, b)
