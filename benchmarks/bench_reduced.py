@@ -19,6 +19,10 @@ reduce stages must have run; the held-out angles are drawn inside the basis's an
 surface's boxes):
 
     python benchmarks/bench_reduced.py --pipeline pipelines/paper.toml [--out outputs]
+
+``--column reproduction`` times the reproduction column's robot and basis (the published
+constants under the authors' force field, P1 5 mm: ``reduce/reproduction/``, trained when
+``[reduce] columns`` names it).
 """
 
 from __future__ import annotations
@@ -56,24 +60,26 @@ def _control(robot, goals, steps: int):
     return float(np.median(t)), float(t.mean()), float(np.percentile(t, 99)), fresh, len(t)
 
 
-def _from_pipeline(pipeline: str, out: str | None):
+def _from_pipeline(pipeline: str, out: str | None, column: str):
     """(full robot, reduced robot, full linearizer, full rest equilibrium, description) of a
-    pipeline's outputs, as ``metasheet serve`` loads them."""
+    pipeline's outputs for ``column``, as ``metasheet robot goto --column`` loads them."""
     import json
 
-    from metasheet.serve.loading import find_outputs, load_robot
+    from metasheet.rom.surface_robot import load_surface
+    from metasheet.serve.loading import PUBLISHED, find_outputs, load_robot
+    from metasheet.studies.columns import column_folder
 
     outputs = find_outputs(pipeline, out)
-    from metasheet.rom.surface_robot import load_surface
-
-    rob, _ = load_robot(outputs, "full")
-    red, _ = load_robot(outputs, "reduced")
-    surf = load_surface(outputs.directory / "reduce" / "surface.npz", red)
+    material = PUBLISHED if column == "reproduction" else "foam"
+    folder = column_folder(outputs.directory / "reduce", column, "reduce")
+    rob, _ = load_robot(outputs, "full", material)
+    red, _ = load_robot(outputs, "reduced", material)
+    surf = load_surface(folder / "surface.npz", red)
     lz = rob.linearizer()
     rest = solve_equilibrium(rob, rob.coupling.rest_angles, linearizer=lz).state
     box = np.degrees(red.basis.box_hi - red.basis.box_lo).max() / 2
     timings = json.loads((outputs.directory / "reduce" / "manifest.json").read_text()).get("timings_s", {})
-    return rob, red, surf, lz, rest, (f"{pipeline}'s reduce stage, box rest +- {box:.3g} deg; "
+    return rob, red, surf, lz, rest, (f"{pipeline}'s reduce stage, {column} column, box rest +- {box:.3g} deg; "
                                 f"training (manifest timings_s): {timings}")
 
 
@@ -87,10 +93,12 @@ def main() -> None:
     ap.add_argument("--surface", type=int, default=64, help="reduced equilibria the surface is fitted on")
     ap.add_argument("--pipeline", default=None, help="a pipeline whose robot and reduce stages have run")
     ap.add_argument("--out", default=None, help="its outputs folder (default: the pipeline's)")
+    ap.add_argument("--column", default="prediction", choices=("prediction", "reproduction"),
+                    help="with --pipeline: which column's robot and basis")
     add_save_option(ap)
     a = ap.parse_args()
     if a.pipeline:
-        rob, red, surf, lz, rest, what = _from_pipeline(a.pipeline, a.out)
+        rob, red, surf, lz, rest, what = _from_pipeline(a.pipeline, a.out, a.column)
         basis, c = red.basis, rob.coupling
         # every model on the same angles: inside the surface's box, which may be the smaller
         slo, shi = surf.surface.box

@@ -156,6 +156,27 @@ def test_a_small_first_round_grows_until_the_targets_are_met(tiny):
     assert summary["certified"] and summary["rounds"] == len(rounds)
 
 
+@pytest.mark.bytes
+def test_the_training_rounds_give_the_same_bytes_twice(tiny):
+    """Two rounds (the first misses, the second meets), run twice with the run's own BLAS pinning
+    (:data:`~metasheet.executor.UNIT_THREADS`, as the pipeline runner sets it): the rounds read no
+    clock and no thread count, so the same reduce.json and the same basis and surface. Unpinned,
+    the inverse model's figures moved by 1e-12 between two runs in one process (OpenBLAS splits a
+    sum by its free threads while the surface's equilibria run on another thread)."""
+    from threadpoolctl import threadpool_limits
+
+    from metasheet.executor import UNIT_THREADS
+
+    with threadpool_limits(limits=UNIT_THREADS):
+        _run(tiny, "twice_a", snapshots=8, adapt_rounds=2)
+        _run(tiny, "twice_b", snapshots=8, adapt_rounds=2)
+    a, b = tiny[1] / "twice_a", tiny[1] / "twice_b"
+    red = json.loads((a / "reduce.json").read_text())
+    assert len(red["adaptation"]["rounds"]) == 2  # the schedule ran: the first round missed
+    for name in ("reduce.json", "basis.npz", "surface.npz"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
 def test_a_budget_too_small_stops_with_the_certificate_not_met_and_says_why(tiny, caplog):
     with caplog.at_level(logging.WARNING, logger="metasheet.pipeline.stages.reduce"):
         red, summary = _run(tiny, "small", snapshots=4, max_snapshots=4)  # 0.23 mm, 9.8 %

@@ -57,6 +57,8 @@ def test_each_column_writes_its_folder_and_names_itself(tmp_path):
     assert verdict == ("reproduced" if held else "not reproduced")
     assert "| ranges |" in section and "| not run |" in section  # ranges ran the reproduction alone
     assert (out / "report" / "workspace_reproduction.png").stat().st_size > 0
+    timings = json.loads((out / "workspace" / "manifest.json").read_text())["timings_s"]
+    assert {"prediction", "reproduction"} <= set(timings)  # each column's time, not the last one's alone
 
 
 @pytest.mark.parametrize("extra, match", [

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import shutil
+import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
@@ -190,13 +191,21 @@ def run_columns(ctx: StageContext, run_one) -> dict:
     """Run a study stage's ``run_one(ctx)`` once per column of ``ctx.params.columns``: the first
     writes into the stage's folder, the next into ``<column>/``, each with its parameters
     (:meth:`StudyRobotParams.for_column`). Returns the first column's summary, with
-    ``"columns"``: {column: its summary} when there are two."""
+    ``"columns"``: {column: its summary} when there are two. With two, the manifest's timings
+    are each column's, prefixed ``<column>.``, and its wall time ``<column>``."""
     p = ctx.params
     out = {}
     for i, col in enumerate(p.columns):
-        say = ctx.progress if len(p.columns) == 1 else (lambda d, k, n, col=col: ctx.progress(f"{col}: {d}", k, n))
-        sub = replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col, progress=say)
+        if len(p.columns) == 1:
+            out[col] = run_one(replace(ctx, params=p.for_column(col), column=col))
+            break
+        say = lambda d, k, n, col=col: ctx.progress(f"{col}: {d}", k, n)  # noqa: E731
+        sub = replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col, progress=say,
+                      timings={})
+        t0 = time.perf_counter()
         out[col] = run_one(sub)
+        ctx.timings.update({f"{col}.{k}": v for k, v in sub.timings.items()})
+        ctx.timings[col] = time.perf_counter() - t0
     first = out[p.columns[0]]
     return first if len(out) == 1 else {**first, "columns": out}
 
