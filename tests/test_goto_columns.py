@@ -81,6 +81,14 @@ def test_the_reproduction_column_defaults_to_the_papers_tolerances(outputs, caps
     assert "prediction, tolerance 0.1 mm, 0.2 deg" in text_p
 
 
+def test_a_reduced_reproduction_without_its_basis_says_how_to_train_it(outputs):
+    from metasheet.goto import pipeline_robot
+
+    toml, out = outputs
+    with pytest.raises(ConfigError, match=r"reproduction column .*add 'reproduction' to \[reduce\] columns"):
+        pipeline_robot(toml, out, "reduced", None, "reproduction")
+
+
 def test_bad_column_is_named(outputs, capsys):
     toml, out = outputs
     with pytest.raises(ConfigError, match="--column"):

@@ -198,8 +198,10 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
     basis_file = column_folder(outputs.directory / "reduce", column, "reduce") / "basis.npz"
     needs = {"reduced": basis_file, "surface": basis_file.with_name("surface.npz")}.get(model)
     if needs is not None and not needs.is_file():
-        raise ConfigError(f"--model {model}: needs the reduce stage's outputs ({needs}), which are "
-                          "missing: run a pipeline with the reduce stage, or use --model full")
+        fix = ("add 'reproduction' to [reduce] columns and run the pipeline again" if column == "reproduction"
+               else "run a pipeline with the reduce stage")
+        raise ConfigError(f"--model {model}: needs the reduce stage's outputs for the {column} column ({needs}), "
+                          f"which are missing: {fix}, or use --model full")
     robot, info = _full_robot(outputs, material)
     if model == "full":
         return robot, info
