@@ -194,11 +194,10 @@ def run_columns(ctx: StageContext, run_one) -> dict:
     ``"columns"``: {column: its summary} when there are two. With two, the manifest's timings
     are each column's, prefixed ``<column>.``, and its wall time ``<column>``."""
     p = ctx.params
+    if len(p.columns) == 1:
+        return run_one(replace(ctx, params=p.for_column(p.columns[0]), column=p.columns[0]))
     out = {}
     for i, col in enumerate(p.columns):
-        if len(p.columns) == 1:
-            out[col] = run_one(replace(ctx, params=p.for_column(col), column=col))
-            break
         say = lambda d, k, n, col=col: ctx.progress(f"{col}: {d}", k, n)  # noqa: E731
         sub = replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col, progress=say,
                       timings={})
@@ -206,8 +205,7 @@ def run_columns(ctx: StageContext, run_one) -> dict:
         out[col] = run_one(sub)
         ctx.timings.update({f"{col}.{k}": v for k, v in sub.timings.items()})
         ctx.timings[col] = time.perf_counter() - t0
-    first = out[p.columns[0]]
-    return first if len(out) == 1 else {**first, "columns": out}
+    return {**out[p.columns[0]], "columns": out}
 
 
 def study_reads(params) -> tuple[str, ...]:
