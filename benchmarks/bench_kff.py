@@ -30,23 +30,23 @@ sys.path.insert(0, str(ROOT))
 
 def capture_kff(pipeline: str, out: str | None):
     """K_ff (csr) of the pipeline's foam robot at its rest equilibrium."""
-    from metasheet.fem import solvers
+    from metasheet.fem import factor
     from metasheet.robot.inverse import InverseController
     from metasheet.serve.loading import find_outputs, load_robot
 
     seen = []
-    orig = solvers.SparseSolver.factorize
+    orig = factor.SparseSolver.factorize
 
     def spy(self, A):
         seen.append(A.copy())
         return orig(self, A)
 
-    solvers.SparseSolver.factorize = spy
+    factor.SparseSolver.factorize = spy
     try:
         robot, info = load_robot(find_outputs(pipeline, out), "full", "foam")
         InverseController(robot).refresh()
     finally:
-        solvers.SparseSolver.factorize = orig
+        factor.SparseSolver.factorize = orig
     A = seen[-1].tocsr()
     A.sort_indices()
     return A, info.description

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from metasheet.errors import ConfigError
-from metasheet.fem import solvers
+from metasheet.fem import factor, solvers
 from metasheet.homogenize import homogenize_voxels
 from metasheet.material import Isotropic
 
@@ -47,7 +47,7 @@ def _nonsymmetric(n=120, seed=0):
 
 def test_one_naming():
     assert tuple(solvers.BACKENDS) == ("pardiso", "cholmod", "superlu")  # best first (measured)
-    assert solvers.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")  # PARDISO: SPD systems only
+    assert factor.FACTOR_SOLVERS == ("auto", "cholmod", "superlu")  # PARDISO: SPD systems only
     assert solvers.SPD_SOLVERS == ("auto", "direct", "amg", "pardiso", "cholmod", "superlu")
     assert solvers.available("superlu")  # scipy: always there
     assert solvers.HAVE_CHOLMOD == solvers.available("cholmod")
@@ -68,22 +68,22 @@ def test_unknown_names_are_config_errors():
     with pytest.raises(ConfigError, match="solver: 'umfpack'"):
         solvers.choose_solver("umfpack", 10)
     with pytest.raises(ConfigError, match="linear_solver: 'splu'"):
-        solvers.resolve("splu")
+        factor.resolve("splu")
     with pytest.raises(ConfigError, match="linear_solver: 'pardiso'"):
-        solvers.resolve("pardiso")
+        factor.resolve("pardiso")
     assert solvers.choose_solver("superlu", 10**7) == "superlu"  # a back-end by name: no size policy
 
 
 @pytest.mark.parametrize("have", [False, True])
 def test_resolve_follows_the_probe(monkeypatch, have):
     _cholmod(monkeypatch, have)
-    assert solvers.resolve("auto") == ("cholmod" if have else "superlu")
-    assert solvers.resolve("superlu") == "superlu"
+    assert factor.resolve("auto") == ("cholmod" if have else "superlu")
+    assert factor.resolve("superlu") == "superlu"
     if have:
-        assert solvers.resolve("cholmod") == "cholmod"
+        assert factor.resolve("cholmod") == "cholmod"
     else:
         with pytest.raises(ConfigError, match=r"scikit-sparse is not installed .*allowed here: 'auto' or 'superlu'"):
-            solvers.resolve("cholmod")
+            factor.resolve("cholmod")
 
 
 def test_superlu_keeps_its_options():
@@ -94,7 +94,7 @@ def test_superlu_keeps_its_options():
     plain = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
     assert np.array_equal(solvers.superlu(A, symmetric_mode=True).solve(b), sym.solve(b))
     assert np.array_equal(solvers.superlu(A).solve(b), plain.solve(b))
-    s = solvers.SparseSolver("superlu")
+    s = factor.SparseSolver("superlu")
     fac = s.factorize(A)
     assert fac.name == "superlu" and not fac.symmetric
     assert np.array_equal(fac.solve(b), sym.solve(b))
@@ -147,7 +147,7 @@ def test_pardiso_is_the_pip_only_direct_solver(monkeypatch, have_cholmod):
     assert solvers.choose_solver("auto", mid) == first
     assert solvers.choose_solver("auto", big) == "amg-cg"
     assert solvers.choose_solver("direct", big) == first
-    assert solvers.resolve("auto") == ("cholmod" if have_cholmod else "superlu")  # the robot's K_ff
+    assert factor.resolve("auto") == ("cholmod" if have_cholmod else "superlu")  # the robot's K_ff
 
 
 def test_auto_takes_a_direct_solver_only_when_its_factor_fits_in_memory(monkeypatch):

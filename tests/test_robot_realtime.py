@@ -15,7 +15,8 @@ from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.robots import tripod
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.kinematics import kinematics
-from metasheet.fem.solvers import SparseSolver, available, resolve
+from metasheet.fem.factor import SparseSolver, resolve
+from metasheet.fem.solvers import available
 from metasheet.rotations import rotation_matrix, rotation_vector
 from metasheet.robot.statics import Linearizer
 from metasheet.robot.equilibrium import solve_equilibrium

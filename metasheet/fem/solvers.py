@@ -21,11 +21,11 @@ Two uses:
   ``"auto"`` takes the first available direct back-end up to its size limit
   (:data:`PARDISO_MAX_DOF`, :data:`SUPERLU_MAX_DOF`, ...) whose factor fits in the memory
   available (:func:`factor_fits`), AMG-CG otherwise.
-- :class:`SparseSolver`: repeated factorisations of the robot's free block ``K_ff``, one fixed
+- :class:`~metasheet.fem.factor.SparseSolver` (:mod:`.factor`): repeated factorisations of the robot's free block ``K_ff``, one fixed
   structurally symmetric pattern, slightly non-symmetric values (see :mod:`metasheet.robot.kernels`).
   SuperLU factorises ``K_ff`` itself (every solve exact). CHOLMOD factorises the symmetric part
   ``M = (K_ff + K_ff^T) / 2`` with its symbolic analysis cached for the pattern: ``M^-1`` is a
-  *modified-Newton* operator, and :meth:`SparseSolver.solve_exact` restores the exact solve by
+  *modified-Newton* operator, and :meth:`~metasheet.fem.factor.SparseSolver.solve_exact` restores the exact solve by
   iterative refinement ``y <- y + M^-1 (b - K_ff y)``, falling back to SuperLU of ``K_ff``
   when that does not reach ``refine_tol`` within ``max_refine`` sweeps (a strongly
   non-symmetric tangent far from rest) or ``M`` is not positive definite. Chord steps use
@@ -383,81 +383,3 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
     r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter)
     report = SolveReport(solver, r.iterations, r.residuals, r.setup_seconds, r.solve_seconds, r.n_dof)
     return r.C, r.C_raw, r.U.reshape(-1, 6), report
-
-
-# --------------------------------------------------------------------------- general factorisation
-
-#: What :class:`SparseSolver` (and the robot's ``linear_solver`` setting) accepts.
-FACTOR_SOLVERS = ("auto", *(name for name, b in BACKENDS.items() if b.general is not None))
-
-
-def resolve(solver: str) -> str:
-    """The back-end that runs for a requested ``solver`` in :data:`FACTOR_SOLVERS`."""
-    if solver not in FACTOR_SOLVERS:
-        raise ConfigError(f"linear_solver: {solver!r}: allowed {FACTOR_SOLVERS}")
-    here = [name for name in FACTOR_SOLVERS[1:] if available(name)]
-    if solver == "auto":
-        return here[0]
-    if solver not in here:
-        b = BACKENDS[solver]
-        raise ConfigError(f"linear_solver: {solver!r}: {b.package} is not installed ({b.install}); "
-                          f"allowed here: {' or '.join(repr(s) for s in ('auto', *here))}")
-    return solver
-
-
-class SparseSolver:
-    """Factorises matrices of one fixed sparsity pattern (CSR, structurally symmetric).
-
-    Parameters
-    ----------
-    solver : "auto" | "cholmod" | "superlu" (:data:`FACTOR_SOLVERS`).
-    refine_tol : relative residual (Frobenius, per right-hand-side block) an exact solve must reach.
-    max_refine : refinement sweeps before falling back to SuperLU.
-
-    :attr:`stats` counts what actually ran: factorisations per back-end, fallbacks,
-    refinement sweeps and exact solves.
-    """
-
-    def __init__(self, solver: str = "auto", *, refine_tol: float = 1e-10, max_refine: int = 8):
-        self.name = resolve(solver)
-        self.refine_tol = float(refine_tol)
-        self.max_refine = int(max_refine)
-        self._factorize = BACKENDS[self.name].general(_MODULES[self.name])
-        self.stats = {**{name: 0 for name in FACTOR_SOLVERS[1:]}, "fallbacks": 0, "refine_sweeps": 0, "exact_solves": 0}
-
-    def factorize(self, A: sp.csr_matrix) -> Factor:
-        """Factor of ``A`` (CSR, sorted indices): LU of A, or Cholesky of its symmetric part."""
-        A = A.tocsr()
-        factor = self._factorize(A)
-        if factor is None:
-            self.stats["fallbacks"] += 1
-            factor = _superlu(A)
-        self.stats[factor.name] += 1
-        return factor
-
-    def solve_exact(self, factor: Factor, A: sp.csr_matrix, rhs: np.ndarray) -> tuple[np.ndarray, Factor]:
-        """``A^-1 rhs`` to ``refine_tol`` using ``factor`` (of A or of its symmetric part).
-
-        Returns the solution and the factor to keep using (a SuperLU factor of ``A`` after a
-        fallback, so that later chord solves are exact too).
-        """
-        self.stats["exact_solves"] += 1
-        y = factor.solve(rhs)
-        if not factor.symmetric:
-            return y, factor
-        nb = max(float(np.linalg.norm(rhs)), 1e-300)
-        prev = np.inf
-        for sweep in range(self.max_refine + 1):
-            r = rhs - A @ y
-            nr = float(np.linalg.norm(r))
-            if nr <= self.refine_tol * nb:
-                return y, factor
-            if sweep == self.max_refine or nr > 0.5 * prev:  # slow contraction: asymmetry not small
-                break
-            prev = nr
-            y = y + factor.solve(r)
-            self.stats["refine_sweeps"] += 1
-        self.stats["fallbacks"] += 1
-        self.stats["superlu"] += 1
-        lu = _superlu(A)
-        return lu.solve(rhs), lu

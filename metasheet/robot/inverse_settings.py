@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import ConfigError, check_range
-from ..fem.solvers import resolve
+from ..fem.factor import resolve
 from .qp import SOLVERS as QP_SOLVERS
 
 
@@ -20,7 +20,7 @@ class InverseSettings:
     """Settings of the inverse loop (units in brackets).
 
     ``solver``: the QP solver (:data:`.qp.SOLVERS`); ``linear_solver``: the sparse one
-    (:data:`metasheet.fem.solvers.FACTOR_SOLVERS`: "superlu", "cholmod", "auto").
+    (:data:`metasheet.fem.factor.FACTOR_SOLVERS`: "superlu", "cholmod", "auto").
     """
 
     rot_weight: float = 50.0  # [mm/rad]

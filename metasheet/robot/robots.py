@@ -145,7 +145,7 @@ class Robot:
 
     def linearizer(self, solver: str = "superlu"):
         """A fresh :class:`metasheet.robot.statics.Linearizer` for this robot (``solver``: its
-        sparse solver, :data:`metasheet.fem.solvers.FACTOR_SOLVERS`)."""
+        sparse solver, :data:`metasheet.fem.factor.FACTOR_SOLVERS`)."""
         from .statics import Linearizer
 
         return Linearizer(self, solver=solver)

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fem.assembly import submatrix_map
-from ..fem.solvers import SparseSolver
+from ..fem.factor import SparseSolver
 from ..rotations import rotation_matrix, rotation_vector
 
 
@@ -81,8 +81,8 @@ class Linearizer:
         return self.factor
 
     def uses(self, solver: str) -> bool:
-        """Whether this linearizer factorises with ``solver`` (a name :func:`~metasheet.fem.solvers.resolve` knows)."""
-        from ..fem.solvers import resolve
+        """Whether this linearizer factorises with ``solver`` (a name :func:`~metasheet.fem.factor.resolve` knows)."""
+        from ..fem.factor import resolve
 
         return resolve(solver) == self.solver_name
 
