@@ -9,6 +9,11 @@ percolating voxels and rtol; "C err" is the relative Frobenius distance of C* to
     python benchmarks/bench_voxel_solver.py --quick            # n = 40, one tile: a smoke test
     python benchmarks/bench_voxel_solver.py --sizes 48 64 --tile 1 2 --repeat 3 [--save]
     python benchmarks/bench_voxel_solver.py --solvers pardiso voxel voxel:1   # voxel on 1 numba thread
+    python benchmarks/bench_voxel_solver.py --sizes 40 --voxels out/paper/cell/voxels.npz  # + a cell stage's voxels
+
+``--voxels`` adds the case n = 0: the phases and size of a cell stage's ``voxels.npz`` and the
+materials of the ``cell.json`` beside it (the paper's Polyfoam cell: ``cells/paper_polyfoam.toml``),
+one tile.
 
 "voxel:T" runs the voxel solver with T numba threads (NUMBA_NUM_THREADS in its child; plain
 "voxel": numba's default, one per core). The six load cases run in lockstep, one operator
@@ -44,12 +49,25 @@ def foam(n: int, tile: int):
     return np.where(keep, ph, 0), np.asarray(cell.size, float) * tile, cell.materials
 
 
-def one(n: int, tile: int, solver: str, repeat: int, rtol: float) -> dict:
+def stage_voxels(path: str):
+    """(phases, size [mm], materials) of a cell stage's voxels.npz (+ cell.json), percolating solid only."""
+    from metasheet.homogenize.percolation import percolating_solid
+    from metasheet.material import Isotropic
+
+    d = np.load(path)
+    meta = json.loads((Path(path).parent / "cell.json").read_text())
+    mats = {int(k): Isotropic(E=float(m["E"]), nu=float(m["nu"])) for k, m in meta["materials"].items()}
+    ph = np.asarray(d["phases"], np.int64)
+    keep, _ = percolating_solid(ph > 0)
+    return np.where(keep, ph, 0), np.asarray(d["size"], float), mats
+
+
+def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | None = None) -> dict:
     """Child process: homogenise one case with one solver, print JSON."""
     from metasheet.fem.voxel import periodic_stiffness
     from metasheet.homogenize import homogenize_voxels
 
-    ph, size, mats = foam(n, tile)
+    ph, size, mats = stage_voxels(voxels) if n == 0 else foam(n, tile)
     rows = []
     for _ in range(repeat):
         t = time.perf_counter()
@@ -68,10 +86,11 @@ def one(n: int, tile: int, solver: str, repeat: int, rtol: float) -> dict:
     return out
 
 
-def run_child(n, tile, solver, repeat, rtol, timeout):
+def run_child(n, tile, solver, repeat, rtol, timeout, voxels=None):
     solver, _, threads = solver.partition(":")
     env = dict(os.environ, **({"NUMBA_NUM_THREADS": threads} if threads else {}))
     cmd = [sys.executable, __file__, "--one", str(n), str(tile), solver, "--repeat", str(repeat), "--rtol", str(rtol)]
+    cmd += ["--voxels", voxels] if voxels else []
     try:
         p = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:
@@ -90,15 +109,20 @@ def main():
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--rtol", type=float, default=1e-8)
     ap.add_argument("--timeout", type=float, default=1800.0, help="per row [s]")
+    ap.add_argument("--voxels", help="a cell stage's voxels.npz (cell.json beside it) instead of the iso foam")
     ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     add_save_option(ap)
     args = ap.parse_args()
     if args.one:
         n, tile, solver = args.one
-        print(json.dumps(one(int(n), int(tile), solver, args.repeat, args.rtol)))
+        print(json.dumps(one(int(n), int(tile), solver, args.repeat, args.rtol, args.voxels)))
         return
     if args.quick:
         args.sizes, args.tile, args.repeat = [40], [1], 1
+    if args.voxels and 0 not in args.sizes:
+        args.sizes = args.sizes + [0]
+    if 0 in args.sizes and not args.voxels:
+        ap.error("size 0 is the --voxels case: give --voxels")
     from metasheet.fem.solvers import available
 
     solvers = [s for s in args.solvers if s != "pardiso" or available("pardiso")]
@@ -108,10 +132,10 @@ def main():
         print(f"{'n':>4} {'tile':>4} {'solver':>8} {'dofs':>9} {'iters':>6} {'setup s':>8} {'solve s':>8} "
               f"{'median s':>9} {'peak GB':>8} {'t/pardiso':>9} {'GB/pardiso':>10} {'C err':>9}")
         for n in args.sizes:
-            for tile in args.tile:
+            for tile in ([1] if n == 0 else args.tile):
                 ref = None
                 for solver in solvers:
-                    r = run_child(n, tile, solver, args.repeat, args.rtol, args.timeout)
+                    r = run_child(n, tile, solver, args.repeat, args.rtol, args.timeout, args.voxels)
                     if "error" in r:
                         print(f"{n:>4} {tile:>4} {solver:>8} failed: {r['error']}", flush=True)
                         continue

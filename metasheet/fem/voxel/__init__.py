@@ -3,7 +3,9 @@
 - :mod:`.element`: the trilinear voxel's matrices per phase;
 - :mod:`.operator`: ``K u`` voxel by voxel (numba, m right-hand sides at once, threads
   without changing bits), periodic or not;
-- :mod:`.coarsen`: cells, trilinear transfer, Galerkin coarse voxel matrices;
+- :mod:`.compact`: vectors on the active nodes only, ``K u`` on them (BLAS on one-matrix levels);
+- :mod:`.vectors`: fused CG and smoother updates, fixed-order reductions;
+- :mod:`.coarsen`: cells, trilinear transfer (full and compact), Galerkin coarse voxel matrices;
 - :mod:`.multigrid`: the hierarchy, Chebyshev/Jacobi smoothers, the V-cycle;
 - :mod:`.pcg`: CG with the null space projected out, several right-hand sides in lockstep;
 - :mod:`.homogenize`: the six periodic load cases -> C*;

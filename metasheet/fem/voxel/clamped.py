@@ -99,11 +99,13 @@ def rigid_body_stiffness(phases, size, stiffnesses: dict, *, clamped, tied, refe
         op = VoxelOperator(index, table.K, _scale(scale, index.shape), False, free, h)
         H = build_hierarchy(op, fixed)
         R = rigid_modes(tied, h, ref)
-        out = pcg(op.apply, -free[..., None] * apply_full(op, R), H.precondition, rtol=rtol, maxiter=maxiter)
+        cop = H.fine  # vectors on the nodes with unknowns only (:mod:`.compact`)
+        out = pcg(cop.apply, -cop.to_compact(free[..., None] * apply_full(op, R)), H.precondition, rtol=rtol,
+                  maxiter=maxiter)
         for k in np.flatnonzero(~out.converged):
             raise ConvergenceError(f"voxel: rigid motion {k}: relative residual {out.residual[k]:.2e} after "
                                    f"{out.iterations[k]} iterations, asked {rtol:g}", history=out.history[:, k].tolist())
-        U = R + out.x
+        U = R + cop.to_full(out.x)
         iters, res = out.iterations.tolist(), out.residual.tolist()
         KU = apply_full(op, U)
         K = R.reshape(-1, 6).T @ KU.reshape(-1, 6)

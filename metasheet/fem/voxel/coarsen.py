@@ -228,3 +228,92 @@ def _restrict(rf, xlo, xhi, xwl, xwh, ylo, yhi, ywl, ywh, zlo, zhi, zwl, zwh, rc
                     dst = rc[ix[a & 1], iy[(a >> 1) & 1], iz[(a >> 2) & 1]]
                     for c in range(rf.shape[3]):
                         dst[c] += wt * rf[i, j, k, c]
+
+
+# --------------------------------------------------------------------------- compact transfers
+# The same sums on compact blocks (:mod:`.compact`): fine and coarse nodes renumbered through
+# their node maps (-1: inactive, zero, skipped), visited in the same order as above, so the
+# active values have the bits of ``free * restrict(..)`` and ``x + free * prolong(..)``.
+
+
+def restrict_compact(rf: np.ndarray, transfer, fine_map: np.ndarray, fine_nodes, coarse_map: np.ndarray,
+                     coarse_nodes, coarse_free: np.ndarray) -> np.ndarray:
+    """``free_c * P^T rf`` on compact blocks: (a_f, 3, m) -> (a_c, 3, m).
+
+    fine_map, coarse_map : flat grid node -> compact index (-1 inactive) of each level;
+    fine_nodes, coarse_nodes : node grid shapes; coarse_free : (a_c, 3) in {0, 1}.
+    """
+    m = rf.shape[2]
+    rc = np.zeros((len(coarse_free), 3, m))
+    (x, y, z) = transfer
+    _restrict_c(np.ascontiguousarray(rf), fine_map, np.array(fine_nodes, np.int64), coarse_map,
+                np.array(coarse_nodes, np.int64), *x, *y, *z, rc)
+    rc *= coarse_free[..., None]
+    return rc
+
+
+def prolong_add_compact(x: np.ndarray, fine_free: np.ndarray, xc: np.ndarray, transfer, fine_map: np.ndarray,
+                        fine_nodes, coarse_map: np.ndarray, coarse_nodes) -> None:
+    """``x += free_f * P xc`` on compact blocks, in place: x (a_f, 3, m), xc (a_c, 3, m)."""
+    (tx, ty, tz) = transfer
+    _prolong_c(np.ascontiguousarray(xc), coarse_map, np.array(coarse_nodes, np.int64), fine_map,
+               np.array(fine_nodes, np.int64), *tx, *ty, *tz, fine_free, x)
+
+
+@numba.njit(cache=True)
+def _restrict_c(rf, fmap, Nf, cmap, Nc, xlo, xhi, xwl, xwh, ylo, yhi, ywl, ywh, zlo, zhi, zwl, zwh, rc):
+    m = rf.shape[2]
+    for i in range(Nf[0]):
+        ix = (xlo[i], xhi[i])
+        wx = (xwl[i], xwh[i])
+        for j in range(Nf[1]):
+            iy = (ylo[j], yhi[j])
+            wy = (ywl[j], ywh[j])
+            for k in range(Nf[2]):
+                f = fmap[(i * Nf[1] + j) * Nf[2] + k]
+                if f < 0:
+                    continue
+                iz = (zlo[k], zhi[k])
+                wz = (zwl[k], zwh[k])
+                for a in range(8):
+                    wt = wx[a & 1] * wy[(a >> 1) & 1] * wz[(a >> 2) & 1]
+                    if wt == 0.0:
+                        continue
+                    d = cmap[(ix[a & 1] * Nc[1] + iy[(a >> 1) & 1]) * Nc[2] + iz[(a >> 2) & 1]]
+                    if d < 0:
+                        continue
+                    for c in range(3):
+                        for l in range(m):
+                            rc[d, c, l] += wt * rf[f, c, l]
+
+
+@numba.njit(cache=True, parallel=True)
+def _prolong_c(xc, cmap, Nc, fmap, Nf, xlo, xhi, xwl, xwh, ylo, yhi, ywl, ywh, zlo, zhi, zwl, zwh, free, x):
+    m = x.shape[2]
+    for i in numba.prange(Nf[0]):  # each fine node is written by its own iteration only
+        acc = np.empty((3, m))
+        ix = (xlo[i], xhi[i])
+        wx = (xwl[i], xwh[i])
+        for j in range(Nf[1]):
+            iy = (ylo[j], yhi[j])
+            wy = (ywl[j], ywh[j])
+            for k in range(Nf[2]):
+                f = fmap[(i * Nf[1] + j) * Nf[2] + k]
+                if f < 0:
+                    continue
+                iz = (zlo[k], zhi[k])
+                wz = (zwl[k], zwh[k])
+                acc[:] = 0.0
+                for a in range(8):
+                    wt = wx[a & 1] * wy[(a >> 1) & 1] * wz[(a >> 2) & 1]
+                    if wt == 0.0:
+                        continue
+                    s = cmap[(ix[a & 1] * Nc[1] + iy[(a >> 1) & 1]) * Nc[2] + iz[(a >> 2) & 1]]
+                    if s < 0:
+                        continue
+                    for c in range(3):
+                        for l in range(m):
+                            acc[c, l] += wt * xc[s, c, l]
+                for c in range(3):
+                    for l in range(m):
+                        x[f, c, l] += free[f, c] * acc[c, l]

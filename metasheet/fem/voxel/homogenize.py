@@ -145,16 +145,17 @@ def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoothe
     free = np.repeat(touched_nodes(index, True)[..., None], 3, axis=3).astype(float)
     op = VoxelOperator(index, table.K, sc, True, free, h)
     labels, n_parts = node_parts(index, True)
-    project = translation_projector(labels, n_parts)
     H = build_hierarchy(op, smoother=smoother, degree=degree)
+    cop = H.fine  # vectors on the nodes with unknowns only (:mod:`.compact`)
+    project = translation_projector(cop.to_compact(labels), n_parts)
     t1 = time.perf_counter()
     F = scatter(index, table.F, sc, True) * free[..., None]  # (Nx, Ny, Nz, 3, 6) [N]
     # the six load cases in lockstep: one sweep of the voxels and one V-cycle serve all six
-    out = pcg(op.apply, -F, H.precondition, rtol=rtol, maxiter=maxiter, project=project)
+    out = pcg(cop.apply, -cop.to_compact(F), H.precondition, rtol=rtol, maxiter=maxiter, project=project)
     for I in np.flatnonzero(~out.converged):
         raise ConvergenceError(f"voxel: load case {I}: relative residual {out.residual[I]:.2e} after "
                                f"{out.iterations[I]} iterations, asked {rtol:g}", history=out.history[:, I].tolist())
-    U = out.x
+    U = cop.to_full(out.x)
     iters, res = out.iterations.tolist(), out.residual.tolist()
     KU = op.apply(U)
     volume = float(np.prod(size))

@@ -13,8 +13,10 @@ Choices (measured iteration counts in ``docs/voxel.md``):
   singular: translations are exactly interpolated by ``P``, so every level keeps them in its
   null space, and the right-hand sides, orthogonal to them on the fine level, stay so.
 
-Every sum has a fixed order (the operator's slab sweep, :mod:`.operator`; serial transfers; one
-BLAS thread for the dense coarsest solve): the same bits on every run and thread count.
+The V-cycle runs on compact vectors, each level's active nodes only (:mod:`.compact`), with the
+smoother's updates fused (:mod:`.vectors`). Every sum has a fixed order (the operator's slab
+sweep; serial restriction; fixed-block reductions; one BLAS thread for the dense coarsest solve
+and the one-matrix sweep): the same bits on every run and thread count.
 """
 
 from __future__ import annotations
@@ -24,7 +26,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ConfigError
-from .coarsen import choose_directions, coarse_operator, prolong, restrict
+from . import vectors as vec
+from .coarsen import (
+    choose_directions,
+    coarse_operator,
+    prolong_add_compact,
+    restrict_compact,
+)
+from .compact import CompactOperator, compact
 from .operator import VoxelOperator, diagonal
 
 #: Smoothers accepted by :func:`build_hierarchy`.
@@ -40,7 +49,8 @@ class Level:
     """One level above the coarsest: its operator, smoother data and the way down."""
 
     op: VoxelOperator
-    dinv: np.ndarray  # (Nx, Ny, Nz, 3) free / diag [mm/N]
+    cop: CompactOperator  # op on the level's active nodes: every V-cycle vector is compact
+    dinv: np.ndarray  # (a, 3) free / diag [mm/N] on the active nodes
     lmax: float  # largest eigenvalue estimate of D^-1 K [-]
     transfer: tuple  # 1D interpolations to the next coarser level (:mod:`.coarsen`)
     coarse_nodes: tuple
@@ -52,13 +62,15 @@ class Hierarchy:
 
     Attributes
     ----------
-    levels : the smoothed levels; coarsest : the last operator;
-    coarse_dofs : (c,) flat free dofs of the coarsest level; coarse_inverse : (c, c) pseudo-inverse;
+    levels : the smoothed levels; coarsest : the last operator, ccoarsest : it on compact vectors;
+    coarse_dofs : (c,) free dofs of the coarsest level, flat in its compact (a, 3) block;
+    coarse_inverse : (c, c) pseudo-inverse;
     smoother, degree, ratio, omega : the smoother's settings.
     """
 
     levels: tuple[Level, ...]
     coarsest: VoxelOperator
+    ccoarsest: CompactOperator
     coarse_dofs: np.ndarray
     coarse_inverse: np.ndarray
     smoother: str
@@ -75,13 +87,19 @@ class Hierarchy:
     def unknowns(self) -> tuple[int, ...]:
         return tuple(lv.op.n_free for lv in self.levels) + (self.coarsest.n_free,)
 
+    @property
+    def fine(self) -> CompactOperator:
+        """The finest level on compact vectors: the numbering of :meth:`precondition`."""
+        return self.levels[0].cop if self.levels else self.ccoarsest
+
     def precondition(self, r: np.ndarray) -> np.ndarray:
-        """One V-cycle from zero: ``z ~ K^-1 r`` for ``r`` (Nx, Ny, Nz, 3[, m]) [N] -> [mm].
+        """One V-cycle from zero: ``z ~ K^-1 r`` for compact ``r`` (a, 3[, m]) [N] -> [mm]
+        on the finest level's active nodes (:attr:`fine`).
 
         ``m`` right-hand sides go down and up the hierarchy together, column by column the
         same arithmetic as one at a time."""
-        z = _vcycle(self, 0, r if r.ndim == 5 else r[..., None])
-        return z if r.ndim == 5 else z[..., 0]
+        z = _vcycle(self, 0, np.ascontiguousarray(r if r.ndim == 3 else r[..., None], dtype=float))
+        return z if r.ndim == 3 else z[..., 0]
 
 
 def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoother: str = "chebyshev",
@@ -115,13 +133,17 @@ def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoot
         coarse, fixed_c, transfer = coarse_operator(op, fixed, dirs)
         d = diagonal(op)
         dinv = np.where(d > 0, op.free / np.where(d > 0, d, 1.0), 0.0)
-        levels.append(Level(op, dinv, _lambda_max(op, dinv), transfer, coarse.node_shape))
+        cop = compact(op)
+        levels.append(Level(op, cop, np.ascontiguousarray(cop.to_compact(dinv)), _lambda_max(op, dinv), transfer,
+                            coarse.node_shape))
         op, fixed = coarse, fixed_c
     if op.n_free > COARSEST_LIMIT:
         raise ConfigError(f"grid {op.index.shape}: cannot be coarsened below {op.n_free} unknowns "
                           f"(dense coarsest solve allows {COARSEST_LIMIT}); use more voxels per direction")
     dofs, pinv = _coarse_pseudo_inverse(op)
-    return Hierarchy(tuple(levels), op, dofs, pinv, smoother, int(degree), float(ratio), float(omega))
+    cop = compact(op)
+    dofs = 3 * cop.node_map[dofs // 3] + dofs % 3  # full flat dof -> compact flat dof
+    return Hierarchy(tuple(levels), op, cop, dofs, pinv, smoother, int(degree), float(ratio), float(omega))
 
 
 def _lambda_max(op: VoxelOperator, dinv: np.ndarray, steps: int = 12) -> float:
@@ -160,16 +182,16 @@ def _coarse_pseudo_inverse(op: VoxelOperator) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _smooth(H: Hierarchy, lv: Level, x: np.ndarray | None, b: np.ndarray) -> np.ndarray:
-    """A few smoothing steps on ``K x = b`` (Nx, Ny, Nz, 3, m) from ``x`` (None: zero); the new x."""
-    r = b.copy() if x is None else b - lv.op.apply(x)
+    """A few smoothing steps on ``K x = b`` (a, 3, m) from ``x`` (None: zero); the new x
+    (``x`` itself, updated in place, when given). Fused kernels (:mod:`.vectors`), the same
+    arithmetic per entry as the numpy expressions in the comments."""
+    r = b.copy() if x is None else vec.residual(b, lv.cop.apply(x))  # r = b - K x
     x = np.zeros_like(b) if x is None else x
-    dinv = lv.dinv[..., None]
     if H.smoother == "jacobi":
         for s in range(H.degree):
-            dx = (2.0 * H.omega / lv.lmax) * (dinv * r)  # omega of the stable range 2 / lmax
-            x = x + dx
+            dx = vec.jacobi_step(x, r, lv.dinv, 2.0 * H.omega / lv.lmax)  # omega of the stable range 2 / lmax
             if s + 1 < H.degree:
-                r = r - lv.op.apply(dx)
+                vec.subtract(r, lv.cop.apply(dx))
         return x
     # Chebyshev on [1.1 lmax / ratio, 1.1 lmax] (Saad, Iterative Methods, alg. 12.1; Adams et al. 2003)
     hi = 1.1 * lv.lmax
@@ -177,30 +199,31 @@ def _smooth(H: Hierarchy, lv: Level, x: np.ndarray | None, b: np.ndarray) -> np.
     theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
     sigma = theta / delta
     rho = 1.0 / sigma
-    d = dinv * r / theta
-    x = x + d
+    d = vec.chebyshev_first(x, r, lv.dinv, theta)  # d = dinv r / theta; x += d
     for _ in range(H.degree - 1):
-        r = r - lv.op.apply(d)
+        vec.subtract(r, lv.cop.apply(d))  # r -= K d
         rho_new = 1.0 / (2.0 * sigma - rho)
-        d = rho_new * rho * d + (2.0 * rho_new / delta) * (dinv * r)
-        x = x + d
+        vec.chebyshev_next(x, d, r, lv.dinv, rho_new * rho, 2.0 * rho_new / delta)  # d = a d + b dinv r; x += d
         rho = rho_new
     return x
 
 
 def _vcycle(H: Hierarchy, k: int, b: np.ndarray) -> np.ndarray:
-    """V-cycle from level k on ``b`` (Nx, Ny, Nz, 3, m)."""
-    m = b.shape[4]
+    """V-cycle from level k on compact ``b`` (a_k, 3, m)."""
+    m = b.shape[2]
     if k == len(H.levels):
-        x = np.zeros(H.coarsest.node_shape + (3, m))
+        x = np.zeros((H.ccoarsest.size, 3, m))
         flat = x.reshape(-1, m)
         flat[H.coarse_dofs] = H.coarse_inverse @ b.reshape(-1, m)[H.coarse_dofs]
         return x
     lv = H.levels[k]
+    below = H.levels[k + 1].cop if k + 1 < len(H.levels) else H.ccoarsest
     x = _smooth(H, lv, None, b)
-    r = b - lv.op.apply(x)
-    below = H.levels[k + 1].op if k + 1 < len(H.levels) else H.coarsest
-    rc = below.free[..., None] * restrict(r, lv.transfer, lv.coarse_nodes)
+    r = vec.residual(b, lv.cop.apply(x))
+    rc = restrict_compact(r, lv.transfer, lv.cop.node_map, lv.op.node_shape, below.node_map, below.op.node_shape,
+                          below.free)
+    del r
     xc = _vcycle(H, k + 1, rc)
-    x = x + lv.op.free[..., None] * prolong(xc, lv.transfer, lv.op.node_shape)
+    prolong_add_compact(x, lv.cop.free, xc, lv.transfer, lv.cop.node_map, lv.op.node_shape, below.node_map,
+                        below.op.node_shape)  # x += free P xc
     return _smooth(H, lv, x, b)

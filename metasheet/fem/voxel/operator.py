@@ -67,7 +67,7 @@ class VoxelOperator:
         return int(self.free.sum())
 
     @cached_property
-    def sweep(self) -> "Sweep":
+    def sweep(self) -> Sweep:
         """The non-empty voxels in slab order, built on first use (:func:`voxel_sweep`)."""
         return voxel_sweep(self)
 

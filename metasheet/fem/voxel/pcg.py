@@ -6,6 +6,9 @@ path does (which would spoil the multigrid hierarchy's coarse levels), CG works 
 complement of those translations: the right-hand side and every preconditioned residual are
 projected onto it (:func:`translation_projector`). The energy-form stiffness does not see
 the translation, so the effective tensor equals the pinned solution's.
+
+Vectors are compact blocks (a, 3, m) on the active nodes (:mod:`.compact`); the updates and
+dot products are fused numba kernels with a fixed summation order (:mod:`.vectors`).
 """
 
 from __future__ import annotations
@@ -15,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import vectors as vec
+
 
 @dataclass(frozen=True)
 class PCGResult:
@@ -22,7 +27,7 @@ class PCGResult:
 
     Attributes
     ----------
-    x : (Nx, Ny, Nz, 3[, m]) float [mm], the solutions (the shape of ``b``).
+    x : (a, 3[, m]) float [mm], the solutions (the shape of ``b``).
     iterations : (m,) int, CG iterations of each column.
     residual : (m,) float, final relative residuals ``||b - K x|| / ||b||`` (recomputed, not recursive).
     converged : (m,) bool, the recursive residual reached rtol and the recomputed one is <= 10 rtol
@@ -42,28 +47,27 @@ def translation_projector(labels: np.ndarray, n_parts: int) -> Callable[[np.ndar
 
     Parameters
     ----------
-    labels : (Nx, Ny, Nz) int, part of every node, -1 for nodes without unknowns.
+    labels : (a,) int, part of every node of the compact block, -1 for nodes without unknowns.
     n_parts : number of parts.
 
     Returns
     -------
-    project : (Nx, Ny, Nz, 3[, m]) -> same shape, ``v - sum_p t_p (t_p . v) / (t_p . t_p)``
-        over the per-part, per-component translations ``t_p``, column by column (np.bincount
-        sums in index order: deterministic).
+    project : (a, 3, m) -> same shape, ``v - sum_p t_p (t_p . v) / (t_p . t_p)``
+        over the per-part, per-component translations ``t_p``, column by column, in a fixed
+        summation order (:func:`.vectors.column_sums`; np.bincount sums in index order).
     """
-    lab = labels.reshape(-1)
+    lab = np.asarray(labels).reshape(-1)
     on = lab >= 0
     li = lab[on]
     count = np.bincount(li, minlength=n_parts).astype(float)
-
-    weight = on.astype(float) / max(len(li), 1)
+    every = bool(on.all())
 
     def project(v: np.ndarray) -> np.ndarray:
-        out = v.copy()
-        flat = out.reshape(len(lab), -1)  # (nodes, 3 m)
-        if n_parts == 1:  # the usual cell: one mean per column, one fixed-order pass
-            flat -= on[:, None] * np.einsum("i,ij->j", weight, flat)
+        out = np.array(v, dtype=float, copy=True, order="C")
+        if n_parts == 1 and every:  # the usual cell: one mean per column, fused kernels
+            vec.subtract_mean(out, vec.column_sums(out) / max(len(li), 1))
             return out
+        flat = out.reshape(len(lab), -1)  # (nodes, 3 m)
         for c in range(flat.shape[1]):
             mean = np.bincount(li, weights=flat[on, c], minlength=n_parts) / np.maximum(count, 1.0)
             flat[on, c] -= mean[li]
@@ -78,18 +82,18 @@ def pcg(apply: Callable, b: np.ndarray, precondition: Callable, *, rtol: float, 
 
     Parameters
     ----------
-    apply : v -> K v, symmetric positive (semi-)definite on the free dofs, for (.., 3, m) blocks.
-    b : (Nx, Ny, Nz, 3) or (Nx, Ny, Nz, 3, m) right-hand sides [N], zero outside the free dofs.
+    apply : v -> K v, symmetric positive (semi-)definite on the free dofs, for (a, 3, m) blocks.
+    b : (a, 3) or (a, 3, m) right-hand sides [N] on compact nodes, zero outside the free dofs.
     precondition : r -> z, a symmetric positive-definite approximation of ``K^-1``, column-wise.
     rtol : relative residual to reach; maxiter : iteration cap.
     project : v -> v without the null space (None: K is non-singular).
     """
-    single = b.ndim == 4
+    single = b.ndim == 2
     proj = project if project is not None else (lambda v: v)
-    b = proj(b[..., None] if single else b)
-    m = b.shape[4]
+    b = np.ascontiguousarray(proj(b[..., None] if single else b), dtype=float)
+    m = b.shape[2]
     x = np.zeros_like(b)
-    bn = np.sqrt(_dots(b, b))
+    bn = np.sqrt(vec.dots(b, b))
     scale = np.where(bn > 0, bn, 1.0)
     r = b.copy()
     active = bn > 0
@@ -98,28 +102,24 @@ def pcg(apply: Callable, b: np.ndarray, precondition: Callable, *, rtol: float, 
     if active.any():
         z = proj(precondition(r))
         p = z.copy()
-        rz = _dots(r, z)
+        rz = vec.dots(r, z)
     while active.any() and iterations.max() < maxiter:
         q = apply(p)
-        pq = _dots(p, q)
+        pq = vec.dots(p, q)
         alpha = np.where(active, rz / np.where(active, pq, 1.0), 0.0)  # 0: a frozen column stays put
-        x += alpha * p
-        r -= alpha * q
+        vec.cg_step(x, r, p, q, alpha)  # x += alpha p; r -= alpha q
+        del q
         iterations += active
-        hist.append(np.where(active, np.sqrt(_dots(r, r)) / scale, hist[-1]))
+        hist.append(np.where(active, np.sqrt(vec.dots(r, r)) / scale, hist[-1]))
         active = active & (hist[-1] > rtol) & (iterations < maxiter)
         if not active.any():
             break
         z = proj(precondition(r))
-        rz_new = _dots(r, z)
+        rz_new = vec.dots(r, z)
         beta = np.where(active, rz_new / np.where(active, rz, 1.0), 0.0)
-        p = z + beta * p
+        vec.cg_direction(p, z, beta)  # p = z + beta p
+        del z
         rz = np.where(active, rz_new, rz)
-    rb = proj(b - apply(x))
-    res = np.sqrt(_dots(rb, rb)) / scale
+    rb = proj(vec.residual(b, apply(x)))
+    res = np.sqrt(vec.dots(rb, rb)) / scale
     return PCGResult(x[..., 0] if single else x, iterations, res, res <= rtol * 10.0, np.array(hist))
-
-
-def _dots(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(m,) column dot products of two (.., m) blocks, in one fixed order."""
-    return np.einsum("ij,ij->j", a.reshape(-1, a.shape[-1]), b.reshape(-1, b.shape[-1]))
