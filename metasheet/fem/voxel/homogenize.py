@@ -106,7 +106,8 @@ def node_parts(index: np.ndarray, periodic: bool) -> tuple[np.ndarray, int]:
 
 
 def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: float = 1e-8, maxiter: int = 500,
-                       smoother: str = "chebyshev", degree: int = 2) -> VoxelHomogenization:
+                       smoother: str = "chebyshev", degree: int = 2,
+                       coarsening: str = "trilinear") -> VoxelHomogenization:
     """Effective stiffness of a periodic voxel cell by matrix-free multigrid CG.
 
     Parameters
@@ -118,6 +119,7 @@ def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: flo
     rtol : relative residual of each load case, in (0, 1e-3).
     maxiter : CG iteration cap per load case.
     smoother, degree : the multigrid smoother (:func:`~.multigrid.build_hierarchy`).
+    coarsening : "trilinear" (default) or "split" (:func:`~.multigrid.build_hierarchy`).
 
     Returns
     -------
@@ -135,17 +137,18 @@ def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: flo
     # every machine load and thread count (and, measured on 2 busy cores, a threaded eigh of
     # 648 unknowns took 5 s instead of 0.05 s).
     with threadpool_limits(limits=1, user_api="blas"):
-        return _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree)
+        return _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree,
+                                   coarsening)
 
 
-def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree):
+def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree, coarsening):
     t0 = time.perf_counter()
     index, table, h, _ = validate_grid(phases, size, stiffnesses)
     sc = _scale(scale, index.shape)
     free = np.repeat(touched_nodes(index, True)[..., None], 3, axis=3).astype(float)
     op = VoxelOperator(index, table.K, sc, True, free, h)
     labels, n_parts = node_parts(index, True)
-    H = build_hierarchy(op, smoother=smoother, degree=degree)
+    H = build_hierarchy(op, smoother=smoother, degree=degree, coarsening=coarsening)
     cop = H.fine  # vectors on the nodes with unknowns only (:mod:`.compact`)
     project = translation_projector(cop.to_compact(labels), n_parts)
     t1 = time.perf_counter()

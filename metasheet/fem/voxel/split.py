@@ -17,14 +17,21 @@ trilinear weight: rigid translations stay exactly interpolated.
 The coarse level is no longer a voxel grid, so its operator is an assembled sparse Galerkin
 product ``P3^T K P3`` (:func:`galerkin`). Measured on the crop (two-level, coarse level solved
 exactly): face connectivity 25 iterations, node connectivity 48, unsplit trilinear 163.
+
+:func:`split_level` makes it the multigrid's second and last level (``coarsening="split"`` in
+:func:`~.multigrid.build_hierarchy`): the Galerkin operator factorised once by SuperLU. Levels
+below it coarsened by the matrix graph alone lost most of the gain (89 iterations on the crop,
+docs/voxel.md), so there are none: the direct solve is limited to :data:`MAX_DIRECT_DOFS`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
 from ...errors import ConfigError
@@ -103,8 +110,28 @@ def split_prolongation(cop: CompactOperator, *, connectivity: str = "face", coar
     P = sp.csr_matrix((V, (R, C.ravel())), (cop.size, len(used)))
     where = np.zeros(int(part.max()) + 1, np.int64)
     where[part.ravel()] = cflat.ravel()
-    position = np.stack(np.unravel_index(where[used], tuple(Nc)), 1)
+    P, first = _merge_same_support(P)
+    position = np.stack(np.unravel_index(where[used][first], tuple(Nc)), 1)
     return SplitProlongation(P, position, tuple(int(n) for n in Nc))
+
+
+def _merge_same_support(P: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Sum the copies that act on the same fine nodes, returning (P merged, (c',) first copy of each).
+
+    Two copies of neighbouring coarse nodes can both reach a single fine node only (a part
+    touching their supports at one corner, measured on the 40^3 iso foam): their columns are
+    parallel and ``P^T K P`` singular. The sum keeps the weights summing to the trilinear ones."""
+    Pc = P.tocsc()
+    Pc.sort_indices()
+    seen, group = {}, np.empty(Pc.shape[1], np.int64)
+    for j in range(Pc.shape[1]):
+        key = Pc.indices[Pc.indptr[j]:Pc.indptr[j + 1]].tobytes()
+        group[j] = seen.setdefault(key, len(seen))
+    if len(seen) == Pc.shape[1]:
+        return P, np.arange(Pc.shape[1])
+    first = np.unique(group, return_index=True)[1]
+    M = sp.csr_matrix((np.ones(len(group)), (np.arange(len(group)), group)), (len(group), len(seen)))
+    return (P @ M).tocsr(), first
 
 
 def _parts(index, occ, cflat, periodic: bool, reach) -> np.ndarray:
@@ -155,3 +182,79 @@ def galerkin(K: sp.spmatrix, split: SplitProlongation) -> sp.csr_matrix:
     """The coarse operator ``P3^T K P3``: (3 c, 3 c) csr [N/mm]."""
     P3 = split.P3
     return (P3.T @ K @ P3).tocsr()
+
+
+#: Largest split coarse level factorised directly (dofs). The paper cell's is estimated at about
+#: 180k (754k fine dofs, coarsening ratio about 4.2 on the crop).
+MAX_DIRECT_DOFS = 200_000
+#: Diagonal shift of the split level, relative to its diagonal [-].
+REGULARIZE = 1e-10
+
+
+@dataclass(frozen=True)
+class SplitLevel:
+    """The split coarse level under a fine level: transfer and an exact (pinned) solve.
+
+    Attributes
+    ----------
+    P3 : (3 a, 3 c) csr [-], prolongation (:attr:`SplitProlongation.P3`); R3 : its transpose, csr.
+    keep : (k,) int64, the coarse dofs solved; the others (one copy per connected part of the
+        coarse graph, its 3 dofs) are pinned to zero, which removes the translations of the
+        periodic operator's null space (CG projects them out on the fine level).
+    solve : (k, m) -> (k, m), ``A_keep^-1`` by a SuperLU factor (fixed order: same bits each run).
+    shape : the coarse node grid; n_free : 3 c, the coarse level's unknowns.
+    """
+
+    P3: sp.csr_matrix
+    R3: sp.csr_matrix
+    keep: np.ndarray
+    solve: Callable
+    shape: tuple[int, int, int]
+
+    @property
+    def n_free(self) -> int:
+        return self.P3.shape[1]
+
+    def correct(self, x: np.ndarray, free: np.ndarray, r: np.ndarray) -> None:
+        """``x += free P3 A^+ P3^T r`` in place; x, r : (a, 3, m) compact [mm], [N]; free : (a, 3)."""
+        m = r.shape[2]
+        rc = self.R3 @ r.reshape(-1, m)
+        xc = np.zeros_like(rc)
+        xc[self.keep] = self.solve(np.ascontiguousarray(rc[self.keep])).reshape(len(self.keep), m)
+        x += (self.P3 @ xc).reshape(x.shape) * free[..., None]
+
+
+def split_level(cop: CompactOperator, *, connectivity: str = "face",
+                max_dofs: int = MAX_DIRECT_DOFS) -> SplitLevel:
+    """The split Galerkin coarse level of ``cop`` (periodic, no prescribed dofs), factorised.
+
+    Raises ConfigError when it has more than ``max_dofs`` unknowns (use the trilinear hierarchy).
+    """
+    split = split_prolongation(cop, connectivity=connectivity)
+    if 3 * split.P.shape[1] > max_dofs:
+        raise ConfigError(f"coarsening 'split': coarse level has {3 * split.P.shape[1]} dofs, the direct "
+                          f"solve allows {max_dofs}; use coarsening 'trilinear'")
+    P3 = split.P3
+    A = galerkin(assemble(cop), split)
+    keep = _unpinned(A)
+    Ak = A[keep][:, keep]
+    # Copies can still be linearly dependent (P z = 0: fragments of parts reaching a few shared
+    # fine nodes, the 40^3 iso foam); a relative shift makes the factor regular, and the
+    # amplified z is annihilated by P on the way up.
+    Ak = (Ak + sp.diags(REGULARIZE * Ak.diagonal())).tocsr()
+    # SPD: diagonal pivots keep the symmetric ordering (fem.solvers.superlu's symmetric mode,
+    # called here directly: fem.solvers imports this package, and no two modules import each other)
+    lu = spla.splu(Ak.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return SplitLevel(P3, P3.T.tocsr(), keep, lu.solve, split.coarse_nodes)
+
+
+def _unpinned(A: sp.csr_matrix) -> np.ndarray:
+    """(k,) dofs of ``A`` (3 per copy) left after pinning the first copy of every connected part
+    of its graph and every dof with a zero diagonal."""
+    n_parts, label = connected_components(A, directed=False)
+    copy_label = label[::3]
+    first = np.unique(copy_label, return_index=True)[1]
+    pinned = np.zeros(A.shape[0], bool)
+    pinned[(3 * first[:, None] + np.arange(3)).ravel()] = True
+    pinned |= A.diagonal() <= 0
+    return np.flatnonzero(~pinned)

@@ -1,0 +1,79 @@
+"""The split coarsening as a multigrid option (``coarsening="split"``, metasheet.fem.voxel.multigrid).
+
+Same C* as the default trilinear hierarchy, fewer iterations where walls one voxel apart share
+trilinear coarse nodes, the same bits twice, and the refusals of what it does not serve.
+"""
+
+import numpy as np
+import pytest
+from homogenize_samples import cubic_lattice, edge_foam
+
+from metasheet.errors import ConfigError
+from metasheet.fem.voxel import periodic_stiffness
+from metasheet.fem.voxel.multigrid import build_hierarchy
+from metasheet.fem.voxel.operator import VoxelOperator
+from metasheet.homogenize.percolation import percolating_solid
+from metasheet.material import Isotropic
+
+TPU = Isotropic(12.0, 0.3)
+UNIT = (1.0, 1.0, 1.0)
+
+
+def _rel(A, B) -> float:
+    return float(np.linalg.norm(A - B) / np.linalg.norm(B))
+
+
+def _percolating(ph: np.ndarray) -> np.ndarray:
+    keep, _ = percolating_solid(ph > 0)
+    return np.where(keep, ph, 0)
+
+
+def _close_walls(n: int = 16) -> np.ndarray:
+    """Pairs of x-normal walls one voxel thick and one voxel apart, each pair tied to the next by
+    a one-voxel strut along x: the thin-wall case the trilinear coarse space ties together."""
+    ph = np.zeros((n, n, n), np.int64)
+    for x0 in range(0, n, 4):
+        ph[x0] = 1
+        ph[x0 + 2] = 1
+    ph[:, n // 2, n // 2] = 1  # the strut: the walls percolate along x too
+    return ph
+
+
+@pytest.mark.parametrize("n, density, seeds, rng_seed", [(12, 0.25, 6, 0), (14, 0.3, 5, 1), (16, 0.2, 8, 2)])
+def test_split_matches_trilinear_on_random_foams(n, density, seeds, rng_seed):
+    ph = _percolating(edge_foam(n, density, seeds=seeds, rng_seed=rng_seed))
+    ref = periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, rtol=1e-10)
+    r = periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, rtol=1e-10, coarsening="split")
+    assert _rel(r.C, ref.C) < 1e-8
+    assert max(r.residuals) <= 1e-9
+    assert len(r.levels) == 2
+
+
+@pytest.mark.parametrize("sample", ["walls", "lattice"])
+def test_split_fewer_iterations_on_thin_walls(sample):
+    """Measured (rtol 1e-10, max over six load cases): close walls 16^3 32 -> 18 iterations,
+    1-voxel lattice 21^3 60 -> 27."""
+    ph = _close_walls() if sample == "walls" else np.tile(cubic_lattice(7, 1), (3, 3, 3))
+    ref = periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, rtol=1e-10)
+    r = periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, rtol=1e-10, coarsening="split")
+    assert _rel(r.C, ref.C) < 1e-8
+    assert max(r.iterations) < max(ref.iterations)
+
+
+def test_split_same_bits_twice():
+    ph = _close_walls(12)
+    a = periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, coarsening="split")
+    b = periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, coarsening="split")
+    assert np.array_equal(a.C, b.C) and np.array_equal(a.U, b.U)
+    assert a.iterations == b.iterations
+
+
+def test_split_refuses_what_it_does_not_serve():
+    ph = np.ones((4, 4, 4), np.int64)
+    with pytest.raises(ConfigError, match="coarsening"):
+        periodic_stiffness(ph, UNIT, {1: TPU.stiffness()}, coarsening="smoothed")
+    K = np.eye(24)[None]
+    free = np.ones((5, 5, 5, 3))
+    op = VoxelOperator(np.zeros((4, 4, 4), np.int64), K, np.ones((4, 4, 4)), False, free, np.ones(3))
+    with pytest.raises(ConfigError, match="periodic"):
+        build_hierarchy(op, coarsening="split")
