@@ -168,7 +168,8 @@ def _goto(capsys, outputs, model, goal):
 def test_robot_goto_reduced_matches_full(outputs, capsys):
     out_f, full = _goto(capsys, outputs, "full", GOAL_IN)
     out_r, red = _goto(capsys, outputs, "reduced", GOAL_IN)
-    assert out_f.startswith("model: full\n") and out_r.startswith("model: reduced\n")
+    head = "; prediction, tolerance 0.1 mm, 0.2 deg\n"  # the first line names the model, column and tolerance
+    assert out_f.startswith("model: full" + head) and out_r.startswith("model: reduced" + head)
     np.testing.assert_allclose(red, full, atol=ANGLE_TOL)
     # outside the box: the full model's own answer, said so
     out_o, beyond = _goto(capsys, outputs, "reduced", GOAL_OUT)
@@ -215,7 +216,7 @@ def test_robot_goto_surface_matches_full(outputs, capsys):
     box the full model's own answer, said so."""
     _, full = _goto(capsys, outputs, "full", GOAL_IN)
     out_s, surf = _goto(capsys, outputs, "surface", GOAL_IN)
-    assert out_s.startswith("model: surface\n")
+    assert out_s.startswith("model: surface; prediction, tolerance 0.1 mm, 0.2 deg\n")
     np.testing.assert_allclose(surf, full, atol=ANGLE_TOL)
     out_o, beyond = _goto(capsys, outputs, "surface", GOAL_OUT)
     _, beyond_full = _goto(capsys, outputs, "full", GOAL_OUT)
