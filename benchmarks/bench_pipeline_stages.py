@@ -6,11 +6,11 @@ both columns on 2 cores).
 Reads each stage's ``manifest.json`` (``wall_time_s``, ``cpu_s``, ``timings_s``: what the
 runner measured while the stage ran, nothing is rerun here) and prints one row per stage:
 its wall and CPU seconds, and for a two-column study each column's wall seconds. Below the
-table, two bounds that do not depend on how the stages overlapped: the critical path (the
-longest chain of stage walls through the dependency graph) and the total CPU over the cores;
-a run on that many cores takes at least the larger of the two. A stage's wall includes its
-waits for workers that other stages held, so the critical path is an upper estimate of what
-the chain alone would take.
+table, two figures that do not depend on how the stages overlapped: the total CPU over the
+cores, a lower bound of a run on that many cores, and the critical path (the longest chain of
+stage walls through the dependency graph). A stage's wall includes its waits for workers that
+other stages held, so the critical path is an upper estimate of what the chain alone would
+take, not a bound.
 """
 
 from __future__ import annotations
@@ -70,9 +70,9 @@ def main() -> None:
         for r in rows:
             cols = ", ".join(f"{c} {v:.0f}" for c, v in r["columns"].items()) or "-"
             print(f"| {r['name']} | {r['started']} | {r['wall']:.0f} | {r['cpu']:.0f} | {cols} |")
-        print(f"\nCritical path {path_s:.0f} s ({' > '.join(chain)}); CPU {cpu:.0f} s in all, "
-              f"{cpu / a.cores:.0f} s over {a.cores} cores: at least {max(path_s, cpu / a.cores) / 60:.1f} min "
-              f"on {a.cores} cores.")
+        print(f"\nCPU {cpu:.0f} s in all, {cpu / a.cores:.0f} s over {a.cores} cores: at least "
+              f"{cpu / a.cores / 60:.1f} min on {a.cores} cores. Critical path {path_s:.0f} s "
+              f"({' > '.join(chain)}; stage walls, their waits for workers included).")
 
 
 if __name__ == "__main__":
