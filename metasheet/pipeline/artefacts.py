@@ -197,10 +197,11 @@ class MaterialFile:
     density: float
     source: str
     model: str = "ours"
+    ci95: dict | None = None  # homogenize's 95 % half-widths of the constants, when it had realisations
 
 
 def write_material(path: Path, material: TransverseIsotropic, *, density: float, source: str,
-                   model: str = "ours") -> None:
+                   model: str = "ours", ci95: dict | None = None) -> None:
     """``material.json``: constants, units, derived nu_lt and alpha, stiffness and compliance
     (of the five constants), the material ``model`` and the tensor the robot uses under it
     (``model_stiffness``); under "authors" also the constants that tensor really has."""
@@ -221,6 +222,7 @@ def write_material(path: Path, material: TransverseIsotropic, *, density: float,
         "longitudinal_axis": "local 3",
         "stiffness": material.stiffness(),
         "compliance": material.compliance(),
+        **({"ci95": ci95} if ci95 else {}),
     })
 
 
@@ -230,7 +232,7 @@ def read_material(directory: Path) -> MaterialFile:
     data = _json(path)
     m = TransverseIsotropic.from_mapping(_field(data, "constants", path), where=f"{path}: constants")
     model = check_model(str(_field(data, "model", path)), f"{path}: model")
-    return MaterialFile(m, float(_field(data, "density", path)), str(data.get("source", "")), model)
+    return MaterialFile(m, float(_field(data, "density", path)), str(data.get("source", "")), model, data.get("ci95"))
 
 
 # ---------------------------------------------------------------------------- orient

@@ -194,3 +194,20 @@ def round_trip(
         seam_volume_fraction=float(vol[ids][seam].sum() / vol[ids].sum()),
         tolerance=float(tolerance), angle_tolerance_deg=float(angle_tolerance_deg),
     )
+
+
+def against_uncertainty(reports: dict, rel_halfwidth: dict) -> dict:
+    """Per constant: the round trip's largest relative difference over the sheets next to the
+    homogenised constant's own 95 % relative half-width (``constants.json``'s ``ci95``).
+
+    ``reports``: label -> :class:`ConsistencyReport`; ``rel_halfwidth``: name -> [-]. A
+    difference below the half-width is smaller than what the foam's realisations can resolve.
+    """
+    out = {}
+    for k, r in rel_halfwidth.items():
+        diffs = [rep.constants[k].max for rep in reports.values() if k in rep.constants]
+        if not diffs or r is None:
+            continue
+        d = float(max(diffs))
+        out[k] = {"max_relative_difference": d, "rel_halfwidth_95": float(r), "below_uncertainty": bool(d <= r)}
+    return out

@@ -15,6 +15,7 @@ from .constants_report import constants_section
 from .convergence_report import convergence_section
 from .model_report import model_section
 from .reduce_report import reduce_section
+from .uncertainty_report import print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
 
 
 def _maze_strain_rows(z: dict) -> list:
@@ -119,6 +120,10 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                                        s.get("robot"), s.get("anisotropy"), s.get("chart", {}).get("shrink"),
                                        cell=s.get("cell"), thickness=summaries.get("sheet_thickness_mm"))
     lines += section
+    diffs += found
+    section, found = uncertainty_rows(s["homogenize"], s.get("homogenize_timings")) if "homogenize" in s else ([], [])
+    lines += section + size_study_rows(s.get("size_study"), pictures.get("size_study"))
+    lines += robot_spread_rows(s.get("robot")) + print_rows(s.get("print_consistency"))
     diffs += found
     if "robot" in s:
         flat = []

@@ -9,6 +9,16 @@ or ``cell/cell.vtu`` with ``mesh_route = true``. Writes:
   those go to the manifest's ``timings_s``, so the same cell gives the same bytes);
 - ``fields.vtu``: the solid mesh with the local strain of every unit load case;
 - ``homogenize.png``: C, the fitted constants and the strain localisation.
+
+With ``realisations = k > 1`` (issue 43) the design is realised again at seeds ``seed + 1 ..
+seed + k - 1`` (the cell stage's voxels are realisation 0), every realisation a unit of the
+executor; ``constants.json`` then holds the means over the k realisations (C the mean C), a
+``ci95`` block (the 95 % half-widths, :func:`metasheet.homogenize.ensemble.ci95_block`) and
+``ensemble`` (k, cells, seeds, the relative target and the realisations each constant needs
+to meet it); ``realisations.json`` lists every realisation. With ``sizes`` (a Polyfoam's cell
+counts) it also writes ``convergence.json`` (the cell-size study: per size the mean and
+half-width, the trend in ``n**(-1/3)``) and ``convergence.png``. Wall times per realisation go
+to the manifest (``realisation_s.<n>``), never to the result files.
 """
 
 from __future__ import annotations
@@ -16,11 +26,11 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ...errors import ConfigError
 from ...homogenize import homogenize_mesh, homogenize_voxels
-from ...material import Isotropic, TransverseIsotropic
+from ...material import CONSTANT_NAMES, Isotropic, TransverseIsotropic
 from ..artefacts import read_cell, read_cell_tets
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register
@@ -36,7 +46,23 @@ class HomogenizeParams(Params):
     fit_axis: Literal["cell", "search"] = Field(
         "cell", description="TI axis of the fit: the cell's design axis, or the best-fitting one"
     )
+    realisations: int = Field(1, ge=1, le=200, description="independent seeds of the cell's design at its size "
+                              "(the cell's voxels are the first); >= 2 gives means with 95 % intervals")
+    sizes: list[int] = Field([], description="cell-size study: other numbers of cells (a polyfoam's seeds.count), "
+                             "each realised size_realisations times -> convergence.json, convergence.png")
+    size_realisations: int | None = Field(None, ge=2, le=200, description="realisations at each size of the "
+                                          "study (default: realisations)")
+    target: float = Field(0.05, gt=0, lt=1, description="relative 95 % half-width each constant should reach "
+                          "[-]; constants.json states the realisations each needs")
     fields: bool = Field(True, description="write fields.vtu (local strains)")
+
+    @model_validator(mode="after")
+    def _study(self):
+        if any(n < 1 or n > 4096 for n in self.sizes) or len(set(self.sizes)) != len(self.sizes):
+            raise ValueError(f"sizes {self.sizes}: expected distinct cell counts in [1, 4096]")
+        if self.sizes and max(self.realisations, self.size_realisations or 0) < 2:
+            raise ValueError("sizes: a size study needs realisations >= 2 (or size_realisations >= 2)")
+        return self
     picture: bool = Field(True, description="write homogenize.png")
 
 
@@ -85,6 +111,10 @@ def run(ctx: StageContext) -> dict:
         cell=info.get("name"),
     )
     ctx.timings.update({k: round(float(v), 3) for k, v in r.timings.items()})  # manifest only
+    if p.realisations > 1 or p.sizes:
+        if p.mesh_route:
+            raise ConfigError("homogenize.realisations / sizes: the voxel route only (mesh_route = false)")
+        constants.update(_ensemble(ctx, p, info["design"], r, seconds=sum(r.timings.values())))
     write_json_atomic(ctx.path("constants.json"), constants)
     if p.fields:
         from ...viz.homogenize import tet_field_mesh, voxel_field_mesh
@@ -98,9 +128,70 @@ def run(ctx: StageContext) -> dict:
         title = f"{info.get('name', 'cell')}: {'x'.join(map(str, resolution))} {'tets' if p.mesh_route else 'voxels'}"
         ctx.path("homogenize.png").write_bytes(summary_picture(r, title))
     ctx.progress("homogenize: done", 3, 3)
-    m = r.fit.material
-    return {**{k: round(v, 6) for k, v in m.to_dict().items()}, "misfit": round(r.fit.misfit, 6),
-            "relative_density": round(r.relative_density, 6), "solver": r.solver, "n_dof": r.n_dof}
+    out = {k: round(constants[k], 6) for k in CONSTANT_NAMES}
+    if "ci95" in constants:
+        out["rel_halfwidth_95"] = {k: round(v, 4) for k, v in constants["ci95"]["rel_halfwidth"].items()}
+        out["realisations"] = constants["ci95"]["k"]
+    return {**out, "misfit": round(r.fit.misfit, 6), "relative_density": round(r.relative_density, 6),
+            "solver": r.solver, "n_dof": r.n_dof}
+
+
+def _ensemble(ctx: StageContext, p: HomogenizeParams, design: dict, r, *, seconds: float) -> dict:
+    """Realise the design again (seeds, sizes), write realisations.json and the size study.
+
+    Returns the keys that replace or join ``constants.json``'s: the means over the cell's own
+    size (when it has k >= 2), ``ci95`` and ``ensemble``.
+    """
+    from ...homogenize import ensemble as ens
+    from ...homogenize.realisations import (by_size, check_design, ensemble_input, evaluate_realisation,
+                                            public_rows, realisation_items, result_row)
+
+    check_design(design, realisations=p.realisations, sizes=p.sizes)
+    n0, s0 = int(design["seeds"]["count"]), int(design["seeds"]["seed"])
+    k_size = p.size_realisations or p.realisations
+    items = realisation_items(design, n0, range(s0 + 1, s0 + p.realisations), solver=p.solver, rtol=p.tolerance)
+    for n in p.sizes:
+        if n != n0:
+            items += realisation_items(design, n, range(s0, s0 + k_size), solver=p.solver, rtol=p.tolerance)
+    rows = ctx.executor.map(evaluate_realisation, items,
+                            progress=lambda done, total: ctx.progress("homogenize: realisations", done, total))
+    rows = [{**result_row(r, n0, s0), "seconds": seconds}, *rows]
+    groups = by_size(rows)
+    for n, g in groups.items():  # manifest only: wall times differ run to run
+        ctx.timings[f"realisation_s.{n}"] = round(float(np.median([row["seconds"] for row in g])), 3)
+    write_json_atomic(ctx.path("realisations.json"), {"design": design.get("name"), "rows": public_rows(rows)})
+    stats = {n: ens.ensemble_stats(ensemble_input(g)) for n, g in groups.items() if len(g) >= 2}
+    out = {}
+    if n0 in stats:
+        own = stats[n0]
+        means = {k: float(own[k].mean) for k in CONSTANT_NAMES}
+        plan = ens.plan_realisations(own, p.target, names=CONSTANT_NAMES)
+        ti = TransverseIsotropic(**means)
+        out = {**means, "C": np.asarray(own["C"].mean).tolist(), "nu_lt": ti.nu_lt, "alpha_percent": ti.alpha,
+               "ci95": ens.ci95_block(own, n0),
+               "ensemble": {"value": f"mean over {own['E_t'].k} realisations (seeds {s0}..{s0 + own['E_t'].k - 1}) "
+                                     f"of {n0} cells; misfit, load cases and fields are realisation 0's",
+                            "k": own["E_t"].k, "n_cells": n0, "seeds": [row["seed"] for row in groups[n0]],
+                            "target_rel_halfwidth": p.target,
+                            "meets_target": {k: bool(own[k].rel_halfwidth <= p.target) for k in CONSTANT_NAMES},
+                            "k_required": plan.k_required, "governing": plan.governing,
+                            "realisation_0": {k: float(getattr(r.fit.material, k)) for k in CONSTANT_NAMES}}}
+    if p.sizes and len(stats) >= 2:
+        sizes = sorted(stats)
+        summary = ens.convergence_summary(sizes, [stats[n] for n in sizes],
+                                          plan=ens.plan_realisations(stats[n0], p.target, names=CONSTANT_NAMES)
+                                          if n0 in stats else None)
+        summary["k_required_per_size"] = {str(n): ens.plan_realisations(stats[n], p.target,
+                                                                          names=CONSTANT_NAMES).k_required
+                                          for n in sizes}
+        write_json_atomic(ctx.path("convergence.json"), summary)
+        if p.picture:
+            from ...viz.convergence import convergence_picture
+
+            title = (f"{design.get('name', 'cell')}: constants against the number of cells "
+                     f"(mean +- 95 % interval of {k_size} realisations per size)")
+            ctx.path("convergence.png").write_bytes(convergence_picture(summary, title))
+    return out
 
 
 register(

@@ -22,7 +22,7 @@ from ... import paper
 from ...errors import ConfigError
 from ...material import Isotropic, TransverseIsotropic
 from ...material_model import model_stiffness
-from ..artefacts import constants_material, write_material
+from ..artefacts import constants_material, read_constants, write_material
 from ..registry import Params, Stage, StageContext, register
 
 _FOAM = paper.PAPER_FOAM
@@ -83,11 +83,15 @@ def run(ctx: StageContext) -> dict:
     p: MaterialParams = ctx.params
     if p.source == "homogenize" and "homogenize" not in ctx.inputs:
         raise ConfigError("material.source: 'homogenize': the homogenize stage is not in this pipeline")
+    ci95 = None
     if p.source != "config" and "homogenize" in ctx.inputs:
         m, origin = constants_material(ctx.inputs["homogenize"]), "homogenize"
+        block = read_constants(ctx.inputs["homogenize"]).get("ci95")
+        if block:  # the constants are means over realisations: their uncertainty travels with them
+            ci95 = {k: block[k] for k in ("confidence", "k", "n_cells", "halfwidth", "rel_halfwidth")}
     else:
         m, origin = material_from_params(p), "config"
-    write_material(ctx.path("material.json"), m, density=p.density, source=origin, model=p.model)
+    write_material(ctx.path("material.json"), m, density=p.density, source=origin, model=p.model, ci95=ci95)
     return {"source": origin, "model": p.model, **m.to_dict(), "alpha_percent": round(m.alpha, 3)}
 
 

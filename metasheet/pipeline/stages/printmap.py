@@ -34,9 +34,9 @@ from ...errors import ConfigError, InfeasibleError
 from ...material import CONSTANT_NAMES
 from ...sheet import fibers as fb
 from ...sheet import angles, icesl, icesl_lua
-from ...sheet.consistency import round_trip
+from ...sheet.consistency import against_uncertainty, round_trip
 from ...sheet.geometry import tet_volumes
-from ..artefacts import read_orient
+from ..artefacts import read_constants, read_orient
 from ..manifest import write_json_atomic
 from ..printsource import print_source
 from ..registry import Params, Stage, StageContext, register
@@ -227,6 +227,7 @@ def run(ctx: StageContext) -> dict:
                   "per-element constants and fibre; elements printed solid are skipped",
         **{label: rep.to_dict() for label, rep in consistency.items()},
         "ok": all(r.ok for r in consistency.values()),
+        **_uncertainty(ctx, consistency),
     })
     info_out = {
         "infill": source.family, "infill_type": source.infill_type, "source": source.describe(),
@@ -268,6 +269,20 @@ def run(ctx: StageContext) -> dict:
     }
 
 
+def _uncertainty(ctx: StageContext, consistency: dict) -> dict:
+    """``against_uncertainty`` when the homogenised constants carry 95 % half-widths, else {}."""
+    if "homogenize" not in ctx.inputs:
+        return {}
+    ci = read_constants(ctx.inputs["homogenize"]).get("ci95")
+    if not ci:
+        return {}
+    return {"against_uncertainty": {
+        "note": "each constant's largest round-trip difference against the homogenised constant's own 95 % "
+                f"relative half-width ({ci['k']} realisations of {ci['n_cells']} cells): differences below it "
+                "are smaller than the foam's realisations resolve",
+        **against_uncertainty(consistency, ci["rel_halfwidth"])}}
+
+
 register(
     Stage(
         name="printmap",
@@ -282,3 +297,4 @@ register(
             "against the model -> normal/, mirrored/",
     )
 )
+

@@ -33,7 +33,16 @@ def run(ctx: StageContext) -> dict:
             shutil.copyfile(png, ctx.path(png.name))
             pictures[name] = png.name
     if "homogenize" in ctx.inputs:
-        summaries["homogenize"] = read_constants(ctx.inputs["homogenize"])
+        h = ctx.inputs["homogenize"]
+        summaries["homogenize"] = read_constants(h)
+        summaries["homogenize_timings"] = (read_manifest(h) or {}).get("timings_s")
+        if (h / "convergence.json").exists():  # the cell-size study
+            summaries["size_study"] = json.loads((h / "convergence.json").read_text())
+            if (h / "convergence.png").exists():
+                shutil.copyfile(h / "convergence.png", ctx.path("homogenize_convergence.png"))
+                pictures["size_study"] = "homogenize_convergence.png"
+    if "printmap" in ctx.inputs and (ctx.inputs["printmap"] / "print_consistency.json").exists():
+        summaries["print_consistency"] = json.loads((ctx.inputs["printmap"] / "print_consistency.json").read_text())
     if "chart" in ctx.inputs:
         from ...homogenize.chart import rows_of
 
@@ -118,7 +127,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 
 register(Stage(
     name="report", params=ReportParams, run=run,
-    optional=("cell", "homogenize", "chart", "material", "orient", "robot", "reduce", "workspace", "ranges",
-              "anisotropy", "maze"),
+    optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
+              "ranges", "anisotropy", "maze"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))

@@ -86,6 +86,9 @@ class RobotParams(Params):
                                     "constants when the material differs from them")
     compare_models: bool = Field(True, description="also evaluate the foam (and published) robots under the other "
                                  "material model ('ours' / 'authors'), for the report's mu_l table")
+    uncertainty: bool = Field(True, description="when the constants carry 95 % half-widths (homogenize with "
+                              "realisations), also evaluate the foam robot's rest Jacobian at each constant's "
+                              "bounds (ten one-at-a-time cases): jacobian.json's 'uncertainty'")
     picture: bool = Field(True, description="write robot.png")
     convergence: list[ConvergenceLevel] = Field(
         default_factory=list, description="mesh levels [element, mesh_size [mm], layers, grip_size [mm]] of the "
@@ -159,6 +162,16 @@ def run(ctx: StageContext) -> dict:
             ctx.progress("convergence study", len(robots), len(robots) + 2)
             conv.result()
     foam = robots["foam"]
+    spread = None
+    if p.uncertainty and material.ci95:
+        from ...robot.uncertainty import spread as robot_spread
+
+        spread = robot_spread(lambda sheets: six_dof_robot(sheets, model=model, **foam_mass, **scene),
+                              orient.sheets(), material.material.to_dict(), material.ci95["halfwidth"],
+                              length_scale=p.length_scale,
+                              progress=lambda i, n: ctx.progress(f"foam at the constants' 95 % bounds ({i}/{n})",
+                                                                 len(robots), len(robots) + 2))
+        spread["constants_ci95"] = material.ci95
     out = {
         "material_model": model,
         "units": {"J": "rows x, y, z [mm/rad], rx, ry, rz [rad/rad]; columns motors 0-5",
@@ -167,6 +180,7 @@ def run(ctx: StageContext) -> dict:
         "geometry": {**foam.info, "scene": sc.scene, "sheet_mass_g": sc.sheet_mass_g,
                      "gravity_mm_s2": list(sc.gravity)},
         "materials": {name: c.to_dict() for name, c in cases.items()},
+        **({"uncertainty": spread} if spread else {}),
     }
     write_jacobian(ctx.path("jacobian.json"), out)
     write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
@@ -186,7 +200,10 @@ def run(ctx: StageContext) -> dict:
     } | {"material_model": model, "other_model": other if p.compare_models else None, "model_skipped": skipped,
          "n_tets": foam.info["n_tets"], "rest_angles_deg": np.degrees(foam.coupling.rest_angles).round(3).tolist(),
          "servo_radius_mm_derived": foam.info["servo_geometry"]["servo_radius_mm_derived"],
-         "scene": sc.scene, "rod_length_mm": sc.rod_length, "sheet_mass_g": sc.sheet_mass_g}
+         "scene": sc.scene, "rod_length_mm": sc.rod_length, "sheet_mass_g": sc.sheet_mass_g,
+         **({"foam_rod_rotation_range_95": [round(v, 5) for v in spread["rod_rotation_range"]],
+             "foam_singular_values_range_95": [[round(v, 4) for v in spread[f"singular_values_{e}"]]
+                                               for e in ("min", "max")]} if spread else {})}
 
 
 _SCENE_KEYS = ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth", "angle_min", "angle_max")

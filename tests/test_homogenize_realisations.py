@@ -1,0 +1,109 @@
+"""The homogenize stage's realisations and cell-size study (issue 43), on the quick Polyfoam.
+
+Checked against independent answers: the means and half-widths in constants.json are those
+of the per-realisation rows recomputed here (numpy mean, Student t), realisation 0 is the
+cell stage's own voxels (the single-realisation run's constants), the study's sizes are
+built with the requested cell counts, a laminate refuses realisations, and two runs give the
+same bytes.
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from metasheet.errors import ConfigError
+from metasheet.homogenize.realisations import check_design, realisation_items
+from metasheet.material import CONSTANT_NAMES
+from metasheet.pipeline.config import load_pipeline
+from metasheet.pipeline.runner import run_pipeline
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(tmp_path, name: str, homogenize: str) -> Path:
+    (tmp_path / "pipelines").mkdir(exist_ok=True)
+    if not (tmp_path / "cells").exists():
+        (tmp_path / "cells").symlink_to(ROOT / "cells")
+    toml = tmp_path / "pipelines" / f"{name}.toml"
+    toml.write_text(f'[pipeline]\nname = "{name}"\nstages = ["cell", "homogenize"]\n'
+                    '[cell]\ndesign = "cells/quick_polyfoam.toml"\npicture = false\nsurface = false\n'
+                    f'[homogenize]\nfields = false\n{homogenize}\n')
+    run_pipeline(load_pipeline(toml), out_root=tmp_path / "out")
+    return tmp_path / "out" / name / "homogenize"
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("ens")
+    one = _run(tmp, "one", "picture = false")
+    ens = _run(tmp, "ens", "realisations = 3\nsizes = [2]\nsize_realisations = 3\npicture = true")
+    again = _run(tmp, "again", "realisations = 3\nsizes = [2]\nsize_realisations = 3\npicture = true")
+    return one, ens, again
+
+
+def test_means_and_intervals_are_those_of_the_realisations(study):
+    one, ens, _ = study
+    c = json.loads((ens / "constants.json").read_text())
+    rows = json.loads((ens / "realisations.json").read_text())["rows"]
+    own = [r for r in rows if r["n_cells"] == 4]
+    assert [r["seed"] for r in own] == [1, 2, 3] and c["ensemble"]["seeds"] == [1, 2, 3]
+    single = json.loads((one / "constants.json").read_text())
+    t = stats.t.ppf(0.975, 2)
+    for k in CONSTANT_NAMES:
+        v = np.array([r[k] for r in own])
+        assert own[0][k] == single[k]  # realisation 0 is the cell stage's voxels
+        assert c["ensemble"]["realisation_0"][k] == single[k]
+        assert c[k] == pytest.approx(v.mean(), rel=1e-14)
+        hw = t * v.std(ddof=1) / math.sqrt(3)
+        assert c["ci95"]["halfwidth"][k] == pytest.approx(hw, rel=1e-12)
+        assert c["ci95"]["rel_halfwidth"][k] == pytest.approx(hw / abs(v.mean()), rel=1e-12)
+        assert c["ensemble"]["meets_target"][k] == (hw / abs(v.mean()) <= 0.05)
+        assert c["ensemble"]["k_required"][k] >= 2
+    assert len({r[CONSTANT_NAMES[1]] for r in own}) == 3  # three different foams
+    assert np.allclose(c["C"], np.mean([r["C"] for r in own], axis=0), rtol=1e-14, atol=0)
+    assert c["ci95"]["k"] == 3 and c["ci95"]["n_cells"] == 4
+
+
+def test_size_study_writes_convergence_and_picture(study):
+    _, ens, _ = study
+    conv = json.loads((ens / "convergence.json").read_text())
+    rows = json.loads((ens / "realisations.json").read_text())["rows"]
+    assert [s["n_cells"] for s in conv["sizes"]] == [2, 4]
+    small = [r for r in rows if r["n_cells"] == 2]
+    assert [r["seed"] for r in small] == [1, 2, 3]
+    assert conv["sizes"][0]["constants"]["E_t"]["mean"] == pytest.approx(np.mean([r["E_t"] for r in small]), rel=1e-14)
+    # a 2-cell Polyfoam has fewer unknowns than the 4-cell one at the same voxel edge
+    assert max(r["n_dof"] for r in small) < min(r["n_dof"] for r in rows if r["n_cells"] == 4)
+    assert set(conv["trend"]) == set(CONSTANT_NAMES) and set(conv["k_required_per_size"]) == {"2", "4"}
+    assert (ens / "convergence.png").stat().st_size > 10_000
+
+
+def test_same_bytes_on_a_second_run(study):
+    _, ens, again = study
+    for name in ("constants.json", "realisations.json", "convergence.json"):
+        assert (ens / name).read_bytes() == (again / name).read_bytes(), name
+
+
+def test_refusals_name_the_field():
+    with pytest.raises(ConfigError, match="homogenize.realisations.*deterministic"):
+        check_design({"kind": "laminate"}, realisations=2, sizes=[])
+    with pytest.raises(ConfigError, match="homogenize.sizes.*polyfoam"):
+        check_design({"kind": "foam", "seeds": {}}, realisations=2, sizes=[8])
+    from metasheet.pipeline.stages.homogenize import HomogenizeParams
+
+    with pytest.raises(ValueError, match="sizes"):
+        HomogenizeParams(sizes=[2, 2], realisations=3)
+    with pytest.raises(ValueError, match="realisations >= 2"):
+        HomogenizeParams(sizes=[2])
+
+
+def test_items_override_count_and_seed_only():
+    design = {"kind": "polyfoam", "name": "x", "seeds": {"sampler": "poisson", "count": 8, "seed": 1}}
+    items = realisation_items(design, 27, [5, 6], solver="auto", rtol=1e-8)
+    assert [it["design"]["seeds"] for it in items] == [{"sampler": "poisson", "count": 27, "seed": 5},
+                                                      {"sampler": "poisson", "count": 27, "seed": 6}]
+    assert design["seeds"]["count"] == 8  # the caller's design is untouched
