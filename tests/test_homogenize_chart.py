@@ -72,3 +72,11 @@ def test_chart_stage_small_sweep(tmp_path):
     assert (tmp_path / "chart.png").stat().st_size > 20_000
     with pytest.raises(ValueError):
         stage.ChartParams(density_min=0.3, density_max=0.2)
+
+
+def test_chart_error_bars_are_the_95_percent_interval_of_the_mean():
+    from metasheet.viz.homogenize import ci95_halfwidth
+
+    v = np.array([1.0, 2.0, 4.0])
+    assert ci95_halfwidth(v) == pytest.approx(4.302652729749464 * np.std(v, ddof=1) / np.sqrt(3), rel=1e-12)
+    assert ci95_halfwidth(v[:1]) == 0.0

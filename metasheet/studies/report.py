@@ -122,7 +122,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     lines += section
     diffs += found
     section, found = uncertainty_rows(s["homogenize"], s.get("homogenize_timings")) if "homogenize" in s else ([], [])
-    lines += section + size_study_rows(s.get("size_study"), pictures.get("size_study"))
+    lines += section + size_study_rows(s.get("size_study"), pictures.get("size_study"), s.get("homogenize_timings"))
     lines += robot_spread_rows(s.get("robot")) + print_rows(s.get("print_consistency"))
     diffs += found
     if "robot" in s:

@@ -75,8 +75,9 @@ def uncertainty_rows(h: Mapping, timings: Mapping | None) -> tuple[list[str], li
     return [*lines, text, ""], diffs
 
 
-def size_study_rows(conv: Mapping | None, picture: str | None) -> list[str]:
-    """The cell-size study: per size the means and half-widths, and the trend verdicts."""
+def size_study_rows(conv: Mapping | None, picture: str | None, timings: Mapping | None = None) -> list[str]:
+    """The cell-size study: per size the means and half-widths, the trend verdicts, and what the
+    relative target would cost at each size (``timings``: the homogenize manifest's)."""
     if not conv or not conv.get("sizes"):
         return []
     names = list(conv["constants"])
@@ -99,6 +100,16 @@ def size_study_rows(conv: Mapping | None, picture: str | None) -> list[str]:
         verdicts.append(f"{n}: {v}")
     if verdicts:
         lines += [f"Trend model {conv['trend_model']}: " + "; ".join(verdicts) + ".", ""]
+    need = conv.get("k_required_per_size") or {}
+    costs = []
+    for n, req in need.items():
+        gov = max(req, key=req.get)
+        sec = (timings or {}).get(f"realisation_s.{n}")
+        cost = f" (about {req[gov] * sec / 3600:.1f} h of one core)" if sec else ""
+        costs.append(f"{n} cells: {req[gov]} realisations, for {gov}{cost}")
+    if costs:
+        lines += ["Every constant within the target would need, per size: " + "; ".join(costs) +
+                  ". A smaller volume needs more realisations and carries the size bias above.", ""]
     return lines
 
 

@@ -123,7 +123,8 @@ def summary_picture(result: HomogenizationResult, title: str = "") -> bytes:
 def chart_picture(rows, title: str = "") -> bytes:
     """PNG with one panel per constant (E_t, E_l, nu_t, nu_tl, mu_l, alpha) against the
     achieved relative density, one line per value of the family's second setting (stretch,
-    or Polyfoam's kgon_x_shrink), seed-averaged, spread as error bars."""
+    or Polyfoam's kgon_x_shrink), seed-averaged; with >= 2 seeds per point the error bars are the
+    95 % Student-t interval of the mean (none with one seed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -146,7 +147,7 @@ def chart_picture(rows, title: str = "") -> bytes:
                 x.append(np.mean([float(r["relative_density"]) for r in sel]))
                 v = np.array([float(r[k]) for r in sel])
                 y.append(v.mean())
-                e.append(v.std())
+                e.append(ci95_halfwidth(v))
             ax.errorbar(x, y, yerr=e, marker="o", ms=4, capsize=2,
                         color=cmap(i / max(1, len(stretches) - 1)), label=f"{second} {s:g}")
         if log:
@@ -159,3 +160,13 @@ def chart_picture(rows, title: str = "") -> bytes:
         fig.suptitle(title, fontsize=11)
     fig.tight_layout()
     return figure_png(fig, dpi=100, tight=False)
+
+
+def ci95_halfwidth(v: np.ndarray) -> float:
+    """95 % half-width of the mean of the samples ``v`` (k,) (Student t), 0 for k < 2."""
+    k = len(v)
+    if k < 2:
+        return 0.0
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, k - 1) * np.std(v, ddof=1) / np.sqrt(k))

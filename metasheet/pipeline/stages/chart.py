@@ -98,7 +98,7 @@ def run(ctx: StageContext) -> dict:
 
     grid = f"{p.resolution}^3 voxels" if family == "foam" else f"voxel {p.voxel_mm or design.get('voxel_mm')} mm"
     title = (f"design chart of {design.get('name', path.stem)} ({grid}, {design.get('seeds', {}).get('count')} "
-             f"cells, {p.seeds} realisation(s) per point)")
+             f"cells, {p.seeds} realisation(s) per point" + (", bars: 95 % interval of the mean)" if p.seeds > 1 else ")"))
     ctx.path("chart.png").write_bytes(chart_picture(rows, title))
     return {"points": len(rows), "E_t_range_MPa": [min(r["E_t"] for r in rows), max(r["E_t"] for r in rows)],
             "alpha_range_percent": [min(r["alpha"] for r in rows), max(r["alpha"] for r in rows)]}
