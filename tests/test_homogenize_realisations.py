@@ -99,6 +99,8 @@ def test_refusals_name_the_field():
         HomogenizeParams(sizes=[2, 2], realisations=3)
     with pytest.raises(ValueError, match="realisations >= 2"):
         HomogenizeParams(sizes=[2])
+    with pytest.raises(ValueError, match="voxel route only"):
+        HomogenizeParams(realisations=2, mesh_route=True)
 
 
 def test_items_override_count_and_seed_only():

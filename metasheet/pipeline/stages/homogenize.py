@@ -60,6 +60,8 @@ class HomogenizeParams(Params):
     def _study(self):
         if any(n < 1 or n > 4096 for n in self.sizes) or len(set(self.sizes)) != len(self.sizes):
             raise ValueError(f"sizes {self.sizes}: expected distinct cell counts in [1, 4096]")
+        if self.mesh_route and (self.realisations > 1 or self.sizes):
+            raise ValueError("realisations / sizes: the voxel route only (mesh_route = false)")
         if self.sizes and max(self.realisations, self.size_realisations or 0) < 2:
             raise ValueError("sizes: a size study needs realisations >= 2 (or size_realisations >= 2)")
         return self
@@ -112,8 +114,6 @@ def run(ctx: StageContext) -> dict:
     )
     ctx.timings.update({k: round(float(v), 3) for k, v in r.timings.items()})  # manifest only
     if p.realisations > 1 or p.sizes:
-        if p.mesh_route:
-            raise ConfigError("homogenize.realisations / sizes: the voxel route only (mesh_route = false)")
         constants.update(_ensemble(ctx, p, info["design"], r, seconds=sum(r.timings.values())))
     write_json_atomic(ctx.path("constants.json"), constants)
     if p.fields:
