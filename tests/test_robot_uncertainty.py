@@ -10,7 +10,7 @@ import json
 
 import numpy as np
 import pytest
-from test_robot_stage import _write_orient
+from test_robot_stage import _write_orient, orient_dir  # noqa: F401  (the coarse sheets, built once)
 
 from metasheet.errors import ConfigError
 from metasheet.material import CONSTANT_NAMES
@@ -61,13 +61,6 @@ def _run(orient, tmp_path, halfwidth):
     params = robot_stage.RobotParams(picture=False, compare_models=False, compare_published=False)
     summary = robot_stage.run(StageContext("robot", params, work, {"orient": orient, "material": mat}, tmp_path))
     return summary, json.loads((work / "jacobian.json").read_text())
-
-
-@pytest.fixture(scope="module")
-def orient_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("orient_u")
-    _write_orient(d)
-    return d
 
 
 def test_stage_spread_at_the_bounds(orient_dir, tmp_path):
