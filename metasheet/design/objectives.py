@@ -1,0 +1,107 @@
+"""What a fibre design is judged on at the rest pose: functions of the direct Jacobian J (eq. 7).
+
+J (6, na) is dq_e / dq_a: the effector's (x, y, z [mm], rx, ry, rz [rad]) motion per radian of
+each motor (:mod:`metasheet.robot.kinematics`). Each objective here is a smooth function of J
+(where it is defined) and comes with its derivative as a rank-one weight pair: for an
+objective g, ``dg = alpha^T dJ beta`` with ``alpha`` (6,) and ``beta`` (na,), which is all the
+adjoint (:mod:`.adjoint`) needs to turn dJ into a gradient over the design.
+
+* :func:`rod_roll_per_degree` [deg/deg]: the 6th DOF's authority, the rotation about the rod
+  axis per degree when every motor moves by +1 degree together; what
+  :func:`metasheet.robot.compare.evaluate` reports as ``rod_rotation_per_degree`` (from
+  ``Kinematics.all_together``). Linear in J.
+* :func:`min_singular_value` [mm/rad]: the smallest singular value of ``diag(1, 1, 1, L, L, L) J``
+  (L = ``length_scale`` [mm], rotations counted as arc lengths), the
+  ``Kinematics.singular_values[-1]`` of the kinematics; how far the robot is from losing a DOF.
+  Differentiable where it is simple (its gap to the next one is reported).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+
+#: [mm] the kinematics' default length scale (rotations as arc lengths at 50 mm ~ an arm)
+LENGTH_SCALE = 50.0
+
+
+def _check_jacobian(J) -> np.ndarray:
+    J = np.asarray(J, float)
+    if J.ndim != 2 or J.shape[0] != 6 or J.shape[1] < 1 or not np.all(np.isfinite(J)):
+        raise ConfigError(f"J: shape {J.shape}: expected a finite (6, na) Jacobian")
+    return J
+
+
+def _unit_axis(axis) -> np.ndarray:
+    a = np.asarray(axis, float)
+    n = float(np.linalg.norm(a)) if a.shape == (3,) else 0.0
+    if not np.isfinite(n) or n < 1e-12:
+        raise ConfigError(f"axis: {np.asarray(axis).tolist()!r}: expected a finite non-zero 3-vector")
+    return a / n
+
+
+@dataclass(frozen=True)
+class RankOne:
+    """The derivative of an objective g of J as ``dg = alpha^T dJ beta``.
+
+    Attributes
+    ----------
+    value : g(J), in the objective's unit.
+    alpha : (6,) effector-side weight; beta : (na,) motor-side weight.
+    gap : how far the value is from a point where g stops being differentiable, in its unit
+        (inf for a linear objective; for a singular value its distance to the next one).
+    """
+
+    value: float
+    alpha: np.ndarray
+    beta: np.ndarray
+    gap: float = float("inf")
+
+
+def rod_roll_per_degree(J, axis) -> float:
+    """Rotation about the rod ``axis`` (3,) per degree of all motors together [deg/deg]:
+    ``axis . (J[3:] @ 1)`` (rad per rad is deg per deg)."""
+    return rod_roll_weights(J, axis).value
+
+
+def rod_roll_weights(J, axis) -> RankOne:
+    """:func:`rod_roll_per_degree` and its weights: alpha = (0, 0, 0, axis), beta = 1."""
+    J = _check_jacobian(J)
+    alpha = np.concatenate([np.zeros(3), _unit_axis(axis)])
+    beta = np.ones(J.shape[1])
+    return RankOne(float(alpha @ J @ beta), alpha, beta)
+
+
+def scaled_singular_values(J, length_scale: float = LENGTH_SCALE) -> np.ndarray:
+    """(min(6, na),) singular values [mm/rad] of ``diag(1, 1, 1, L, L, L) J``, largest first."""
+    J = _check_jacobian(J)
+    return np.linalg.svd(_scale(length_scale)[:, None] * J, compute_uv=False)
+
+
+def min_singular_value(J, length_scale: float = LENGTH_SCALE) -> float:
+    """The smallest of :func:`scaled_singular_values` [mm/rad]."""
+    return float(scaled_singular_values(J, length_scale)[-1])
+
+
+def min_singular_weights(J, length_scale: float = LENGTH_SCALE) -> RankOne:
+    """:func:`min_singular_value` and its weights: with ``D J = U s V^T`` and (u, v) the pair of
+    the smallest s, ``ds = u^T D dJ v``, so alpha = D u, beta = v (valid where s is simple:
+    ``gap`` is its distance to the next singular value [mm/rad]; the signs of u and v cancel)."""
+    J = _check_jacobian(J)
+    if J.shape[1] > 6:
+        raise ConfigError(f"J: shape {J.shape}: the smallest singular value needs na <= 6 motors")
+    D = _scale(length_scale)
+    U, s, Vt = np.linalg.svd(D[:, None] * J, full_matrices=False)
+    k = len(s) - 1
+    gap = float(s[k - 1] - s[k]) if k > 0 else float("inf")
+    return RankOne(float(s[k]), D * U[:, k], Vt[k].copy(), gap)
+
+
+def _scale(length_scale: float) -> np.ndarray:
+    L = float(length_scale)
+    if not np.isfinite(L) or L <= 0:
+        raise ConfigError(f"length_scale: {length_scale!r}: allowed range is (0, inf) [mm]")
+    return np.array([1.0, 1.0, 1.0, L, L, L])
