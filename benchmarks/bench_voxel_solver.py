@@ -9,14 +9,17 @@ percolating voxels and rtol; "C err" is the relative Frobenius distance of C* to
     python benchmarks/bench_voxel_solver.py --quick            # n = 40, one tile: a smoke test
     python benchmarks/bench_voxel_solver.py --sizes 48 64 --tile 1 2 --repeat 3 [--save]
     python benchmarks/bench_voxel_solver.py --solvers pardiso voxel voxel:1   # voxel on 1 numba thread
+    python benchmarks/bench_voxel_solver.py --solvers pardiso voxel:1 voxel-trilinear:1   # both coarsenings
     python benchmarks/bench_voxel_solver.py --sizes 40 --voxels out/paper/cell/voxels.npz  # + a cell stage's voxels
 
 ``--voxels`` adds the case n = 0: the phases and size of a cell stage's ``voxels.npz`` and the
 materials of the ``cell.json`` beside it (the paper's Polyfoam cell: ``cells/paper_polyfoam.toml``),
 one tile.
 
-"voxel-split" runs it with ``coarsening="split"`` (one split Galerkin coarse level solved by
-SuperLU, :mod:`metasheet.fem.voxel.split`) instead of the trilinear hierarchy; ":T" works on it too.
+"voxel" runs the default coarsening ("split": face-split coarse levels with K-cycles,
+:mod:`metasheet.fem.voxel.split_hierarchy`); "voxel-split" and "voxel-trilinear" name the coarsening
+(the trilinear hierarchy was the default before; 275 iterations on the paper cell); ":T" works on
+them too.
 
 "voxel:T" runs the voxel solver with T numba threads (NUMBA_NUM_THREADS in its child; plain
 "voxel": numba's default, one per core). The six load cases run in lockstep, one operator
@@ -74,9 +77,10 @@ def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | 
     rows = []
     for _ in range(repeat):
         t = time.perf_counter()
-        if solver in ("voxel", "voxel-split"):
+        if solver.startswith("voxel"):
+            coarsening = solver.partition("-")[2]
             r = periodic_stiffness(ph, size, {k: m.stiffness() for k, m in mats.items()}, rtol=rtol,
-                                   coarsening="split" if solver == "voxel-split" else "trilinear")
+                                   **({"coarsening": coarsening} if coarsening else {}))
             setup, solve, dofs, iters, C = r.setup_seconds, r.solve_seconds, r.n_dof, max(r.iterations), r.C
         else:
             r = homogenize_voxels(ph, size, mats, solver=solver, rtol=rtol, localise=False)

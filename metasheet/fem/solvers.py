@@ -360,7 +360,7 @@ def solve_spd(A: sp.spmatrix, B: np.ndarray, *, solver: str = "auto", rtol: floa
 
 
 def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solver: str = "voxel",
-                           rtol: float = 1e-8, maxiter: int = 500):
+                           rtol: float = 1e-8, maxiter: int = 500, coarsening: str = "split"):
     """The six periodic corrector problems of a voxel cell, matrix-free (:mod:`metasheet.fem.voxel`).
 
     Parameters
@@ -368,6 +368,8 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
     phases : (nx, ny, nz) int, 0 = void, k > 0 = phase k; the percolating solid only.
     size : (3,) float [mm]; stiffnesses : dict phase -> (6, 6) Voigt stiffness [MPa].
     solver : a name in :data:`GRID_SOLVERS`; rtol : relative residual per load case.
+    coarsening : the multigrid's coarse spaces, "split" (default) or "trilinear"
+        (:func:`metasheet.fem.voxel.periodic_stiffness`; a ConfigError names the allowed values).
 
     Returns
     -------
@@ -380,6 +382,6 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
     # imported here: its numba kernels are compiled (or loaded from cache) on first use only
     from .voxel import periodic_stiffness
 
-    r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter)
+    r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter, coarsening=coarsening)
     report = SolveReport(solver, r.iterations, r.residuals, r.setup_seconds, r.solve_seconds, r.n_dof)
     return r.C, r.C_raw, r.U.reshape(-1, 6), report

@@ -6,8 +6,11 @@
 - :mod:`.compact`: vectors on the active nodes only, ``K u`` on them (BLAS on one-matrix levels);
 - :mod:`.vectors`: fused CG and smoother updates, fixed-order reductions;
 - :mod:`.coarsen`: cells, trilinear transfer (full and compact), Galerkin coarse voxel matrices;
-- :mod:`.multigrid`: the hierarchy, Chebyshev/Jacobi smoothers, the V-cycle;
-- :mod:`.pcg`: CG with the null space projected out, several right-hand sides in lockstep;
+- :mod:`.split`, :mod:`.split_levels`: coarse node copies split by the face-connected fine solid
+  of their supports, on the first and the coarser levels;
+- :mod:`.blocks`, :mod:`.split_hierarchy`: the split levels' block operators, K-cycle, bottom factor;
+- :mod:`.multigrid`: the hierarchy (trilinear or split), Chebyshev/Jacobi smoothers, the V-cycle;
+- :mod:`.pcg`: (flexible) CG with the null space projected out, several right-hand sides in lockstep;
 - :mod:`.homogenize`: the six periodic load cases -> C*;
 - :mod:`.clamped`: clamped and rigid-tied nodes -> a rigid body's condensed 6 x 6 stiffness.
 """

@@ -107,7 +107,7 @@ def node_parts(index: np.ndarray, periodic: bool) -> tuple[np.ndarray, int]:
 
 def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: float = 1e-8, maxiter: int = 500,
                        smoother: str = "chebyshev", degree: int = 2,
-                       coarsening: str = "trilinear") -> VoxelHomogenization:
+                       coarsening: str = "split") -> VoxelHomogenization:
     """Effective stiffness of a periodic voxel cell by matrix-free multigrid CG.
 
     Parameters
@@ -119,7 +119,9 @@ def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: flo
     rtol : relative residual of each load case, in (0, 1e-3).
     maxiter : CG iteration cap per load case.
     smoother, degree : the multigrid smoother (:func:`~.multigrid.build_hierarchy`).
-    coarsening : "trilinear" (default) or "split" (:func:`~.multigrid.build_hierarchy`).
+    coarsening : "split" (default: split coarse levels with K-cycles, flexible CG; far fewer
+        iterations on thin walls, measured in docs/voxel.md) or "trilinear"
+        (:func:`~.multigrid.build_hierarchy`).
 
     Returns
     -------
@@ -152,19 +154,21 @@ def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoothe
     cop = H.fine  # vectors on the nodes with unknowns only (:mod:`.compact`)
     project = translation_projector(cop.to_compact(labels), n_parts)
     t1 = time.perf_counter()
-    F = scatter(index, table.F, sc, True) * free[..., None]  # (Nx, Ny, Nz, 3, 6) [N]
+    # (a, 3, 6) [N] on the active nodes: only U, the result, is kept on the full grid (each full
+    # (Nx, Ny, Nz, 3, 6) array is 130 MB on the paper cell, void nodes included)
+    F = cop.to_compact(scatter(index, table.F, sc, True)) * cop.free[..., None]
     # the six load cases in lockstep: one sweep of the voxels and one V-cycle serve all six
-    out = pcg(cop.apply, -cop.to_compact(F), H.precondition, rtol=rtol, maxiter=maxiter, project=project)
+    out = pcg(cop.apply, -F, H.precondition, rtol=rtol, maxiter=maxiter, project=project, flexible=H.flexible)
     for I in np.flatnonzero(~out.converged):
         raise ConvergenceError(f"voxel: load case {I}: relative residual {out.residual[I]:.2e} after "
                                f"{out.iterations[I]} iterations, asked {rtol:g}", history=out.history[:, I].tolist())
     U = cop.to_full(out.x)
     iters, res = out.iterations.tolist(), out.residual.tolist()
-    KU = op.apply(U)
+    KU = cop.apply(out.x)
     volume = float(np.prod(size))
     occ = index >= 0
     c_vol = np.einsum("e,eij->ij", sc[occ] * table.volume, table.C[index[occ]])  # [N mm]
-    f, u, ku = (a.reshape(-1, 6) for a in (F, U, KU))
+    f, u, ku = (a.reshape(-1, 6) for a in (F, out.x, KU))
     C_raw = (c_vol + u.T @ f) / volume
     C = (c_vol + f.T @ u + u.T @ f + u.T @ ku) / volume
     t2 = time.perf_counter()

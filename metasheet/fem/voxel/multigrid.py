@@ -8,9 +8,11 @@ Choices (measured iteration counts in ``docs/voxel.md``):
   by default) on ``[1.1 lambda_max / ratio, 1.1 lambda_max]``, ``lambda_max`` from a fixed-start
   power iteration; damped Jacobi is kept as the simple alternative. Both are symmetric, the
   same pre and post, so the V-cycle is a symmetric preconditioner;
-- coarsening "split" (an option, off by default): one coarse level only, the finest level's
-  trilinear coarse nodes split by the face-connected solid of their supports, its assembled
-  Galerkin operator solved directly (:mod:`.split`); fewer iterations on thin walls;
+- coarsening "split" (the default of :func:`~.homogenize.periodic_stiffness`, periodic cells
+  only; this function's default stays "trilinear"): below the finest level, sparse levels whose
+  trilinear coarse nodes (spacing 2^k) are split by the face-connected fine solid of their
+  supports, Galerkin, Chebyshev-smoothed, the last one factorised (:mod:`.split_hierarchy`);
+  far fewer iterations on thin walls;
 - coarsest level: a dense pseudo-inverse (eigen-decomposition) of the few hundred coarse
   unknowns. It is pseudo- rather than plain inverse because the periodic operator is
   singular: translations are exactly interpolated by ``P``, so every level keeps them in its
@@ -38,7 +40,7 @@ from .coarsen import (
 )
 from .compact import CompactOperator, compact
 from .operator import VoxelOperator, diagonal
-from .split import SplitLevel, split_level
+from .split_hierarchy import SplitHierarchy, build_split_hierarchy
 
 #: Smoothers accepted by :func:`build_hierarchy`.
 SMOOTHERS = ("chebyshev", "jacobi")
@@ -72,7 +74,7 @@ class Hierarchy:
     coarse_dofs : (c,) free dofs of the coarsest level, flat in its compact (a, 3) block;
     coarse_inverse : (c, c) pseudo-inverse;
     smoother, degree, ratio, omega : the smoother's settings;
-    sparse : coarsening "split": the sparse coarse level under the one smoothed level (then
+    sparse : coarsening "split": the sparse split levels under the one voxel level (then
         coarsest, ccoarsest, coarse_dofs and coarse_inverse are None).
     """
 
@@ -85,18 +87,23 @@ class Hierarchy:
     degree: int
     ratio: float
     omega: float
-    sparse: SplitLevel | None = None
+    sparse: SplitHierarchy | None = None
 
     @property
     def shapes(self) -> tuple[tuple[int, int, int], ...]:
-        """Voxel grid shape of every level, finest first (split: the coarse node grid last)."""
-        last = self.sparse.shape if self.sparse is not None else self.coarsest.index.shape
-        return tuple(lv.op.index.shape for lv in self.levels) + (last,)
+        """Voxel grid shape of every level, finest first (split: the node grids of the split levels)."""
+        last = self.sparse.shapes if self.sparse is not None else (self.coarsest.index.shape,)
+        return tuple(lv.op.index.shape for lv in self.levels) + last
 
     @property
     def unknowns(self) -> tuple[int, ...]:
-        last = self.sparse.n_free if self.sparse is not None else self.coarsest.n_free
-        return tuple(lv.op.n_free for lv in self.levels) + (last,)
+        last = self.sparse.unknowns if self.sparse is not None else (self.coarsest.n_free,)
+        return tuple(lv.op.n_free for lv in self.levels) + last
+
+    @property
+    def flexible(self) -> bool:
+        """The preconditioner varies with its input (split levels with K-cycles): CG must be flexible."""
+        return self.sparse is not None and self.sparse.cycle == "k"
 
     @property
     def fine(self) -> CompactOperator:
@@ -115,7 +122,8 @@ class Hierarchy:
 
 def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoother: str = "chebyshev",
                     degree: int = 2, ratio: float = 20.0, omega: float = 2.0 / 3.0,
-                    coarsest_unknowns: int = COARSEST_UNKNOWNS, coarsening: str = "trilinear") -> Hierarchy:
+                    coarsest_unknowns: int = COARSEST_UNKNOWNS, coarsening: str = "trilinear",
+                    direct_dofs: int | None = None) -> Hierarchy:
     """Coarsen ``op`` into a Galerkin hierarchy with its smoothers and coarse pseudo-inverse.
 
     Parameters
@@ -126,8 +134,11 @@ def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoot
     ratio : Chebyshev's smoothing range ``lambda_max / lambda_min`` (> 1).
     omega : Jacobi's step as a fraction of the stable ``2 / lambda_max``, in (0, 1].
     coarsest_unknowns : stop coarsening at this many unknowns.
-    coarsening : "trilinear" (voxel grids down to a dense coarsest solve) or "split" (one sparse
-        split level solved directly, :func:`~.split.split_level`; periodic, no ``fixed`` dofs).
+    coarsening : "trilinear" (voxel grids down to a dense coarsest solve) or "split" (sparse split
+        levels down to a factorised one, :func:`~.split_hierarchy.build_split_hierarchy`; periodic,
+        no ``fixed`` dofs).
+    direct_dofs : "split": factorise the first split level with at most this many unknowns
+        (None: :data:`~.split_hierarchy.DIRECT_DOFS`).
     """
     if coarsening not in COARSENINGS:
         raise ConfigError(f"coarsening: {coarsening!r}: allowed values are {', '.join(COARSENINGS)}")
@@ -141,7 +152,8 @@ def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoot
         raise ConfigError(f"omega: {omega!r}: allowed range (0, 1]")
     fixed = np.zeros(op.node_shape + (3,), bool) if fixed is None else np.asarray(fixed, bool)
     if coarsening == "split":
-        return _split_hierarchy(op, fixed, smoother, int(degree), float(ratio), float(omega))
+        return _split_hierarchy(op, fixed, smoother, int(degree), float(ratio), float(omega), direct_dofs,
+                                coarsest_unknowns)
     levels = []
     while op.n_free > coarsest_unknowns:
         dirs = choose_directions(op.index.shape, op.h, op.periodic)
@@ -167,13 +179,17 @@ def _level(op: VoxelOperator, transfer, coarse_nodes) -> Level:
     return Level(op, cop, np.ascontiguousarray(cop.to_compact(dinv)), _lambda_max(op, dinv), transfer, coarse_nodes)
 
 
-def _split_hierarchy(op, fixed, smoother, degree, ratio, omega) -> Hierarchy:
-    """Two levels: ``op`` smoothed, and its split Galerkin level solved directly."""
+def _split_hierarchy(op, fixed, smoother, degree, ratio, omega, direct_dofs, coarsest_unknowns) -> Hierarchy:
+    """``op`` smoothed, and the split levels under it (the sparse ones always Chebyshev)."""
     if not op.periodic or fixed.any():
         raise ConfigError("coarsening 'split': periodic cells without prescribed dofs only; use 'trilinear'")
+    if op.n_free <= coarsest_unknowns or not any(choose_directions(op.index.shape, op.h, op.periodic)):
+        # small enough (or too small to coarsen): one dense level, as the trilinear hierarchy
+        return build_hierarchy(op, fixed, smoother=smoother, degree=degree, ratio=ratio, omega=omega,
+                               coarsest_unknowns=coarsest_unknowns)
     lv = _level(op, None, None)
-    sparse = split_level(lv.cop)
-    return Hierarchy((Level(op, lv.cop, lv.dinv, lv.lmax, None, sparse.shape),), None, None, None, None,
+    sparse = build_split_hierarchy(lv.cop, degree=degree, ratio=ratio, direct_dofs=direct_dofs)
+    return Hierarchy((Level(op, lv.cop, lv.dinv, lv.lmax, None, sparse.shapes[0]),), None, None, None, None,
                      smoother, degree, ratio, omega, sparse)
 
 

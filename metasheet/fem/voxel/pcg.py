@@ -77,7 +77,7 @@ def translation_projector(labels: np.ndarray, n_parts: int) -> Callable[[np.ndar
 
 
 def pcg(apply: Callable, b: np.ndarray, precondition: Callable, *, rtol: float, maxiter: int,
-        project: Callable | None = None) -> PCGResult:
+        project: Callable | None = None, flexible: bool = False) -> PCGResult:
     """Solve ``K x = b`` by preconditioned CG from ``x = 0``, every column of ``b`` on its own.
 
     Parameters
@@ -87,6 +87,9 @@ def pcg(apply: Callable, b: np.ndarray, precondition: Callable, *, rtol: float, 
     precondition : r -> z, a symmetric positive-definite approximation of ``K^-1``, column-wise.
     rtol : relative residual to reach; maxiter : iteration cap.
     project : v -> v without the null space (None: K is non-singular).
+    flexible : the preconditioner may vary with r (a K-cycle): Notay's flexible CG,
+        ``beta = -(z . q) / (p . q)`` instead of ``(r . z) / (r_old . z_old)`` (equal for a fixed
+        linear preconditioner in exact arithmetic).
     """
     single = b.ndim == 2
     proj = project if project is not None else (lambda v: v)
@@ -108,7 +111,8 @@ def pcg(apply: Callable, b: np.ndarray, precondition: Callable, *, rtol: float, 
         pq = vec.dots(p, q)
         alpha = np.where(active, rz / np.where(active, pq, 1.0), 0.0)  # 0: a frozen column stays put
         vec.cg_step(x, r, p, q, alpha)  # x += alpha p; r -= alpha q
-        del q
+        if not flexible:
+            del q
         iterations += active
         hist.append(np.where(active, np.sqrt(vec.dots(r, r)) / scale, hist[-1]))
         active = active & (hist[-1] > rtol) & (iterations < maxiter)
@@ -116,7 +120,11 @@ def pcg(apply: Callable, b: np.ndarray, precondition: Callable, *, rtol: float, 
             break
         z = proj(precondition(r))
         rz_new = vec.dots(r, z)
-        beta = np.where(active, rz_new / np.where(active, rz, 1.0), 0.0)
+        if flexible:
+            beta = np.where(active, -vec.dots(z, q) / np.where(active, pq, 1.0), 0.0)
+            del q
+        else:
+            beta = np.where(active, rz_new / np.where(active, rz, 1.0), 0.0)
         vec.cg_direction(p, z, beta)  # p = z + beta p
         del z
         rz = np.where(active, rz_new, rz)

@@ -18,20 +18,18 @@ The coarse level is no longer a voxel grid, so its operator is an assembled spar
 product ``P3^T K P3`` (:func:`galerkin`). Measured on the crop (two-level, coarse level solved
 exactly): face connectivity 25 iterations, node connectivity 48, unsplit trilinear 163.
 
-:func:`split_level` makes it the multigrid's second and last level (``coarsening="split"`` in
-:func:`~.multigrid.build_hierarchy`): the Galerkin operator factorised once by SuperLU. Levels
-below it coarsened by the matrix graph alone lost most of the gain (89 iterations on the crop,
-docs/voxel.md), so there are none: the direct solve is limited to :data:`MAX_DIRECT_DOFS`.
+It is the first level of the split hierarchy (:mod:`.split_hierarchy`, ``coarsening="split"`` in
+:func:`~.multigrid.build_hierarchy`); the levels below split their supports by the same fine voxel
+faces (:mod:`.split_levels`). Levels coarsened by the matrix graph alone had lost most of the
+gain (89 iterations on the crop, docs/voxel.md).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
 from ...errors import ConfigError
@@ -55,11 +53,14 @@ class SplitProlongation:
         the 3 components: :attr:`P3`).
     position : (c, 3) int64, the coarse grid node of each copy.
     coarse_nodes : (Mx, My, Mz), the coarse node grid.
+    rep : (c,) int64, a solid voxel of each copy's part (row of ``np.argwhere(index >= 0)``):
+        where the next split level (:mod:`.split_levels`) finds the copy's part.
     """
 
     P: sp.csr_matrix
     position: np.ndarray
     coarse_nodes: tuple[int, int, int]
+    rep: np.ndarray
 
     @property
     def P3(self) -> sp.csr_matrix:
@@ -95,16 +96,18 @@ def split_prolongation(cop: CompactOperator, *, connectivity: str = "face", coar
         for d, (lo, hi, wl, wh) in enumerate(weights):
             f, target = fnode[..., d], cnode[:, a, d][:, None]
             w *= np.where(lo[f] == target, wl[f], 0.0) + np.where(hi[f] == target, wh[f], 0.0)
-        rows.append(fflat.ravel())
-        cols.append(np.repeat(part[:, a], 8))
-        vals.append(w.ravel())
-        coarse.append(np.repeat(cflat[:, a], 8))
+        keep = (w.ravel() != 0) & (fflat.ravel() >= 0)  # filtered per corner: about 0.4 of the pairs stay
+        rows.append(fflat.ravel()[keep])
+        cols.append(np.repeat(part[:, a], 8)[keep])
+        vals.append(w.ravel()[keep])
+        coarse.append(np.repeat(cflat[:, a], 8)[keep])
     R, C, V, I = map(np.concatenate, (rows, cols, vals, coarse))
-    keep = (V != 0) & (R >= 0)
-    R, C, V, I = R[keep], C[keep], V[keep], I[keep]
-    first = np.unique(np.stack([R, C]), axis=1, return_index=True)[1]  # one entry per (fine node, copy)
+    del rows, cols, vals, coarse
+    # one entry per (fine node, copy); the pairs as one int64 key sort as the (R, C) columns would
+    # (lexicographic), 10x faster than np.unique(axis=1) on the paper cell
+    first = np.unique(R * (int(C.max()) + 1) + C, return_index=True)[1]
     R, C, V, I = R[first], C[first], V[first], I[first]
-    _, which, count = np.unique(np.stack([R, I]), axis=1, return_inverse=True, return_counts=True)
+    _, which, count = np.unique(R * (int(I.max()) + 1) + I, return_inverse=True, return_counts=True)
     V = V / count[which.ravel()]  # a fine node in k copies of one coarse node: weight / k
     used, C = np.unique(C, return_inverse=True)
     P = sp.csr_matrix((V, (R, C.ravel())), (cop.size, len(used)))
@@ -112,7 +115,8 @@ def split_prolongation(cop: CompactOperator, *, connectivity: str = "face", coar
     where[part.ravel()] = cflat.ravel()
     P, first = _merge_same_support(P)
     position = np.stack(np.unravel_index(where[used][first], tuple(Nc)), 1)
-    return SplitProlongation(P, position, tuple(int(n) for n in Nc))
+    rep = np.unique(part.ravel(), return_index=True)[1] // 8  # labels are 0..n-1: first voxel of each
+    return SplitProlongation(P, position, tuple(int(n) for n in Nc), rep[used][first])
 
 
 def _merge_same_support(P: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -184,74 +188,14 @@ def galerkin(K: sp.spmatrix, split: SplitProlongation) -> sp.csr_matrix:
     return (P3.T @ K @ P3).tocsr()
 
 
-#: Largest split coarse level factorised directly (dofs). The paper cell's is estimated at about
-#: 180k (754k fine dofs, coarsening ratio about 4.2 on the crop).
-MAX_DIRECT_DOFS = 200_000
-#: Diagonal shift of the split level, relative to its diagonal [-].
+#: Diagonal shift of a factorised split level, relative to its diagonal [-].
 REGULARIZE = 1e-10
-
-
-@dataclass(frozen=True)
-class SplitLevel:
-    """The split coarse level under a fine level: transfer and an exact (pinned) solve.
-
-    Attributes
-    ----------
-    P3 : (3 a, 3 c) csr [-], prolongation (:attr:`SplitProlongation.P3`); R3 : its transpose, csr.
-    keep : (k,) int64, the coarse dofs solved; the others (one copy per connected part of the
-        coarse graph, its 3 dofs) are pinned to zero, which removes the translations of the
-        periodic operator's null space (CG projects them out on the fine level).
-    solve : (k, m) -> (k, m), ``A_keep^-1`` by a SuperLU factor (fixed order: same bits each run).
-    shape : the coarse node grid; n_free : 3 c, the coarse level's unknowns.
-    """
-
-    P3: sp.csr_matrix
-    R3: sp.csr_matrix
-    keep: np.ndarray
-    solve: Callable
-    shape: tuple[int, int, int]
-
-    @property
-    def n_free(self) -> int:
-        return self.P3.shape[1]
-
-    def correct(self, x: np.ndarray, free: np.ndarray, r: np.ndarray) -> None:
-        """``x += free P3 A^+ P3^T r`` in place; x, r : (a, 3, m) compact [mm], [N]; free : (a, 3)."""
-        m = r.shape[2]
-        rc = self.R3 @ r.reshape(-1, m)
-        xc = np.zeros_like(rc)
-        xc[self.keep] = self.solve(np.ascontiguousarray(rc[self.keep])).reshape(len(self.keep), m)
-        x += (self.P3 @ xc).reshape(x.shape) * free[..., None]
-
-
-def split_level(cop: CompactOperator, *, connectivity: str = "face",
-                max_dofs: int = MAX_DIRECT_DOFS) -> SplitLevel:
-    """The split Galerkin coarse level of ``cop`` (periodic, no prescribed dofs), factorised.
-
-    Raises ConfigError when it has more than ``max_dofs`` unknowns (use the trilinear hierarchy).
-    """
-    split = split_prolongation(cop, connectivity=connectivity)
-    if 3 * split.P.shape[1] > max_dofs:
-        raise ConfigError(f"coarsening 'split': coarse level has {3 * split.P.shape[1]} dofs, the direct "
-                          f"solve allows {max_dofs}; use coarsening 'trilinear'")
-    P3 = split.P3
-    A = galerkin(assemble(cop), split)
-    keep = _unpinned(A)
-    Ak = A[keep][:, keep]
-    # Copies can still be linearly dependent (P z = 0: fragments of parts reaching a few shared
-    # fine nodes, the 40^3 iso foam); a relative shift makes the factor regular, and the
-    # amplified z is annihilated by P on the way up.
-    Ak = (Ak + sp.diags(REGULARIZE * Ak.diagonal())).tocsr()
-    # SPD: diagonal pivots keep the symmetric ordering (fem.solvers.superlu's symmetric mode,
-    # called here directly: fem.solvers imports this package, and no two modules import each other)
-    lu = spla.splu(Ak.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    return SplitLevel(P3, P3.T.tocsr(), keep, lu.solve, split.coarse_nodes)
 
 
 def _unpinned(A: sp.csr_matrix) -> np.ndarray:
     """(k,) dofs of ``A`` (3 per copy) left after pinning the first copy of every connected part
     of its graph and every dof with a zero diagonal."""
-    n_parts, label = connected_components(A, directed=False)
+    _, label = connected_components(A, directed=False)
     copy_label = label[::3]
     first = np.unique(copy_label, return_index=True)[1]
     pinned = np.zeros(A.shape[0], bool)
