@@ -1,0 +1,418 @@
+"""Stage ``design``: search and optimise the sheets' fibre field for more rod roll (issue 45).
+
+Reads the orient stage's sheets (mesh, spiral fibres, scene) and the material stage's
+constants, and on the robot's linear rest problem (:mod:`metasheet.design.adjoint`)
+
+1. runs a multi-objective parametric search with Optuna (:mod:`metasheet.design.search`:
+   the spiral's pitch and ``n_radial`` radial corrections of the fibre angle; maximise
+   |rod roll per motor degree| and the smallest singular value of the five other DOF),
+   sampler NSGA-II or TPE with a fixed seed, ``batch`` trials at a time through the stage's
+   executor, stored in an Optuna journal so a rerun resumes from the stored trials;
+2. maximises |rod roll per degree| by L-BFGS-B with the adjoint gradient over a free-form
+   polar B-spline field starting from the orient stage's spiral (box bounds
+   +-``coefficient_deg``; ``symmetric`` ties it to the sheet's 120 deg symmetry);
+3. chooses the design of largest |roll| among the spiral, the Pareto trials and the gradient's
+   design whose other-DOF singular value is at least ``other_floor`` x the spiral's, and
+   evaluates the spiral and the chosen design on the published constants too.
+
+With ``oat_points`` and ``sobol_n`` it also writes the sensitivities of both objectives to the
+search's variables (:mod:`metasheet.design.sensitivity`): ``sensitivity.csv`` (one at a time,
+about the spiral), Sobol indices in ``design.json`` and ``sensitivity.png``.
+
+Writes ``trials.csv``, ``pareto.csv``, ``pareto.png``, ``field.png`` (spiral | gradient design
+| chosen design), ``design.json`` (objectives before and after, iterations, the chosen design's
+coefficients), ``chosen.toml`` (a pipeline of material, orient and robot with the chosen
+pitch; exact for a pitch-only design, the spiral part of a free-form one: the orient stage
+cannot take a free-form field yet) and ``study.journal`` (Optuna's journal; it carries times,
+so its bytes differ between runs; the tables do not).
+
+Resume: while the stage runs, the journal lives in ``<outputs>/.design.units/`` (outside the
+temporary workdir, so a killed run keeps its finished trials); a rerun starts from it, or
+else from the last finished run's ``design/study.journal``, when its study is the same
+(mesh, material, scene and search settings but ``n_trials``: the study's name hashes them).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import time
+from dataclasses import replace
+from typing import Literal, NamedTuple
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from ... import paper
+from ...design import outputs as out
+from ...design import search as ds
+from ...design.fibre_field import PolarBSpline, fibres_at
+from ...errors import ConfigError
+from ..artefacts import SHEET_FILES, read_material, read_orient
+from ..manifest import read_manifest, sha256_file, write_bytes_atomic, write_json_atomic
+from ..registry import Params, Stage, StageContext, register
+
+JOURNAL = "study.journal"
+
+
+class PitchBounds(NamedTuple):
+    """``[design] pitch_deg = [lo, hi]``: the search's bounds of the spiral's pitch [deg]."""
+
+    lo: float
+    hi: float
+
+
+class DesignParams(Params):
+    sampler: Literal["nsga2", "tpe"] = Field("nsga2", description="Optuna sampler of the search")
+    seed: int = Field(0, ge=0, le=2**31 - 2, description="the search's seed (each trial's sampler is seeded "
+                      "with it and the trial's number)")
+    n_trials: int = Field(16, ge=1, le=100_000, description="completed trials the search stops at; a rerun "
+                          "with more resumes from the stored ones")
+    batch: int = Field(4, ge=1, le=1024, description="trials asked at once and evaluated through the executor; "
+                       "a resumed search equals an uninterrupted one when the earlier n_trials was a multiple of it")
+    population: int = Field(8, ge=2, le=10_000, description="NSGA-II population (TPE: random startup trials, "
+                            "at most 10)")
+    pitch_deg: PitchBounds = Field(PitchBounds(5.0, 60.0), description="search bounds [lo, hi] of the spiral's "
+                                           "pitch [deg], -90 <= lo < hi <= 90")
+    n_radial: int = Field(2, ge=0, le=8, description="radial corrections of the fibre angle in the search "
+                          "(0: pitch only; else 2-8)")
+    radial_deg: float = Field(30.0, gt=0, le=90, description="bound of each radial correction [deg]")
+    gradient: bool = Field(True, description="run the free-form gradient optimisation from the spiral")
+    field_n_radial: int = Field(4, ge=2, le=32, description="free-form field: B-spline functions along r")
+    field_n_angular: int = Field(12, ge=2, le=96, description="free-form field: B-spline functions around "
+                                 "(a multiple of 3 when symmetric)")
+    field_degree: int = Field(3, ge=1, le=5, description="free-form field: B-spline degree")
+    symmetric: bool = Field(True, description="tie the free-form field to the sheet's 120 deg symmetry")
+    coefficient_deg: float = Field(45.0, gt=0, le=90, description="box bound of each free-form coefficient [deg]")
+    maxiter: int = Field(15, ge=1, le=10_000, description="L-BFGS-B iterations")
+    other_floor: float = Field(1.0, ge=0, le=10, description="the chosen design's other-DOF singular value "
+                               "must be at least this times the spiral's [-]")
+    length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
+    compare_published: bool = Field(True, description="also evaluate the spiral and the chosen design on the "
+                                    "published constants (paper.PAPER_FOAM)")
+    oat_points: int = Field(0, ge=0, le=1000, description="one-at-a-time sensitivity: values per variable about "
+                            "the spiral (0: none; else >= 2)")
+    sobol_n: int = Field(0, ge=0, le=65_536, description="Sobol indices (SALib): base samples, a power of two; "
+                         "sobol_n (k + 2) designs for k variables (0: none)")
+
+    @model_validator(mode="after")
+    def _check(self):
+        ds.SearchSpace(tuple(self.pitch_deg), self.n_radial, self.radial_deg)  # ConfigError names the field
+        if self.oat_points == 1:
+            raise ConfigError("oat_points: 1: allowed values are 0 (none) or [2, 1000]")
+        if self.sobol_n & (self.sobol_n - 1) or self.sobol_n == 1:
+            raise ConfigError(f"sobol_n: {self.sobol_n}: expected 0 (none) or a power of two in [2, 65536]")
+        try:
+            self.field_basis(70.0)
+        except ConfigError as err:
+            raise ConfigError(f"field_{err}") from None
+        return self
+
+    def field_basis(self, r_max: float) -> PolarBSpline:
+        return PolarBSpline(n_radial=self.field_n_radial, n_angular=self.field_n_angular, degree=self.field_degree,
+                            r_max=r_max, symmetric=self.symmetric)
+
+    def check_pipeline(self, table: str, params: dict) -> None:
+        """The rest problem's limits on the orient table: a uniform sheet, fibres in the plane."""
+        o = params["orient"]
+        g = o.grading
+        if g.table or g.density_expr or g.alpha_expr:
+            raise ConfigError(f"orient.grading: a graded sheet: the {table} stage supports uniform sheets only")
+        if o.tilt_deg != 0:
+            raise ConfigError(f"orient.tilt_deg: {o.tilt_deg!r}: the {table} stage turns fibres in the plane; allowed 0")
+
+
+def run(ctx: StageContext) -> dict:
+    p: DesignParams = ctx.params
+    orient, mat = read_orient(ctx.inputs["orient"]), read_material(ctx.inputs["material"])
+    if orient.graded:
+        raise ConfigError("orient.grading: a graded sheet: the design stage supports uniform sheets only")
+    # linear tetrahedra on the orient mesh whatever orient.element (the rest problem's, P1 only)
+    sheets = replace(orient.sheets(need_constants=False), element="p1")
+    sc = orient.scene
+    kw = {"model": mat.model, "rod_length": sc.rod_length, "geometry": sc.servo_geometry(),
+          "length_scale": p.length_scale}
+    fs = orient.fiber_settings
+    if float(fs.get("tilt_deg", 0.0)) != 0.0:
+        raise ConfigError(f"orient.tilt_deg: {fs['tilt_deg']!r}: the design stage turns fibres in the plane; allowed 0")
+    spiral_kw = {"law": fs["law"], "r_ref": float(fs["r_ref"])}
+    pitch0 = float(fs["pitch_deg"])
+    r_max = float(np.hypot(*sheets.sheet.points[:, :2].T).max())
+    space = ds.SearchSpace(tuple(p.pitch_deg), p.n_radial, p.radial_deg, r_max)
+    cent = sheets.sheet.centroids()
+    t0 = time.perf_counter()
+    problem = ds.rest_problem(sheets, mat.material, space.basis(), **kw)
+    spiral = ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, ((pitch0,) + (0.0,) * p.n_radial,)))[0]
+    ctx.timings["rest problem"] = round(time.perf_counter() - t0, 3)
+
+    # 1. the parametric search, resumable through the journal
+    t0 = time.perf_counter()
+    record, study = _search(ctx, space, problem, cent, spiral_kw)
+    ctx.timings["search"] = round(time.perf_counter() - t0, 3)
+    pareto = ds.pareto_mask(record.objectives)
+    names = space.names
+    write_bytes_atomic(ctx.path("trials.csv"), out.trials_table(names, record.values, record.roll, record.objectives,
+                                                                pareto).encode())
+    write_bytes_atomic(ctx.path("pareto.csv"), out.pareto_table(names, record.values, record.roll, record.objectives,
+                                                                pareto).encode())
+
+    t0 = time.perf_counter()
+    sensitivity = _sensitivities(ctx, space, problem, cent, spiral_kw, pitch0)
+    ctx.timings["sensitivity"] = round(time.perf_counter() - t0, 3)
+
+    # 2. the free-form field by L-BFGS-B and the adjoint gradient, from the spiral
+    spiral_design = {"pitch_deg": pitch0, "basis": None, "coefficients_rad": []}
+    cands = [out.Candidate("spiral", spiral.roll, spiral.other_min, spiral.singular_values, spiral_design)]
+    for i in np.flatnonzero(pareto):
+        pitch, c = space.split(record.values[i])
+        s = _scores_of(record, i, problem, cent, spiral_kw)
+        cands.append(out.Candidate(f"trial {i}", s.roll, s.other_min, s.singular_values,
+                                   {"pitch_deg": pitch, "basis": _basis_dict(space.basis()) if len(c) else None,
+                                    "coefficients_rad": c.tolist()}))
+    grad = None
+    if p.gradient:
+        t0 = time.perf_counter()
+        grad = _gradient(ctx, sheets, mat.material, kw, p.field_basis(r_max), pitch0)
+        ctx.timings["gradient"] = round(time.perf_counter() - t0, 3)
+        g = grad["scores"]
+        cands.append(out.Candidate("gradient", g.roll, g.other_min, g.singular_values, grad["design"]))
+
+    # 3. the chosen design, and the check on the published constants
+    chosen = out.choose(cands, p.other_floor * spiral.other_min)
+    published = {}
+    if p.compare_published:
+        for name, d in (("spiral", spiral_design), ("chosen", chosen.design)):
+            s = ds.design_scores(sheets, paper.PAPER_FOAM, d, spiral_kw, r_max, **kw)
+            published[name] = out.scores_record(s.roll, s.other_min, s.singular_values)
+        published["ratio_abs_roll"] = round(published["chosen"]["abs_roll_deg_per_deg"]
+                                            / published["spiral"]["abs_roll_deg_per_deg"], 6)
+    _pictures(ctx, orient, record, pareto, cands, chosen, grad, spiral_kw, r_max)
+    exact = chosen.design["basis"] is None
+    summary = {
+        "model": "linear rest problem (metasheet.design.adjoint): no gravity preload, motors at rest",
+        "units": {"roll": "deg of rod roll per deg of all six motors", "singular values": "mm/rad, of "
+                  f"diag(1,1,1,L,L,L) J, L = {p.length_scale:g} mm", "angles": "deg; coefficients rad"},
+        "objectives": {"abs_roll": "maximise |rod roll per degree| [deg/deg]",
+                       "other_min": "maximise the smallest singular value of the five DOF other than the roll "
+                       "[mm/rad]"},
+        "material": {**mat.material.to_dict(), "model": mat.model, "source": mat.source},
+        "scene": sc.scene, "n_tets_per_sheet": len(sheets.sheet.tets),
+        "element": f"p1 (the rest problem's; the orient table's: {orient.element})",
+        "spiral": {"pitch_deg": pitch0, **spiral_kw, **out.scores_record(spiral.roll, spiral.other_min,
+                                                                         spiral.singular_values)},
+        "search": {"study": study, "sampler": p.sampler, "seed": p.seed, "n_trials": len(record.values),
+                   "evaluated_this_run": int(record.evaluated), "batch": p.batch, "variables": names,
+                   "bounds_deg": space.bounds(), "pareto_trials": np.flatnonzero(pareto).tolist(),
+                   "best_abs_roll": _best(record, problem, cent, spiral_kw)},
+        "sensitivity": sensitivity,
+        "gradient": None if grad is None else grad["record"],
+        "chosen": {"name": chosen.name, **out.scores_record(chosen.roll, chosen.other_min, chosen.singular_values),
+                   "ratio_abs_roll": round(abs(chosen.roll) / abs(spiral.roll), 6),
+                   "other_floor_mm_per_rad": round(p.other_floor * spiral.other_min, 6),
+                   "design": chosen.design, "chosen_toml_reproduces": exact,
+                   "chosen_toml": "the chosen design exactly" if exact else
+                   "the chosen design's spiral (pitch) only: the orient stage cannot take a free-form field yet; "
+                   "the coefficients are design.coefficients_rad on design.basis"},
+        "published": published or None,
+    }
+    write_json_atomic(ctx.path("design.json"), summary)
+    write_bytes_atomic(ctx.path("chosen.toml"), _chosen_toml(ctx, orient, mat, chosen, exact).encode())
+    shutil.rmtree(_cache_dir(ctx), ignore_errors=True)  # the journal is in the outputs now
+    return {"spiral_roll": round(spiral.roll, 6), "chosen": chosen.name, "chosen_roll": round(chosen.roll, 6),
+            "ratio_abs_roll": summary["chosen"]["ratio_abs_roll"], "trials": len(record.values),
+            "evaluated_this_run": int(record.evaluated),
+            "gradient_roll": None if grad is None else grad["record"]["after"]["roll_deg_per_deg"]}
+
+
+def _best(record, problem, cent, spiral_kw) -> dict:
+    """The trial of largest |roll| (the first such) and its objectives."""
+    i = int(np.argmax(record.objectives[:, 0]))
+    s = _scores_of(record, i, problem, cent, spiral_kw)
+    return {"trial": i, "values_deg": [float(v) for v in record.values[i]],
+            **out.scores_record(s.roll, s.other_min, s.singular_values)}
+
+
+def _scores_of(record, i, problem, cent, spiral_kw):
+    """A stored trial's scores, re-evaluated (the journal keeps only its two objectives)."""
+    return ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, (tuple(record.values[i]),)))[0]
+
+
+def _basis_dict(b: PolarBSpline) -> dict:
+    return {"n_radial": b.n_radial, "n_angular": b.n_angular, "degree": b.degree, "r_max": b.r_max,
+            "symmetric": b.symmetric}
+
+
+def _cache_dir(ctx: StageContext):
+    return ctx.workdir.parent / f".{ctx.name}.units"
+
+
+def _study_name(ctx: StageContext) -> str:
+    """The study's name: a hash of what a trial's value depends on (the input files and the
+    search settings), not of ``n_trials``: more trials resume the same study."""
+    p: DesignParams = ctx.params
+    h = hashlib.sha256()
+    for d, f in ((ctx.inputs["orient"], SHEET_FILES["normal"]), (ctx.inputs["orient"], SHEET_FILES["mirrored"]),
+                 (ctx.inputs["orient"], "sheet.json"), (ctx.inputs["material"], "material.json")):
+        h.update(sha256_file(d / f).encode())
+    keys = ("sampler", "seed", "batch", "population", "pitch_deg", "n_radial", "radial_deg", "length_scale")
+    h.update(json.dumps({k: getattr(p, k) for k in keys}, sort_keys=True).encode())
+    return "design-" + h.hexdigest()[:16]
+
+
+def _search(ctx: StageContext, space, problem, cent, spiral_kw):
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    p: DesignParams = ctx.params
+    name, cache = _study_name(ctx), _cache_dir(ctx)
+    cache.mkdir(parents=True, exist_ok=True)
+    journal, previous = cache / JOURNAL, ctx.workdir.parent / ctx.name / JOURNAL
+    if not journal.exists() and previous.is_file():
+        shutil.copyfile(previous, journal)  # the last finished run's trials
+
+    def storage():
+        return JournalStorage(JournalFileBackend(str(journal)))
+
+    st = storage()
+    if journal.exists() and name not in optuna.get_all_study_names(st):
+        journal.unlink()  # another study (other inputs or settings): start afresh
+        st = storage()
+    record = ds.run_search(st, name, space, n_trials=p.n_trials, batch=p.batch, sampler=p.sampler, seed=p.seed,
+                           population=p.population, evaluate=lambda v: _evaluate(ctx, problem, cent, spiral_kw, v),
+                           progress=lambda d, n: ctx.progress("search trials", d, n))
+    shutil.copyfile(journal, ctx.path(JOURNAL))
+    return record, name
+
+
+def _evaluate(ctx: StageContext, problem, cent, spiral_kw, values: list, label: str = "") -> list:
+    """The :class:`~metasheet.design.search.Scores` of search designs ``values`` (variables
+    [deg]), in order: one work unit per worker (the problem travels once per unit)."""
+    workers = max(1, int(getattr(ctx.executor, "workers", 1)))
+    chunks = [c for c in np.array_split(np.arange(len(values)), min(workers, len(values))) if len(c)]
+    units = [ds.Trials(problem, cent, spiral_kw, tuple(tuple(float(x) for x in values[i]) for i in c)) for c in chunks]
+    kw = {"progress": lambda d, n: ctx.progress(label, d, n)} if label else {}
+    return [s for r in ctx.executor.map(ds.evaluate_trials, units, **kw) for s in r]
+
+
+def _sensitivities(ctx: StageContext, space, problem, cent, spiral_kw, pitch0: float) -> dict | None:
+    """One-at-a-time curves about the spiral (``sensitivity.csv``) and Sobol indices of both
+    objectives; ``sensitivity.png``. None when neither is asked for."""
+    from ...design import sensitivity as sens
+
+    p: DesignParams = ctx.params
+    if not (p.oat_points or p.sobol_n):
+        return None
+    rec, curves, sobol = {}, [], None
+    if p.oat_points:
+        lo, hi = space.bounds()[0]
+        base = np.array([min(max(pitch0, lo), hi)] + [0.0] * space.n_radial)
+        X, which = sens.oat_designs(space, base, p.oat_points)
+        S = _evaluate(ctx, problem, cent, spiral_kw, list(X), "one-at-a-time designs")
+        rows = [[space.names[w], *x, s.roll, *s.objectives] for w, x, s in zip(which, X, S)]
+        text = out.csv_text(["variable", *space.names, "roll_deg_per_deg", "abs_roll_deg_per_deg",
+                             "other_min_mm_per_rad"], rows)
+        write_bytes_atomic(ctx.path("sensitivity.csv"), text.encode())
+        for i, name in enumerate(space.names):
+            m = which == i
+            curves.append((name, X[m, i], np.array([s.objectives[0] for s, k in zip(S, m) if k]),
+                           np.array([s.objectives[1] for s, k in zip(S, m) if k])))
+        rec["one_at_a_time"] = {"base_deg": base.tolist(), "points": p.oat_points, "file": "sensitivity.csv",
+                                "range_abs_roll": {c[0]: out._r(np.ptp(c[2])) for c in curves},
+                                "range_other_min": {c[0]: out._r(np.ptp(c[3])) for c in curves}}
+    if p.sobol_n:
+        X = sens.sobol_designs(space, p.sobol_n, p.seed)
+        F = np.array([s.objectives for s in _evaluate(ctx, problem, cent, spiral_kw, list(X), "Sobol designs")])
+        sobol = {o: sens.sobol_indices(space, F[:, j], p.seed).to_dict() for j, o in enumerate(ds.OBJECTIVES)}
+        rec["sobol"] = {"method": "SALib Saltelli / Sobol, first-order and total, bootstrap 95 %", "n": p.sobol_n,
+                        "designs": len(X), "indices": sobol}
+    from ...viz.design import sensitivity_picture
+
+    ctx.path("sensitivity.png").write_bytes(sensitivity_picture(curves, sobol))
+    return rec
+
+
+def _gradient(ctx: StageContext, sheets, material, kw: dict, basis: PolarBSpline, pitch0: float) -> dict:
+    """L-BFGS-B on |rod roll per degree| with the adjoint gradient, from the spiral (c = 0)."""
+    from scipy.optimize import minimize
+
+    p: DesignParams = ctx.params
+    problem = ds.rest_problem(sheets, material, basis, **kw)
+    c0 = np.zeros(problem.n_coefficients)
+    before = ds.scores(problem, c0)
+    sign = 1.0 if before.roll >= 0 else -1.0  # more roll in the spiral's own sense
+    history, count = [], [0]
+
+    def f(c):
+        s = ds.roll_sensitivity(problem, c)
+        count[0] += 1
+        return -sign * s.value, -sign * s.gradient
+
+    def step(intermediate_result):
+        history.append(round(-sign * float(intermediate_result.fun), 6))
+        ctx.progress("gradient iterations", len(history), p.maxiter)
+
+    b = np.radians(p.coefficient_deg)
+    res = minimize(f, c0, jac=True, method="L-BFGS-B", bounds=[(-b, b)] * len(c0), callback=step,
+                   options={"maxiter": p.maxiter})
+    after = ds.scores(problem, res.x)
+    design = {"pitch_deg": pitch0, "basis": _basis_dict(basis), "coefficients_rad": [float(v) for v in res.x]}
+    record = {"method": "L-BFGS-B, adjoint gradient of the rod roll per degree", "start": "the orient stage's spiral",
+              "n_coefficients": len(c0), "bound_deg": p.coefficient_deg, "basis": _basis_dict(basis),
+              "iterations": int(res.nit), "evaluations": int(count[0]), "message": str(res.message),
+              "at_bounds": int(np.sum(np.abs(np.abs(res.x) - b) < 1e-9)),
+              "roll_per_iteration": history,
+              "before": out.scores_record(before.roll, before.other_min, before.singular_values),
+              "after": out.scores_record(after.roll, after.other_min, after.singular_values),
+              "ratio_abs_roll": round(abs(after.roll) / abs(before.roll), 6)}
+    return {"scores": after, "design": design, "record": record}
+
+
+def _pictures(ctx, orient, record, pareto, cands, chosen, grad, spiral_kw, r_max) -> None:
+    from ...sheet import geometry as geo
+    from ...viz.design import field_picture, pareto_picture
+
+    marks = [("spiral (start)", abs(cands[0].roll), cands[0].other_min, "s")]
+    if grad is not None:
+        marks.append(("gradient (free-form)", abs(grad["scores"].roll), grad["scores"].other_min, "D"))
+    marks.append((f"chosen: {chosen.name}", abs(chosen.roll), chosen.other_min, "*"))
+    ctx.path("pareto.png").write_bytes(pareto_picture(record.objectives, pareto, marks))
+
+    def fn(design):
+        return lambda q: fibres_at(ds.design_angles(q, design, spiral_kw))
+
+    sp = orient.sheet_params
+    grips = orient.normal.mesh.points[orient.normal.mesh.attach > 0]
+    panels = [(f"spiral, pitch {cands[0].design['pitch_deg']:g} deg: roll {cands[0].roll:.3f}", fn(cands[0].design),
+               grips)]
+    if grad is not None and chosen.name != "gradient":
+        panels.append((f"gradient design: roll {grad['scores'].roll:.3f}", fn(grad["design"]), grips))
+    panels.append((f"chosen ({chosen.name}): roll {chosen.roll:.3f}", fn(chosen.design), grips))
+    ctx.path("field.png").write_bytes(field_picture(geo.outline_polygon(sp), sp.hole_radius, panels))
+
+
+def _chosen_toml(ctx: StageContext, orient, mat, chosen, exact: bool) -> str:
+    """A pipeline (material, orient, robot) of the chosen design: the material's constants as
+    given, the orient stage's table with the chosen pitch."""
+    man = read_manifest(ctx.inputs["orient"]) or {}
+    o = dict(man.get("params") or {"scene": orient.scene.scene, "element": orient.element,
+                                   "mesh_size": orient.sheet_params.mesh_size, **orient.fiber_settings})
+    o["pitch_deg"] = float(chosen.design["pitch_deg"])
+    name = f"{man.get('pipeline', 'design')}_chosen"
+    m = {"source": "config", "kind": "transverse", **mat.material.to_dict(), "density": mat.density, "model": mat.model}
+    note = ("exactly: a spiral of this pitch." if exact else
+            "only in its spiral part: the chosen\ndesign adds a free-form correction (design.json's "
+            "chosen.design: coefficients on a\npolar B-spline) that the orient stage cannot take yet.")
+    comment = (f"The design stage's chosen design ({chosen.name}: rod roll per degree {chosen.roll:.6g} on the\n"
+               f"linear rest problem). This pipeline reproduces it {note}\n"
+               "metasheet run design/chosen.toml builds its robot (the robot stage: jacobian.json).")
+    return out.toml_text(comment, {"pipeline": {"name": name, "stages": ["material", "orient", "robot"]},
+                                   "material": m, "orient": o})
+
+
+register(Stage(
+    name="design", params=DesignParams, run=run, requires=("orient", "material"),
+    outputs=("trials.csv", "pareto.csv", "pareto.png", "field.png", "design.json", "chosen.toml", JOURNAL),
+    doc="fibre design: Optuna search (pitch, radial field) and adjoint L-BFGS-B (free-form field) for more rod roll",
+))

@@ -1,0 +1,139 @@
+"""The design stage end to end on the coarse robot (material -> orient -> design, seconds):
+outputs, resume, same bytes, the gradient's gain, the check on the published constants, and
+bad [design] values named."""
+
+import csv
+import json
+import tomllib
+
+import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
+
+# isort: split
+import pytest
+
+from metasheet.errors import ConfigError
+from metasheet.pipeline.config import load_pipeline
+from metasheet.pipeline.runner import run_pipeline
+
+# not the published constants, so the check on them is a second constant set
+BASE = """
+[pipeline]
+name = "d"
+stages = ["material", "orient", "design"]
+
+[material]
+source = "config"
+E_l = 0.2
+
+[orient]
+scene = "authors"
+mesh_size = 15.0
+element = "p1"
+
+[design]
+{design}
+"""
+DESIGN = {"n_trials": "8", "batch": "4", "population": "4", "n_radial": "2", "maxiter": "5", "oat_points": "3",
+          "sobol_n": "8"}
+
+
+def _pipeline(tmp_path, n=8, extra="", name="p.toml"):
+    f = tmp_path / name
+    table = {**DESIGN, "n_trials": str(n)}
+    if extra:  # one "key = value" line replaces the default's
+        k, v = (x.strip() for x in extra.split("=", 1))
+        table[k] = v
+    f.write_text(BASE.format(design="\n".join(f"{k} = {v}" for k, v in table.items())))
+    return load_pipeline(f)
+
+
+def _run(tmp_path, out, n=8, extra=""):
+    run_pipeline(_pipeline(tmp_path, n, extra), out_root=out)
+    return out / "d" / "design"
+
+
+@pytest.fixture(scope="module")
+def first(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("design")
+    d = _run(tmp, tmp / "out")
+    return tmp, d, {f: (d / f).read_bytes() for f in ("trials.csv", "pareto.csv", "design.json")}
+
+
+def test_outputs(first):
+    _, d, _ = first
+    for f in ("trials.csv", "pareto.csv", "pareto.png", "field.png", "design.json", "chosen.toml", "study.journal",
+              "sensitivity.csv", "sensitivity.png"):
+        assert (d / f).is_file(), f
+    rows = list(csv.DictReader((d / "trials.csv").open()))
+    assert len(rows) == 8 and {"pitch_deg", "radial_0_deg", "radial_1_deg", "abs_roll_deg_per_deg",
+                               "other_min_mm_per_rad", "pareto"} <= set(rows[0])
+    assert all(5.0 <= float(r["pitch_deg"]) <= 60.0 for r in rows)
+    s = json.loads((d / "design.json").read_text())
+    assert s["search"]["n_trials"] == 8 and s["search"]["evaluated_this_run"] == 8
+    sobol = s["sensitivity"]["sobol"]
+    assert sobol["designs"] == 8 * (3 + 2) and set(sobol["indices"]) == {"roll", "other_min"}
+    assert set(sobol["indices"]["roll"]) == {"pitch_deg", "radial_0_deg", "radial_1_deg"}
+    assert len((d / "sensitivity.csv").read_text().splitlines()) == 1 + 3 * 3
+    assert s["published"]["spiral"]["abs_roll_deg_per_deg"] != s["spiral"]["abs_roll_deg_per_deg"]
+    assert s["published"]["ratio_abs_roll"] > 1.0  # the gain holds on the published constants too
+    chosen = tomllib.loads((d / "chosen.toml").read_text())
+    assert chosen["orient"]["pitch_deg"] == s["chosen"]["design"]["pitch_deg"]
+    assert chosen["material"]["E_l"] == 0.2
+    f = d.parent.parent / "chosen.toml"
+    f.write_text((d / "chosen.toml").read_text())
+    assert load_pipeline(f).section.stages == ["material", "orient", "robot"]  # a valid pipeline
+
+
+def test_gradient_improves_the_spiral(first):
+    s = json.loads((first[1] / "design.json").read_text())
+    g = s["gradient"]
+    assert g["iterations"] >= 1 and g["before"] == {k: v for k, v in s["spiral"].items() if k in g["before"]}
+    assert g["after"]["abs_roll_deg_per_deg"] > 1.3 * g["before"]["abs_roll_deg_per_deg"]
+    assert abs(s["chosen"]["roll_deg_per_deg"]) >= g["after"]["abs_roll_deg_per_deg"] - 1e-12 or \
+        s["chosen"]["name"] != "gradient"
+    assert s["chosen"]["other_min_mm_per_rad"] >= s["spiral"]["other_min_mm_per_rad"]
+
+
+def test_resume_and_same_bytes(first):
+    tmp, _, before = first
+    # twice the trials in the same outputs: the first 8 come from the journal, 8 are new
+    d2 = _run(tmp, tmp / "out", n=16)
+    s = json.loads((d2 / "design.json").read_text())
+    assert s["search"]["n_trials"] == 16 and s["search"]["evaluated_this_run"] == 8
+    old, new = before["trials.csv"].decode().splitlines(), (d2 / "trials.csv").read_text().splitlines()
+    strip = lambda line: line.rsplit(",", 1)[0]  # the pareto flag may change with more trials
+    assert [strip(x) for x in new[:9]] == [strip(x) for x in old]
+    assert not (tmp / "out" / "d" / ".design.units").exists()  # the journal is in the outputs now
+    # the same config from scratch elsewhere: the same bytes as the resumed run
+    d3 = _run(tmp, tmp / "fresh", n=16)
+    for f in ("trials.csv", "pareto.csv", "sensitivity.csv"):
+        assert (d3 / f).read_bytes() == (d2 / f).read_bytes(), f
+    a, b = (json.loads((x / "design.json").read_text()) for x in (d2, d3))
+    a["search"].pop("evaluated_this_run"), b["search"].pop("evaluated_this_run")
+    assert a == b
+
+
+@pytest.mark.parametrize("extra, field", [
+    ("pitch_deg = [50.0, 10.0]", "pitch_deg"),
+    ("pitch_deg = [-95.0, 10.0]", "pitch_deg"),
+    ("n_radial = 1", "n_radial"),
+    ("radial_deg = 0.0", "radial_deg"),
+    ('sampler = "cmaes"', "sampler"),
+    ("field_n_angular = 10", "field_n_angular"),
+    ("field_n_radial = 3", "field_n_radial"),
+    ("coefficient_deg = 120.0", "coefficient_deg"),
+    ("n_trials = 0", "n_trials"),
+    ("oat_points = 1", "oat_points"),
+    ("sobol_n = 12", "sobol_n"),
+    ("colour = 1", "colour"),
+])
+def test_bad_design_values_name_the_field(tmp_path, extra, field):
+    with pytest.raises(ConfigError, match=field):
+        _pipeline(tmp_path, extra=extra)
+
+
+def test_graded_sheets_refused(tmp_path):
+    f = tmp_path / "p.toml"
+    f.write_text(BASE.format(design="") + '\n[orient.grading]\ntable = { hub = { density = 0.2 } }\n')
+    with pytest.raises(ConfigError, match="orient.grading"):
+        load_pipeline(f)
