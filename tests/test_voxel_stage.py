@@ -93,3 +93,17 @@ def test_homogenisation_same_bits_on_one_and_two_threads():
     finally:
         numba.set_num_threads(before)
     assert np.array_equal(a.C, b.C) and np.array_equal(a.U, b.U) and a.iterations == b.iterations
+
+
+def test_auto_goes_matrix_free_from_the_threshold(monkeypatch):
+    """"auto" picks the voxel solver from VOXEL_AUTO_DOFS unknowns, with the direct path's C*."""
+    from metasheet.homogenize import voxels as hv
+    from metasheet.homogenize.voxels import homogenize_voxels
+
+    ph = _foam(12, 3)
+    size = np.array([1.5, 1.5, 1.5])
+    below = homogenize_voxels(ph, size, {1: TPU}, solver="auto", rtol=1e-10, localise=False)
+    monkeypatch.setattr(hv, "VOXEL_AUTO_DOFS", 10)
+    above = homogenize_voxels(ph, size, {1: TPU}, solver="auto", rtol=1e-10, localise=False)
+    assert below.solver != "voxel" and above.solver == "voxel"
+    assert np.linalg.norm(above.C - below.C) / np.linalg.norm(below.C) < 1e-8

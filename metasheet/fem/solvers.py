@@ -233,9 +233,14 @@ HAVE_CHOLMOD = available("cholmod")
 #: What :func:`solve_spd` accepts: a policy, or one back-end by name (benchmarks, comparisons).
 SPD_SOLVERS = ("auto", "direct", "amg", *BACKENDS)
 #: Matrix-free solvers of voxel grids (:mod:`metasheet.fem.voxel`): they never see an assembled
-#: matrix, so they are chosen before assembly (:func:`solve_voxel_correctors`), by name only
-#: ("auto" does not pick them: not yet measured against PARDISO at the sizes it serves).
+#: matrix, so they are chosen before assembly (:func:`solve_voxel_correctors`).
 GRID_SOLVERS = ("voxel",)
+#: "auto" homogenises a voxel cell matrix-free from this many unknowns (3 per grid node the
+#: solid touches). Measured against PARDISO in the same run (docs/voxel.md, benchmarks/results/
+#: bench_voxel_solver.md): a tie at 67k unknowns, 0.55 of its time at 154k, 0.36-0.52 at 754k
+#: (the paper's cell), with 0.15-0.5 of its memory; PARDISO's fill grows as n^(4/3) and no
+#: longer fits 24 GB at a few million.
+VOXEL_AUTO_DOFS = 150_000
 #: What the voxel homogenisation accepts: the SPD solvers and the grid solvers.
 HOMOGENIZE_SOLVERS = (*SPD_SOLVERS, *GRID_SOLVERS)
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..fem.assembly import SparsityPattern, element_dofs
-from ..fem.solvers import GRID_SOLVERS, solve_voxel_correctors
+from ..fem.solvers import GRID_SOLVERS, VOXEL_AUTO_DOFS, solve_voxel_correctors
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices
 from .corrector import check_and_fit, material_stiffness, solve_correctors, symmetry_error
 from .localisation import localisation
@@ -86,7 +86,8 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     materials : dict phase -> :class:`~metasheet.material.Isotropic` or
         :class:`~metasheet.material.TransverseIsotropic` (its axis 3 = global z).
     solver : "auto", "direct" or "amg" (:func:`metasheet.fem.solvers.solve_spd`), or "voxel"
-        (matrix-free multigrid CG, :func:`metasheet.fem.solvers.solve_voxel_correctors`).
+        (matrix-free multigrid CG, :func:`metasheet.fem.solvers.solve_voxel_correctors`);
+        "auto" takes "voxel" from :data:`~metasheet.fem.solvers.VOXEL_AUTO_DOFS` unknowns.
     rtol : relative residual asked of the linear solver; ``C`` is computed in energy
         form, so its relative error is of the order of rtol squared times the condition.
     axis : (3,) the transverse-isotropic fit's axis, or None to search the best one.
@@ -115,13 +116,20 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     Fe = np.array([m[1] for m in mats])
     Bm = np.array([m[2] for m in mats])
     volume = float(np.prod(size))
-    if solver in GRID_SOLVERS:  # matrix-free on the grid: nothing to assemble
+    grid = solver in GRID_SOLVERS or (solver == "auto" and 3 * len(grid_nodes) >= VOXEL_AUTO_DOFS)
+    if grid:  # matrix-free on the grid: nothing to assemble
         dofs = element_dofs(nodes)
         t1 = time.perf_counter()
-        C, C_raw, U_grid, report = solve_voxel_correctors(np.where(keep, ph, 0), size, dict(zip(present, Cs)),
-                                                          solver=solver, rtol=rtol)
-        U = U_grid.reshape(-1, 3, 6)[grid_nodes].reshape(-1, 6)
-    else:
+        try:
+            C, C_raw, U_grid, report = solve_voxel_correctors(np.where(keep, ph, 0), size, dict(zip(present, Cs)),
+                                                              solver="voxel" if solver == "auto" else solver,
+                                                              rtol=rtol)
+            U = U_grid.reshape(-1, 3, 6)[grid_nodes].reshape(-1, 6)
+        except ConfigError:  # a cell the split coarsening refuses: "auto" assembles instead
+            if solver != "auto":
+                raise
+            grid = False
+    if not grid:
         pattern = SparsityPattern.from_elements(nodes, len(grid_nodes))
         dofs = pattern.dofs
         K = pattern.assemble(Ke, kind)
