@@ -10,13 +10,12 @@ is the voxel file's bytes, the same arrays giving the same bytes; the caller wri
 
 from __future__ import annotations
 
-import io
 import os
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from ..npz import npz_bytes
 from . import figure_png, one_at_a_time
 
 # phase colours: outside, foam void, foam wall, solid brush (RGBA)
@@ -90,19 +89,10 @@ def printed_foam_picture(phases: np.ndarray, region: np.ndarray, origin, voxel_m
 
 
 def voxel_npz_bytes(**arrays: np.ndarray) -> bytes:
-    """An uncompressed ``.npz`` of ``arrays`` (name -> array) with fixed member timestamps and
-    modes: the same arrays give the same bytes (``numpy.savez`` stamps the current time).
-    The printed foam's file holds ``phases`` (nx, ny, nz) uint8, ``region`` (nx, ny, nz) uint8,
-    ``size`` (3,) [mm], ``origin`` (3,) [mm] and ``voxel_mm`` (3,) [mm]."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
-        for name, arr in arrays.items():
-            member = io.BytesIO()
-            np.lib.format.write_array(member, np.ascontiguousarray(arr), allow_pickle=False)
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.external_attr = 0o644 << 16
-            zf.writestr(info, member.getvalue())
-    return buf.getvalue()
+    """The printed foam's byte-stable ``.npz`` (:func:`metasheet.npz.npz_bytes`): ``phases``
+    (nx, ny, nz) uint8, ``region`` (nx, ny, nz) uint8, ``size`` (3,) [mm], ``origin`` (3,) [mm]
+    and ``voxel_mm`` (3,) [mm]."""
+    return npz_bytes(**arrays)
 
 
 def printed_foam_npz(foam) -> bytes:

@@ -15,10 +15,8 @@ Writes into ``outputs/<pipeline>/cell/``:
 
 from __future__ import annotations
 
-import io
 import json
 import tomllib
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +25,7 @@ from pydantic import Field
 from ...cells.design import CellResult, FoamDesign, LaminateDesign, design_cell, parse_design
 from ...cells.polyfoam import PolyfoamDesign
 from ...errors import ConfigError, MeshError
+from ...npz import write_npz
 from ..manifest import sha256_file, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
@@ -61,20 +60,6 @@ def load_design(root: Path, p: CellParams):
     overrides = {"resolution": p.resolution, "seed": p.seed, "relative_density": p.relative_density,
                  "voxel_mm": p.voxel_mm}
     return parse_design(data, overrides=overrides, source=p.design), path
-
-
-def write_npz(path: Path, **arrays: np.ndarray) -> None:
-    """An uncompressed ``.npz`` with fixed member timestamps: same arrays, same bytes.
-
-    (``numpy.savez`` stamps each member with the current time.)
-    """
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_STORED) as zf:
-        for name, arr in arrays.items():
-            buf = io.BytesIO()
-            np.lib.format.write_array(buf, np.ascontiguousarray(arr), allow_pickle=False)
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.external_attr = 0o644 << 16
-            zf.writestr(info, buf.getvalue())
 
 
 def _box_surface(size: np.ndarray):
