@@ -74,7 +74,13 @@ def kinematics(lin: Linearization, *, length_scale: float = 50.0) -> Kinematics:
     (a rotation of 1 rad counts like a displacement of ``length_scale`` mm), so that
     translations and rotations are comparable; 50 mm ~ the sheet's arm length.
     """
-    W, J = jacobian_from_schur(lin.S)
+    return kinematics_from_schur(lin.S, length_scale=length_scale)
+
+
+def kinematics_from_schur(S: np.ndarray, *, length_scale: float = 50.0) -> Kinematics:
+    """:func:`kinematics` from a condensed matrix S (6 + na, 6 + na) however it was obtained
+    (e.g. from condensed sheets, :mod:`.condensed`)."""
+    W, J = jacobian_from_schur(S)
     scale = np.array([1.0, 1.0, 1.0, length_scale, length_scale, length_scale])
     sv = np.linalg.svd(scale[:, None] * J, compute_uv=False)
     to_deg = np.array([1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi, 180.0 / np.pi])

@@ -139,7 +139,9 @@ def grade(
         rho = evaluate(density_expr, c, "grading.density_expr")
     if alpha_expr:
         alp = evaluate(alpha_expr, c, "grading.alpha_expr")
-    for field, v, lo, hi in (("density", rho, 0.0, 1.0), ("alpha", alp, 0.0, 100.0)):
+    # the uniform material's own alpha is allowed below 0 (E_l > E_t: apparent constants, say);
+    # graded values come from the chart, whose alphas lie in [0, 100)
+    for field, v, lo, hi in (("density", rho, 0.0, 1.0), ("alpha", alp, min(0.0, float(alpha)), 100.0)):
         worst = v[np.argmax(np.maximum(lo - v, v - hi))]
         check_range(f"grading.{field}", worst, lo, hi, lo_open=(field == "density"), hi_open=(field == "alpha"))
     return Grading(rho, alp, ids, names)

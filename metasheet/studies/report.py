@@ -15,6 +15,7 @@ from .constants_report import constants_section
 from .convergence_report import convergence_section
 from .model_report import model_section
 from .reduce_report import reduce_section
+from .sheet_report import sheet_dns_section
 from .uncertainty_report import print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
 
 
@@ -131,6 +132,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
             flat += [(f"{k}: {k2}", v2) for k2, v2 in sorted(v.items())] if isinstance(v, dict) else [(k, v)]
         pic = [f"![robot]({pictures['robot']})", ""] if "robot" in pictures else []
         lines += ["## Robot, silicone vs foam (reproduces paper Fig. 4 and Fig. 8)", "", *pic, _table(flat), ""]
+    section, found = sheet_dns_section(s.get("sheet_dns"), pictures, s.get("material"))
+    lines += section
+    diffs += found
     section, found = model_section(s.get("robot"), s.get("anisotropy"))
     lines += section
     diffs += found

@@ -8,8 +8,9 @@ Choices (measured iteration counts in ``docs/voxel.md``):
   by default) on ``[1.1 lambda_max / ratio, 1.1 lambda_max]``, ``lambda_max`` from a fixed-start
   power iteration; damped Jacobi is kept as the simple alternative. Both are symmetric, the
   same pre and post, so the V-cycle is a symmetric preconditioner;
-- coarsening "split" (the default of :func:`~.homogenize.periodic_stiffness`, periodic cells
-  only; this function's default stays "trilinear"): below the finest level, sparse levels whose
+- coarsening "split" (the default of :func:`~.homogenize.periodic_stiffness`; periodic cells
+  without prescribed dofs, or non-periodic bodies whose prescribed dofs hold every face-connected
+  solid piece; this function's default stays "trilinear"): below the finest level, sparse levels whose
   trilinear coarse nodes (spacing 2^k) are split by the face-connected fine solid of their
   supports, Galerkin, Chebyshev-smoothed, the last one factorised (:mod:`.split_hierarchy`);
   far fewer iterations on thin walls;
@@ -29,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from ...errors import ConfigError
 from . import vectors as vec
@@ -135,8 +137,8 @@ def build_hierarchy(op: VoxelOperator, fixed: np.ndarray | None = None, *, smoot
     omega : Jacobi's step as a fraction of the stable ``2 / lambda_max``, in (0, 1].
     coarsest_unknowns : stop coarsening at this many unknowns.
     coarsening : "trilinear" (voxel grids down to a dense coarsest solve) or "split" (sparse split
-        levels down to a factorised one, :func:`~.split_hierarchy.build_split_hierarchy`; periodic,
-        no ``fixed`` dofs).
+        levels down to a factorised one, :func:`~.split_hierarchy.build_split_hierarchy`; periodic
+        without ``fixed`` dofs, or non-periodic with ``fixed`` dofs on every face-connected solid piece).
     direct_dofs : "split": factorise the first split level with at most this many unknowns
         (None: :data:`~.split_hierarchy.DIRECT_DOFS`).
     """
@@ -180,17 +182,43 @@ def _level(op: VoxelOperator, transfer, coarse_nodes) -> Level:
 
 
 def _split_hierarchy(op, fixed, smoother, degree, ratio, omega, direct_dofs, coarsest_unknowns) -> Hierarchy:
-    """``op`` smoothed, and the split levels under it (the sparse ones always Chebyshev)."""
-    if not op.periodic or fixed.any():
-        raise ConfigError("coarsening 'split': periodic cells without prescribed dofs only; use 'trilinear'")
+    """``op`` smoothed, and the split levels under it (the sparse ones always Chebyshev). A periodic
+    cell's bottom level pins each part's translations; a body held by prescribed dofs pins nothing."""
+    if op.periodic == bool(fixed.any()):
+        raise ConfigError("coarsening 'split': periodic cells without prescribed dofs, or non-periodic grids "
+                          "with prescribed (clamped or tied) dofs only; use 'trilinear'")
+    if not op.periodic:
+        _check_held(op.index, fixed)
     if op.n_free <= coarsest_unknowns or not any(choose_directions(op.index.shape, op.h, op.periodic)):
         # small enough (or too small to coarsen): one dense level, as the trilinear hierarchy
         return build_hierarchy(op, fixed, smoother=smoother, degree=degree, ratio=ratio, omega=omega,
                                coarsest_unknowns=coarsest_unknowns)
     lv = _level(op, None, None)
-    sparse = build_split_hierarchy(lv.cop, degree=degree, ratio=ratio, direct_dofs=direct_dofs)
+    sparse = build_split_hierarchy(lv.cop, degree=degree, ratio=ratio, direct_dofs=direct_dofs,
+                                   pin_parts=op.periodic)
     return Hierarchy((Level(op, lv.cop, lv.dinv, lv.lmax, None, sparse.shapes[0]),), None, None, None, None,
                      smoother, degree, ratio, omega, sparse)
+
+
+def _check_held(index: np.ndarray, fixed: np.ndarray) -> None:
+    """Refuse a non-periodic grid with a face-connected solid piece that touches no prescribed dof.
+
+    Such a piece floats (or hangs on an edge or corner hinge): the operator is singular, and the
+    split bottom level, factorised without pinning, would be too. The caller drops those pieces
+    first (:func:`~.grips.held_solid`); this is the assertion that it did."""
+    solid = index >= 0
+    label, n = ndimage.label(solid)  # 6-connectivity: pieces joined through faces only
+    held = np.zeros(n + 1, bool)
+    touching = fixed.any(axis=3)
+    nx, ny, nz = index.shape
+    for a in range(8):  # the voxels whose corner a is prescribed
+        ax, ay, az = a & 1, (a >> 1) & 1, (a >> 2) & 1
+        held[label[touching[ax:ax + nx, ay:ay + ny, az:az + nz] & solid]] = True
+    loose = int(n - held[1:].sum())
+    if loose:
+        raise ConfigError(f"coarsening 'split': {loose} of {n} face-connected solid pieces touch no prescribed "
+                          "dof (they float: a singular operator); keep only the held pieces "
+                          "(metasheet.fem.voxel.grips.held_solid) or use 'trilinear'")
 
 
 def _lambda_max(op: VoxelOperator, dinv: np.ndarray, steps: int = 12) -> float:

@@ -4,8 +4,11 @@ Level 1 is :func:`~.split.split_prolongation`'s face-split trilinear space, leve
 split on the grid of spacing 2^k (:mod:`.split_levels`). Every level's operator is Galerkin,
 ``A_k = P_k^T A_(k-1) P_k`` (``A_0 = K``), assembled as 3 x 3 block matrices (:mod:`.blocks`);
 level 1's is built from the fine voxels cell by cell, without the fine matrix. Levels are added
-until one has at most ``direct_dofs`` unknowns, which is factorised once (SuperLU, one copy per
-connected part of its graph pinned: the translations). The levels above it are smoothed like the
+until one has at most ``direct_dofs`` unknowns, which is factorised once (SuperLU; on a periodic
+cell one copy per connected part of its graph pinned: the translations; on a body with prescribed
+dofs nothing, since every solid piece touches one and the operator is non-singular). Prescribed
+dofs are not in the fine compact operator's ``free``: level 1 interpolates onto the free dofs
+only, and copies that would reach no free dof do not exist. The levels above it are smoothed like the
 fine level: Chebyshev of degree ``degree`` on ``D^-1 A`` over ``[1.1 lmax / ratio, 1.1 lmax]``,
 the same before and after the coarse correction.
 
@@ -155,12 +158,16 @@ class SplitHierarchy:
 
 
 def build_split_hierarchy(cop: CompactOperator, *, degree: int = 2, ratio: float = 20.0,
-                          direct_dofs: int | None = None, max_levels: int = 12, cycle: str = "k") -> SplitHierarchy:
-    """The split levels under ``cop`` (periodic, no prescribed dofs), down to a direct solve.
+                          direct_dofs: int | None = None, max_levels: int = 12, cycle: str = "k",
+                          pin_parts: bool | None = None) -> SplitHierarchy:
+    """The split levels under ``cop``, down to a direct solve: a periodic cell without prescribed
+    dofs, or a non-periodic body whose prescribed dofs (``cop.free`` 0) hold every solid piece.
 
     Parameters
     ----------
     cop : the finest level on compact vectors; degree, ratio : the sparse levels' Chebyshev smoother.
+    pin_parts : pin one copy per connected part of the bottom level (its translations; None: the
+        grid is periodic). False: factorise it as it is (held by prescribed dofs).
     direct_dofs : factorise the first level with at most this many unknowns (None: :data:`DIRECT_DOFS`).
     max_levels : at most this many split levels (the last is factorised whatever its size).
     cycle : "k" (K-cycle on every split level, the default) or "v" (V-cycle).
@@ -175,6 +182,10 @@ def build_split_hierarchy(cop: CompactOperator, *, degree: int = 2, ratio: float
     sw = op.sweep
     cflat = (grid.cell[:, 0] * grid.shape[1] + grid.cell[:, 1]) * grid.shape[2] + grid.cell[:, 2]
     A = galerkin_voxels(cop.nodes, sw.matrix, sw.scale, op.matrices, cop.free, cflat, split.P)
+    if cop.nodes.min() < 0:
+        # prescribed corners (compact -1) enter galerkin_voxels' pattern as node 0: empty blocks that
+        # would couple node 0's copies to every cell with a prescribed corner, on every level
+        A = drop_empty_blocks(*A)
     raw = [(A, split.P, grid.nodes)]
     copies = Copies(split.position.astype(np.int64), split.rep.astype(np.int64))
     while 3 * len(copies.rep) > direct_dofs and len(raw) < max_levels:
@@ -198,16 +209,28 @@ def build_split_hierarchy(cop: CompactOperator, *, degree: int = 2, ratio: float
         dinv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 0.0)
         lmax = _lambda_max(indptr, indices, data, dinv) if smoothed else 0.0
         levels.append(SparseLevel(indptr, indices, data, P, P.T.tocsr(), dinv, lmax, tuple(int(n) for n in nodes)))
-    keep, solve = factor_pinned(to_bsr(*raw[-1][0]).tocsr())
+    pin = op.periodic if pin_parts is None else bool(pin_parts)
+    keep, solve = factor_pinned(to_bsr(*raw[-1][0]).tocsr(), pin_parts=pin)
     return SplitHierarchy(tuple(levels), keep, solve, int(degree), float(ratio), cycle)
 
 
-def factor_pinned(A: sp.csr_matrix) -> tuple[np.ndarray, Callable]:
+def drop_empty_blocks(indptr, indices, data):
+    """The BSR triple without its all-zero off-diagonal blocks (adding 0 changes no product)."""
+    n = len(indptr) - 1
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    keep = np.any(data != 0, axis=(1, 2)) | (indices == rows)
+    ptr = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(rows[keep], minlength=n), out=ptr[1:])
+    return ptr, np.ascontiguousarray(indices[keep]), np.ascontiguousarray(data[keep])
+
+
+def factor_pinned(A: sp.csr_matrix, *, pin_parts: bool = True) -> tuple[np.ndarray, Callable]:
     """SuperLU factor of ``A`` with one copy per connected part of its graph pinned (the periodic
-    translations) and a relative diagonal shift (copies can be linearly dependent: fragments that
-    reach a few shared fine nodes; the amplified null vector is annihilated by P on the way up).
-    Returns (keep (k,) the unpinned dofs, solve (k, m) -> (k, m))."""
-    keep = _unpinned(A)
+    translations; ``pin_parts`` False: none, the prescribed dofs hold every part) and a relative
+    diagonal shift (copies can be linearly dependent: fragments that reach a few shared fine nodes;
+    the amplified null vector is annihilated by P on the way up). Dofs with a zero diagonal are left
+    out either way. Returns (keep (k,) the unpinned dofs, solve (k, m) -> (k, m))."""
+    keep = _unpinned(A) if pin_parts else np.flatnonzero(A.diagonal() > 0)
     Ak = A[keep][:, keep]
     Ak = (Ak + sp.diags(REGULARIZE * Ak.diagonal())).tocsc()
     # SPD: diagonal pivots keep the symmetric ordering (fem.solvers.superlu's symmetric mode)

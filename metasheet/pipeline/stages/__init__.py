@@ -8,7 +8,7 @@ import importlib
 import pkgutil
 
 CANONICAL = (
-    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot", "reduce",
+    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot", "reduce", "sheet",
     "workspace", "ranges", "anisotropy", "maze", "report",
 )
 

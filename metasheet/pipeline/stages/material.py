@@ -29,9 +29,12 @@ _FOAM = paper.PAPER_FOAM
 
 
 class MaterialParams(Params):
-    source: Literal["auto", "config", "homogenize"] = Field(
-        "auto", description="'auto': homogenize's constants if that stage runs, else this table"
+    source: Literal["auto", "config", "homogenize", "sheet"] = Field(
+        "auto", description="'auto': homogenize's constants if that stage runs, else this table; 'sheet': the "
+        "apparent constants of the printed sheet (sheet_file)"
     )
+    sheet_file: str | None = Field(None, description="source = 'sheet': a sheet stage's sheet_dns.json (relative to "
+                                   "the project root), whose apparent constants (mean over its realisations) are used")
     kind: Literal["transverse", "isotropic"] = Field("transverse", description="which constants below apply")
     E_t: float = Field(_FOAM.E_t, gt=0, description="transverse Young's modulus [MPa]")
     E_l: float = Field(_FOAM.E_l, gt=0, description="longitudinal Young's modulus [MPa]")
@@ -48,6 +51,8 @@ class MaterialParams(Params):
 
     @model_validator(mode="after")
     def _stable(self):
+        if (self.source == "sheet") != (self.sheet_file is not None):
+            raise ConfigError(f"sheet_file: {self.sheet_file!r}: give it with source = 'sheet' (and only then)")
         if self.kind == "transverse":
             m = check_constants(self)
             if self.source == "config" and self.model == "authors":  # the constants this table gives are used
@@ -79,12 +84,37 @@ def material_from_params(p: MaterialParams) -> TransverseIsotropic:
     return TransverseIsotropic(p.E_t, p.E_l, p.nu_t, p.nu_tl, p.mu_l)
 
 
+def sheet_material(root, p: MaterialParams) -> TransverseIsotropic:
+    """The apparent constants of ``p.sheet_file`` (a sheet stage's sheet_dns.json: their mean
+    over its realisations), fitted under the same material model as ``p.model``."""
+    import json
+    from pathlib import Path
+
+    path = Path(root) / p.sheet_file
+    if not path.is_file():
+        raise ConfigError(f"material.sheet_file: {p.sheet_file!r}: no such file under {root} (run a pipeline "
+                          "with the sheet stage first)")
+    data = json.loads(path.read_text())
+    app = data.get("spread", {}).get("apparent")
+    if not app:
+        raise ConfigError(f"material.sheet_file: {p.sheet_file!r}: no apparent constants (run the sheet stage "
+                          "with fit = true)")
+    fitted = data.get("material", {}).get("model")
+    if fitted != p.model:
+        raise ConfigError(f"material.model: {p.model!r}: the apparent constants of {p.sheet_file!r} were fitted "
+                          f"under {fitted!r}; use that model")
+    return TransverseIsotropic.from_mapping({k: v["mean"] for k, v in app.items()},
+                                            where=f"{p.sheet_file}: spread.apparent means")
+
+
 def run(ctx: StageContext) -> dict:
     p: MaterialParams = ctx.params
     if p.source == "homogenize" and "homogenize" not in ctx.inputs:
         raise ConfigError("material.source: 'homogenize': the homogenize stage is not in this pipeline")
     ci95 = None
-    if p.source != "config" and "homogenize" in ctx.inputs:
+    if p.source == "sheet":
+        m, origin = sheet_material(ctx.root, p), "sheet"
+    elif p.source != "config" and "homogenize" in ctx.inputs:
         m, origin = constants_material(ctx.inputs["homogenize"]), "homogenize"
         block = read_constants(ctx.inputs["homogenize"]).get("ci95")
         if block:  # the constants are means over realisations: their uncertainty travels with them

@@ -68,6 +68,12 @@ def run(ctx: StageContext) -> dict:
         second = ctx.inputs["reduce"] / "reproduction" / "reduce.json"
         if second.exists():  # the reproduction column's basis (metasheet/studies/columns.py)
             summaries["reduce_reproduction_json"] = json.loads(second.read_text())
+    if "sheet" in ctx.inputs and (ctx.inputs["sheet"] / "sheet_dns.json").exists():  # the printed sheet's DNS
+        summaries["sheet_dns"] = json.loads((ctx.inputs["sheet"] / "sheet_dns.json").read_text())
+        for key in ("printed_sheet", "sheet_dns"):
+            if (ctx.inputs["sheet"] / f"{key}.png").exists():
+                shutil.copyfile(ctx.inputs["sheet"] / f"{key}.png", ctx.path(f"{key}.png"))
+                pictures[key] = f"{key}.png"
     summaries["columns"] = {name: _columns(ctx, name, pictures) for name in STUDIES if name in ctx.inputs}
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
@@ -128,6 +134,6 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
-              "ranges", "anisotropy", "maze"),
+              "ranges", "anisotropy", "maze", "sheet"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))
