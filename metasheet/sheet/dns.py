@@ -114,7 +114,9 @@ def dns_sheet(spec: SheetPrint, progress=None) -> DnsSheet:
     foam = printed_foam(tripod_region(spec.params), spec.fields, spec.design, voxel_mm=spec.voxel_mm,
                         gauge=spec.gauge, seed=spec.seed, max_voxels=spec.max_voxels)
     built = time.perf_counter() - t0
-    from ..fem.voxel.grips import rigid_bodies_stiffness  # numba kernels compile on first use only
+    from ..fem.voxel.grips import (
+        rigid_bodies_stiffness,  # numba kernels compile on first use only
+    )
 
     h = np.asarray(foam.voxel_mm, float)
     labels = grip_labels(foam.phases.shape, foam.origin, h, spec.params)

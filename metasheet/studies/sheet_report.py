@@ -35,10 +35,10 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
     first = rows[0]["sheets"]["normal"]
     lines = ["## The printed sheet against the homogenised sheet (issue 44)", "",
              f"**Verdict: {d['verdict']}.**", "",
-             f"The print maps' foam built voxel by voxel ({d['voxel_mm']} mm, gauge `{d['gauge']}`, seeds "
+             (f"The print maps' foam built voxel by voxel ({d['voxel_mm']} mm, gauge `{d['gauge']}`, seeds "
              f"{', '.join(str(s) for s in d['seeds'])}), solved with the robot's four grips rigid and condensed on "
              "their 24 rigid DOF; the robot's homogenised sheets (its mesh, element, fibres and constants) condensed "
-             "the same way. Both robots are the linear rest model without gravity (sheet_dns.json).", ""]
+             "the same way. Both robots are the linear rest model without gravity (sheet_dns.json)."), ""]
     for key in ("printed_sheet", "sheet_dns"):
         if key in pictures:
             lines += [f"![{key}]({pictures[key]})", ""]
@@ -51,10 +51,10 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
         one = {"mean": sv["mean"][k], "min": sv["min"][k], "max": sv["max"][k]}
         ratio = {q: one[q] / sv_h[k] for q in one}
         lines.append(f"| singular value {k + 1} [mm/rad] | {sv_h[k]:.4g} | {_range(one, 4)} | {_range(ratio)} |")
-    lines += ["", "Each sheet on its grips (centre held; 18 modes): the generalised eigenvalues are each mode's "
-              "stiffness, printed over homogenised; the compliances are the centre's with the arm tabs clamped.", "",
-              "| seed | sheet | eigen-ratios (min, geometric mean, max) | normal | roll | tilt x | tilt y | "
-              "solid kept | unknowns | CG iterations |", "|---|---|---|---|---|---|---|---|---|---|"]
+    lines += ["", ("Each sheet on its grips (centre held; 18 modes): the generalised eigenvalues are each mode's "
+              "stiffness, printed over homogenised; the compliances are the centre's with the arm tabs clamped."), "",
+              ("| seed | sheet | eigen-ratios (min, geometric mean, max) | normal | roll | tilt x | tilt y | "
+              "solid kept | unknowns | CG iterations |"), "|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         for label, s in row["sheets"].items():
             lam, c = s["eigen_ratios"], s["compliance_ratio"]
@@ -67,9 +67,9 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
     if "apparent" in spr:
         app = spr["apparent"]
         bulk = (material or {})
-        lines += ["Apparent constants: the five constants that make the homogenised sheet FEM (same mesh and fibres) "
+        lines += [("Apparent constants: the five constants that make the homogenised sheet FEM (same mesh and fibres) "
                   "reproduce the printed sheets' grip stiffness best (both sheets, log eigen-ratio norm); "
-                  "`[material] source = \"sheet\"` drives the robot with them.", "",
+                  "`[material] source = \"sheet\"` drives the robot with them."), "",
                   "| constant | bulk homogenised | apparent (printed sheet) | published |", "|---|---|---|---|"]
         for k in CONSTANT_NAMES:
             lines.append(f"| {k} | {_f(bulk.get(k), 4)} | {_range(app[k], 4)} | {getattr(PAPER_FOAM, k):.4g} |")
@@ -79,9 +79,9 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
                   + ("" if all(r["converged"] for r in res) else "; not converged for some realisation "
                      "(a constant at its positive-definite limit): read the constants as bounds") + ".", ""]
     if n > 1:
-        lines += [f"Print to print ({n} seeds): rod roll {_f(roll['min'], 4)} to {_f(roll['max'], 4)} deg/deg "
+        lines += [(f"Print to print ({n} seeds): rod roll {_f(roll['min'], 4)} to {_f(roll['max'], 4)} deg/deg "
                   f"(sd {_f(roll['std'], 2)}); geometric mean stiffness ratio "
-                  f"{_range(spr['geometric_mean_ratio_normal'])} (normal sheet).", ""]
+                  f"{_range(spr['geometric_mean_ratio_normal'])} (normal sheet)."), ""]
     if first["kept_share"] < 0.99:
         found.append(f"only {first['kept_share']:.1%} of the printed sheet's solid is held by its grips at "
                      f"{d['voxel_mm']} mm: the rest floats (thin walls break into pieces on the voxel grid)")

@@ -20,7 +20,6 @@ from __future__ import annotations
 import json
 from typing import Literal
 
-import numpy as np
 from pydantic import Field
 
 from ...errors import ConfigError
