@@ -48,6 +48,14 @@ mesh_size = 4.0
 element = "p1"
 """
 
+ROBOT = """
+[robot]
+compare_published = false
+compare_models = false
+uncertainty = false
+picture = false
+"""
+
 PIPELINE = """
 [pipeline]
 name = "s"
@@ -59,12 +67,7 @@ design = "{design}"
 [material]
 source = "homogenize"
 {sheet}
-[robot]
-compare_published = false
-compare_models = false
-uncertainty = false
-picture = false
-
+{robot}
 [sheet]
 voxel_mm = 0.5
 realisations = 2
@@ -79,12 +82,7 @@ stages = ["material", "orient", "robot"]
 source = "sheet"
 sheet_file = "{sheet_file}"
 {sheet}
-[robot]
-compare_published = false
-compare_models = false
-uncertainty = false
-picture = false
-"""
+{robot}"""
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +90,7 @@ def run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("sheet")
     (tmp / "design.toml").write_text(DESIGN)
     f = tmp / "p.toml"
-    f.write_text(PIPELINE.format(design=tmp / "design.toml", sheet=SHEET))
+    f.write_text(PIPELINE.format(design=tmp / "design.toml", sheet=SHEET, robot=ROBOT))
     run_pipeline(load_pipeline(f), out_root=tmp / "out")
     return tmp, tmp / "out" / "s"
 
@@ -132,7 +130,7 @@ def test_homogenised_robot_matches_the_robot_stage(run):
 def test_material_source_sheet_drives_the_robot(run):
     tmp, out = run
     f = tmp / "a.toml"
-    f.write_text(APPARENT.format(sheet_file=out / "sheet" / "sheet_dns.json", sheet=SHEET))
+    f.write_text(APPARENT.format(sheet_file=out / "sheet" / "sheet_dns.json", sheet=SHEET, robot=ROBOT))
     run_pipeline(load_pipeline(f), out_root=tmp / "out")
     m = json.loads((tmp / "out" / "a" / "material" / "material.json").read_text())
     app = json.loads((out / "sheet" / "sheet_dns.json").read_text())["spread"]["apparent"]
@@ -144,9 +142,10 @@ def test_material_source_sheet_drives_the_robot(run):
 
 def test_bad_sheet_settings_are_named(tmp_path):
     f = tmp_path / "bad.toml"
-    f.write_text(APPARENT.format(sheet_file="", sheet=SHEET).replace('sheet_file = ""\n', ""))
+    f.write_text(APPARENT.format(sheet_file="", sheet=SHEET, robot=ROBOT).replace('sheet_file = ""\n', ""))
     with pytest.raises(ConfigError, match="sheet_file"):
         load_pipeline(f)
-    f.write_text(PIPELINE.format(design="x.toml", sheet=SHEET).replace("realisations = 2", "realisations = 0"))
+    bad = PIPELINE.format(design="x.toml", sheet=SHEET, robot=ROBOT)
+    f.write_text(bad.replace("realisations = 2", "realisations = 0"))
     with pytest.raises(ConfigError, match="realisations"):
         load_pipeline(f)

@@ -12,10 +12,13 @@
 - :mod:`.multigrid`: the hierarchy (trilinear or split), Chebyshev/Jacobi smoothers, the V-cycle;
 - :mod:`.pcg`: (flexible) CG with the null space projected out, several right-hand sides in lockstep;
 - :mod:`.homogenize`: the six periodic load cases -> C*;
-- :mod:`.clamped`: clamped and rigid-tied nodes -> a rigid body's condensed 6 x 6 stiffness.
+- :mod:`.clamped`: clamped and rigid-tied nodes -> a rigid body's condensed 6 x 6 stiffness;
+- :mod:`.grips`: several rigid grips -> their condensed 6 B x 6 B stiffness (the printed sheet).
 """
 
 from .clamped import RigidBodyStiffness, rigid_body_stiffness
+from .grips import GripStiffness, rigid_bodies_stiffness
 from .homogenize import VoxelHomogenization, periodic_stiffness
 
-__all__ = ["RigidBodyStiffness", "VoxelHomogenization", "periodic_stiffness", "rigid_body_stiffness"]
+__all__ = ["GripStiffness", "RigidBodyStiffness", "VoxelHomogenization", "periodic_stiffness",
+           "rigid_bodies_stiffness", "rigid_body_stiffness"]
