@@ -226,6 +226,41 @@ def fibres_at(theta: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(th), np.sin(th), np.zeros_like(th)], axis=1)
 
 
+#: The bases an ``[orient] fibre_field`` may name (its ``basis`` key).
+BASES = ("polar_bspline",)
+
+
+def basis_record(b: PolarBSpline) -> dict:
+    """``b`` as the ``[orient] fibre_field`` table names it (without the coefficients):
+    ``basis``, ``n_radial``, ``n_angular``, ``degree``, ``r_max`` [mm], ``symmetric``."""
+    return {"basis": "polar_bspline", "n_radial": int(b.n_radial), "n_angular": int(b.n_angular),
+            "degree": int(b.degree), "r_max": float(b.r_max), "symmetric": bool(b.symmetric)}
+
+
+def field_on_sheet(centroids: np.ndarray, spiral_fibres: np.ndarray, basis: PolarBSpline,
+                   c) -> tuple[np.ndarray, np.ndarray]:
+    """Unit fibres (m, 3) of sheet A and of its mirror B for the field ``spiral + basis @ c``.
+
+    ``centroids`` (m, 3) [mm] of sheet A's elements, ``spiral_fibres`` (m, 3) its in-plane
+    starting field, ``c`` (n_coefficients,) [rad]. The same functions the design stage
+    evaluates a design with (:meth:`FibreField.from_fibres`, :meth:`FibreField.fibres`), so a
+    sheet built from a design's coefficients has the bytes its evaluation had; element i of
+    B is the mirror image of element i of A (:func:`metasheet.sheet.geometry.mirror_sheet`).
+    """
+    field = FibreField.from_fibres(centroids, spiral_fibres, basis)
+    return field.fibres(c)
+
+
+def field_at(points: np.ndarray, spiral, basis: PolarBSpline, c, mirrored: bool = False) -> np.ndarray:
+    """(q, 3) unit fibres of the field at any ``points`` (q, 3) [mm] (pictures, print maps):
+    ``spiral(points)`` (q, 3) is sheet A's starting field there; ``mirrored``: sheet B's,
+    ``l_B(p) = M l_A(M p)``."""
+    p = _as_points(points)
+    q = p @ MIRROR if mirrored else p
+    fa = FibreField.from_fibres(q, spiral(q), basis).fibres(c)[0]
+    return fa @ MIRROR if mirrored else fa
+
+
 def rotate_points(points: np.ndarray, angle: float) -> np.ndarray:
     """``points`` (m, 3) [mm] turned by ``angle`` [rad] about the sheet normal (z)."""
     c, s = np.cos(angle), np.sin(angle)

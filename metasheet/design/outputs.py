@@ -1,5 +1,5 @@
 """What the design stage writes, as text: the trials and Pareto tables, the chosen design, and
-the pipeline file that reproduces it. Pure functions of arrays and dicts (the stage writes the
+the pipeline file that reproduces it (:func:`chosen_pipeline`). Pure functions of arrays and dicts (the stage writes the
 bytes atomically).
 
 Numbers in the CSV tables are written with ``%.9g`` (same results, same bytes; 9 digits keep
@@ -88,6 +88,36 @@ def _r(v: float) -> float:
     return float(f"{float(v):.6g}")
 
 
+def pictures(orient, record, pareto, cands: Sequence[Candidate], chosen: Candidate, grad: dict | None,
+             spiral_kw: dict) -> dict[str, bytes]:
+    """``pareto.png`` (the search's objectives, the spiral, the gradient's and the chosen design
+    marked) and ``field.png`` (sheet A's fibre streaks: spiral | gradient design | chosen design)
+    as PNG bytes. ``orient``: the orient stage's :class:`~metasheet.pipeline.artefacts.OrientFile`;
+    ``record``, ``pareto``: the search's trials and front; ``cands[0]``: the spiral."""
+    from ..sheet import geometry as geo
+    from ..viz.design import field_picture, pareto_picture
+    from .fibre_field import fibres_at
+    from .search import design_angles
+
+    marks = [("spiral (start)", abs(cands[0].roll), cands[0].other_min, "s")]
+    if grad is not None:
+        marks.append(("gradient (free-form)", abs(grad["scores"].roll), grad["scores"].other_min, "D"))
+    marks.append((f"chosen: {chosen.name}", abs(chosen.roll), chosen.other_min, "*"))
+
+    def fn(design):
+        return lambda q: fibres_at(design_angles(q, design, spiral_kw))
+
+    sp = orient.sheet_params
+    grips = orient.normal.mesh.points[orient.normal.mesh.attach > 0]
+    panels = [(f"spiral, pitch {cands[0].design['pitch_deg']:g} deg: roll {cands[0].roll:.3f}", fn(cands[0].design),
+               grips)]
+    if grad is not None and chosen.name != "gradient":
+        panels.append((f"gradient design: roll {grad['scores'].roll:.3f}", fn(grad["design"]), grips))
+    panels.append((f"chosen ({chosen.name}): roll {chosen.roll:.3f}", fn(chosen.design), grips))
+    return {"pareto.png": pareto_picture(record.objectives, pareto, marks),
+            "field.png": field_picture(geo.outline_polygon(sp), sp.hole_radius, panels)}
+
+
 # ------------------------------------------------------------------------- chosen.toml
 
 def toml_value(v) -> str:
@@ -115,3 +145,29 @@ def toml_text(comment: str, tables: dict[str, dict]) -> str:
         items = [(k, v) for k, v in table.items() if v is not None and v != {}]
         out += ["", f"[{name}]"] + [f"{k} = {toml_value(v)}" for k, v in items]
     return "\n".join(out) + "\n"
+
+
+def chosen_pipeline(name: str, material: dict, orient: dict, chosen: Candidate) -> str:
+    """``chosen.toml``: a pipeline ``name`` (material, orient, robot) that builds ``chosen``'s
+    robot. ``material``: the material table (the constants as the design used them);
+    ``orient``: the design's orient table, its ``pitch_deg`` replaced by the design's and, for a
+    design with coefficients, ``fibre_field`` set to its basis and coefficients [rad] (floats
+    written with ``repr``: they read back bit for bit, so the orient stage rebuilds the field the
+    design was evaluated with)."""
+    from .fibre_field import PolarBSpline, basis_record
+
+    d = chosen.design
+    o = {k: v for k, v in orient.items() if k != "fibre_field"}
+    o["pitch_deg"] = float(d["pitch_deg"])
+    if d.get("basis"):
+        o["fibre_field"] = {**basis_record(PolarBSpline(**d["basis"])),
+                            "coefficients": [float(c) for c in d["coefficients_rad"]]}
+        how = ("a spiral of this pitch plus the\nfree-form correction [orient] fibre_field (design.json's "
+               "chosen.design: coefficients [rad]\non a polar B-spline).")
+    else:
+        how = "a spiral of this pitch."
+    comment = (f"The design stage's chosen design ({chosen.name}: rod roll per degree {chosen.roll:.6g} on the\n"
+               f"linear rest problem). This pipeline reproduces it exactly: {how}\n"
+               "metasheet run design/chosen.toml builds its robot (the robot stage: jacobian.json).")
+    return toml_text(comment, {"pipeline": {"name": name, "stages": ["material", "orient", "robot"]},
+                               "material": material, "orient": o})

@@ -314,6 +314,28 @@ class OrientFile:
         return {k: fib[k] for k in ("law", "pitch_deg", "tilt_deg", "r_ref") if k in fib}
 
     @property
+    def fibre_field(self) -> dict | None:
+        """``sheet.json``'s ``fibers.fibre_field`` (the ``[orient] fibre_field`` with its
+        ``r_max`` resolved), or None: the law's spiral alone."""
+        return _field(self.info, "fibers", self.directory / "sheet.json").get("fibre_field")
+
+    def fibers_at(self, points, mirrored: bool = False) -> np.ndarray:
+        """(q, 3) unit fibres the sheets were made with, at ``points`` (q, 3) [mm] of sheet A's
+        frame (``mirrored``: sheet B's): the law's spiral, corrected by ``fibre_field``. The one
+        place a re-mesh or a print map turns orient's fibre field into fibres."""
+        from ..sheet.fibers import spiral_fibers
+
+        fs, rec = self.fiber_settings, self.fibre_field
+        if rec is None:
+            return spiral_fibers(points, mirrored=mirrored, **fs)
+        from ..design.fibre_field import PolarBSpline, field_at
+
+        basis = PolarBSpline(n_radial=int(rec["n_radial"]), n_angular=int(rec["n_angular"]),
+                             degree=int(rec["degree"]), r_max=float(rec["r_max"]), symmetric=bool(rec["symmetric"]))
+        return field_at(points, lambda q: spiral_fibers(q, mirrored=False, **fs), basis,
+                        np.asarray(rec["coefficients"], float), mirrored)
+
+    @property
     def scene(self) -> "RobotScene":
         """The robot scene the orient stage chose (``sheet.json``'s ``scene``: a preset of
         :mod:`metasheet.robot.scenes`); sheet.json without one (older runs): ``metasheet``."""

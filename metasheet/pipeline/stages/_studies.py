@@ -279,7 +279,9 @@ def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, elem
         consts.append(c)
         # the arm directions as the orient stage recorded them (degrees in sheet.json)
         meshes.append(replace(new, arm_angles=old.mesh.arm_angles))
-    return SheetPair(*meshes, fresh.fibers, fresh.fibers_mirrored, *consts, element)
+    fibers = (fresh.fibers, fresh.fibers_mirrored) if orient.fibre_field is None else \
+        (orient.fibers_at(meshes[0].centroids(), False), orient.fibers_at(meshes[1].centroids(), True))
+    return SheetPair(*meshes, *fibers, *consts, element)
 
 
 def unit_cache(ctx: StageContext) -> UnitCache:

@@ -22,8 +22,8 @@ about the spiral), Sobol indices in ``design.json`` and ``sensitivity.png``.
 Writes ``trials.csv``, ``pareto.csv``, ``pareto.png``, ``field.png`` (spiral | gradient design
 | chosen design), ``design.json`` (objectives before and after, iterations, the chosen design's
 coefficients), ``chosen.toml`` (a pipeline of material, orient and robot with the chosen
-pitch; exact for a pitch-only design, the spiral part of a free-form one: the orient stage
-cannot take a free-form field yet) and ``study.journal`` (Optuna's journal; it carries times,
+pitch and, for a design with coefficients, ``[orient] fibre_field``: it rebuilds the chosen
+design's sheets exactly) and ``study.journal`` (Optuna's journal; it carries times,
 so its bytes differ between runs; the tables do not).
 
 Resume: while the stage runs, the journal lives in ``<outputs>/.design.units/`` (outside the
@@ -47,7 +47,7 @@ from pydantic import Field, model_validator
 from ... import paper
 from ...design import outputs as out
 from ...design import search as ds
-from ...design.fibre_field import PolarBSpline, fibres_at
+from ...design.fibre_field import PolarBSpline
 from ...errors import ConfigError
 from ..artefacts import SHEET_FILES, read_material, read_orient
 from ..manifest import read_manifest, sha256_file, write_bytes_atomic, write_json_atomic
@@ -121,6 +121,9 @@ class DesignParams(Params):
             raise ConfigError(f"orient.grading: a graded sheet: the {table} stage supports uniform sheets only")
         if o.tilt_deg != 0:
             raise ConfigError(f"orient.tilt_deg: {o.tilt_deg!r}: the {table} stage turns fibres in the plane; allowed 0")
+        if o.fibre_field is not None:  # the search and the gradient start from the law's spiral alone
+            raise ConfigError(f"orient.fibre_field: the {table} stage designs the field from the fibre law's "
+                              "spiral; allowed: none (leave it out)")
 
 
 def run(ctx: StageContext) -> dict:
@@ -187,8 +190,8 @@ def run(ctx: StageContext) -> dict:
             published[name] = out.scores_record(s.roll, s.other_min, s.singular_values)
         published["ratio_abs_roll"] = round(published["chosen"]["abs_roll_deg_per_deg"]
                                             / published["spiral"]["abs_roll_deg_per_deg"], 6)
-    _pictures(ctx, orient, record, pareto, cands, chosen, grad, spiral_kw, r_max)
-    exact = chosen.design["basis"] is None
+    for f, data in out.pictures(orient, record, pareto, cands, chosen, grad, spiral_kw).items():
+        ctx.path(f).write_bytes(data)
     summary = {
         "model": "linear rest problem (metasheet.design.adjoint): no gravity preload, motors at rest",
         "units": {"roll": "deg of rod roll per deg of all six motors", "singular values": "mm/rad, of "
@@ -210,14 +213,13 @@ def run(ctx: StageContext) -> dict:
         "chosen": {"name": chosen.name, **out.scores_record(chosen.roll, chosen.other_min, chosen.singular_values),
                    "ratio_abs_roll": round(abs(chosen.roll) / abs(spiral.roll), 6),
                    "other_floor_mm_per_rad": round(p.other_floor * spiral.other_min, 6),
-                   "design": chosen.design, "chosen_toml_reproduces": exact,
-                   "chosen_toml": "the chosen design exactly" if exact else
-                   "the chosen design's spiral (pitch) only: the orient stage cannot take a free-form field yet; "
-                   "the coefficients are design.coefficients_rad on design.basis"},
+                   "design": chosen.design, "chosen_toml_reproduces": True,
+                   "chosen_toml": "the chosen design exactly: orient.pitch_deg, and orient.fibre_field for "
+                   "design.coefficients_rad on design.basis"},
         "published": published or None,
     }
     write_json_atomic(ctx.path("design.json"), summary)
-    write_bytes_atomic(ctx.path("chosen.toml"), _chosen_toml(ctx, orient, mat, chosen, exact).encode())
+    write_bytes_atomic(ctx.path("chosen.toml"), _chosen_toml(ctx, orient, mat, chosen).encode())
     shutil.rmtree(_cache_dir(ctx), ignore_errors=True)  # the journal is in the outputs now
     return {"spiral_roll": round(spiral.roll, 6), "chosen": chosen.name, "chosen_roll": round(chosen.roll, 6),
             "ratio_abs_roll": summary["chosen"]["ratio_abs_roll"], "trials": len(record.values),
@@ -369,46 +371,14 @@ def _gradient(ctx: StageContext, sheets, material, kw: dict, basis: PolarBSpline
     return {"scores": after, "design": design, "record": record}
 
 
-def _pictures(ctx, orient, record, pareto, cands, chosen, grad, spiral_kw, r_max) -> None:
-    from ...sheet import geometry as geo
-    from ...viz.design import field_picture, pareto_picture
-
-    marks = [("spiral (start)", abs(cands[0].roll), cands[0].other_min, "s")]
-    if grad is not None:
-        marks.append(("gradient (free-form)", abs(grad["scores"].roll), grad["scores"].other_min, "D"))
-    marks.append((f"chosen: {chosen.name}", abs(chosen.roll), chosen.other_min, "*"))
-    ctx.path("pareto.png").write_bytes(pareto_picture(record.objectives, pareto, marks))
-
-    def fn(design):
-        return lambda q: fibres_at(ds.design_angles(q, design, spiral_kw))
-
-    sp = orient.sheet_params
-    grips = orient.normal.mesh.points[orient.normal.mesh.attach > 0]
-    panels = [(f"spiral, pitch {cands[0].design['pitch_deg']:g} deg: roll {cands[0].roll:.3f}", fn(cands[0].design),
-               grips)]
-    if grad is not None and chosen.name != "gradient":
-        panels.append((f"gradient design: roll {grad['scores'].roll:.3f}", fn(grad["design"]), grips))
-    panels.append((f"chosen ({chosen.name}): roll {chosen.roll:.3f}", fn(chosen.design), grips))
-    ctx.path("field.png").write_bytes(field_picture(geo.outline_polygon(sp), sp.hole_radius, panels))
-
-
-def _chosen_toml(ctx: StageContext, orient, mat, chosen, exact: bool) -> str:
-    """A pipeline (material, orient, robot) of the chosen design: the material's constants as
-    given, the orient stage's table with the chosen pitch."""
+def _chosen_toml(ctx: StageContext, orient, mat, chosen) -> str:
+    """``chosen.toml`` (:func:`metasheet.design.outputs.chosen_pipeline`): the material's
+    constants as given, the orient stage's table with the chosen pitch and field."""
     man = read_manifest(ctx.inputs["orient"]) or {}
     o = dict(man.get("params") or {"scene": orient.scene.scene, "element": orient.element,
                                    "mesh_size": orient.sheet_params.mesh_size, **orient.fiber_settings})
-    o["pitch_deg"] = float(chosen.design["pitch_deg"])
-    name = f"{man.get('pipeline', 'design')}_chosen"
     m = {"source": "config", "kind": "transverse", **mat.material.to_dict(), "density": mat.density, "model": mat.model}
-    note = ("exactly: a spiral of this pitch." if exact else
-            "only in its spiral part: the chosen\ndesign adds a free-form correction (design.json's "
-            "chosen.design: coefficients on a\npolar B-spline) that the orient stage cannot take yet.")
-    comment = (f"The design stage's chosen design ({chosen.name}: rod roll per degree {chosen.roll:.6g} on the\n"
-               f"linear rest problem). This pipeline reproduces it {note}\n"
-               "metasheet run design/chosen.toml builds its robot (the robot stage: jacobian.json).")
-    return out.toml_text(comment, {"pipeline": {"name": name, "stages": ["material", "orient", "robot"]},
-                                   "material": m, "orient": o})
+    return out.chosen_pipeline(f"{man.get('pipeline', 'design')}_chosen", m, o, chosen)
 
 
 register(Stage(

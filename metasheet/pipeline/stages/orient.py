@@ -9,12 +9,19 @@ the transverse-isotropic material, the foam's soft direction), ``material_id`` (
 ``scene``: the scene preset, :mod:`metasheet.robot.scenes`, whose numbers the robot and
 study stages take: rod, servos, sheet mass, gravity) and
 ``sheet.png`` (fibre streaks of both sheets side by side, like the paper's Fig. 3).
+
+``fibre_field`` (optional) adds a free-form correction to the spiral: sheet A's fibre angle is
+``theta = theta_spiral + sum_j c_j N_j(x)`` on a polar B-spline
+(:mod:`metasheet.design.fibre_field`), sheet B's its mirror ``-theta``, computed by the
+functions the design stage evaluates a design with, so the design stage's ``chosen.toml``
+builds the chosen design's sheets with the bytes its evaluation had. ``sheet.json``'s
+``fibers`` then records it as ``fibre_field``.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -62,6 +69,45 @@ class GradingParams(Params):
 _SCENE = " None: the scene's"
 
 
+class FibreFieldParams(Params):
+    """``[orient] fibre_field``: a free-form correction of the spiral's fibre angle,
+    ``theta = theta_spiral + sum_j c_j N_j(x)`` on sheet A (sheet B: the mirror), the basis
+    :class:`metasheet.design.fibre_field.PolarBSpline`; the design stage writes it into
+    ``design/chosen.toml``."""
+
+    basis: Literal["polar_bspline"] = Field("polar_bspline", description="the basis: a tensor B-spline in "
+                                            "polar coordinates (r, phi) about the sheet's centre")
+    n_radial: int = Field(4, ge=2, le=32, description="B-spline functions along r (>= degree + 1)")
+    n_angular: int = Field(12, ge=2, le=96, description="B-spline functions around (>= degree + 1; a multiple "
+                           "of 3 when symmetric)")
+    degree: int = Field(3, ge=1, le=5, description="B-spline degree in r and phi")
+    r_max: float | None = Field(None, gt=0, le=1e4, description="[mm] the basis' outer radius; None: the "
+                                "sheet's (the largest centre distance of its mesh points, as the design stage)")
+    symmetric: bool = Field(False, description="coefficients tied to the sheet's 120 deg symmetry")
+    # a turn by pi is the same fibre axis: larger increments add nothing but round-off
+    coefficients: list[Annotated[float, Field(ge=-np.pi, le=np.pi)]] = Field(
+        ..., description="c [rad], c[i * n_phi + j] on radial function i and angular function j (n_phi = "
+        "n_angular, or n_angular / 3 when symmetric): n_radial * n_phi values")
+
+    @model_validator(mode="after")
+    def _length(self):
+        b = self.spline(1.0)  # the basis' own checks across n_radial, n_angular, degree, symmetric
+        n = b.n_coefficients
+        if len(self.coefficients) != n:
+            how = f"n_radial {self.n_radial} x n_angular {self.n_angular}" + (" / 3, symmetric" if self.symmetric else "")
+            raise ConfigError(f"coefficients: {len(self.coefficients)} values: expected {n} ({how}), each in "
+                              f"[-pi, pi] [rad]")
+        return self
+
+    def spline(self, r_max: float):
+        """The :class:`~metasheet.design.fibre_field.PolarBSpline`, of outer radius ``self.r_max``
+        or else ``r_max`` [mm]."""
+        from ...design.fibre_field import PolarBSpline
+
+        return PolarBSpline(n_radial=self.n_radial, n_angular=self.n_angular, degree=self.degree,
+                            r_max=float(self.r_max if self.r_max is not None else r_max), symmetric=self.symmetric)
+
+
 class OrientParams(Params):
     scene: Literal[tuple(PRESETS)] = Field(
         "metasheet", description="named scene preset (metasheet/robot/scenes.py): the sheet geometry and fibre "
@@ -90,6 +136,8 @@ class OrientParams(Params):
                                        "density is mass / sheet volume;" + _SCENE + " (none: the material's density)")
     r_ref: float = Field(33.0, gt=0, le=1000, description="radius where an r-dependent law has pitch_deg [mm]")
     tilt_deg: float = Field(0.0, ge=-90, le=90, description="out-of-plane fibre tilt [deg]")
+    fibre_field: FibreFieldParams | None = Field(None, description="free-form correction of the fibre law's "
+                                                 "angle (polar B-spline coefficients); None: the law alone")
     isotropic: bool = Field(False, description="isotropic sheet: alpha = 0 (E = E_t, nu = nu_t), iso = 1")
     relative_density: float = Field(paper.FOAM_RELATIVE_DENSITY, gt=0, le=1,
                                     description="the design's relative density [-]")
@@ -100,6 +148,9 @@ class OrientParams(Params):
     @model_validator(mode="after")
     def _sheet(self):  # the geometry's checks across fields, and its size, before anything is meshed
         check_sheet_size(sheet_params(self), "mesh")
+        if self.fibre_field is not None and self.tilt_deg != 0:
+            raise ConfigError(f"tilt_deg: {self.tilt_deg!r}: a fibre_field turns fibres in the sheet plane; "
+                              "allowed 0 with it")
         return self
 
 
@@ -177,6 +228,36 @@ def fiber_settings(p: OrientParams) -> dict:
             "r_ref": p.r_ref}
 
 
+def fibre_field_record(p: OrientParams, r_max: float) -> dict | None:
+    """``sheet.json``'s ``fibers.fibre_field``: the basis (its ``r_max`` resolved) and the
+    coefficients [rad], as the ``[orient] fibre_field`` key takes them; None without one."""
+    if p.fibre_field is None:
+        return None
+    from ...design.fibre_field import basis_record
+
+    return {**basis_record(p.fibre_field.spline(r_max)), "coefficients": list(p.fibre_field.coefficients)}
+
+
+def sheet_radius(sheet: geo.SheetMesh) -> float:
+    """[mm] the largest centre distance of the sheet's mesh points: the default ``r_max`` of a
+    fibre field (the design stage's, from the same points)."""
+    return float(np.hypot(sheet.points[:, 0], sheet.points[:, 1]).max())
+
+
+def _fibres(p: OrientParams, normal: geo.SheetMesh, mirrored: geo.SheetMesh, fs: dict):
+    """Unit fibres (m, 3) of both sheets and a function ``(points, mirrored) -> fibres`` for the
+    picture: the law's spiral, corrected by ``fibre_field`` when given."""
+    fib = fb.spiral_fibers(normal.centroids(), mirrored=False, **fs)
+    fib_m = fb.spiral_fibers(mirrored.centroids(), mirrored=True, **fs)
+    if p.fibre_field is None:
+        return fib, fib_m, lambda q, m: fb.spiral_fibers(q, mirrored=m, **fs)
+    from ...design import fibre_field as ff
+
+    basis, c = p.fibre_field.spline(sheet_radius(normal)), np.asarray(p.fibre_field.coefficients, float)
+    fib, fib_m = ff.field_on_sheet(normal.centroids(), fib, basis, c)
+    return fib, fib_m, lambda q, m: ff.field_at(q, lambda x: fb.spiral_fibers(x, **fs), basis, c, mirrored=m)
+
+
 def scene_record(p: OrientParams, volume_mm3: float) -> dict:
     """``sheet.json``'s ``scene``: the preset (numbers and sources), the keys this stage
     overrode, and the sheet mass [g] (or None) with the sheet's volume [mm^3]."""
@@ -235,8 +316,7 @@ def run(ctx: StageContext) -> dict:
         material = interpolate(material, 0.0) if material.alpha > 0 else material
     ctx.progress("fibres and grading", 1, 4)
     fs = fiber_settings(p)
-    fib = fb.spiral_fibers(normal.centroids(), mirrored=False, **fs)
-    fib_m = fb.spiral_fibers(mirrored.centroids(), mirrored=True, **fs)
+    fib, fib_m, fibres_at = _fibres(p, normal, mirrored, fs)
     g = p.grading
     grading = gr.grade(
         normal.centroids(), sp, density=p.relative_density, alpha=material.alpha,
@@ -262,6 +342,7 @@ def run(ctx: StageContext) -> dict:
     write_sheet(ctx.path(SHEET_FILES["normal"]), normal, {"fiber": fib, **common})
     write_sheet(ctx.path(SHEET_FILES["mirrored"]), mirrored, {"fiber": fib_m, **common})
     counts = {str(k): int(np.sum(normal.attach == k)) for k in range(5)}
+    field = fibre_field_record(p, sheet_radius(normal))
     info = {
         "geometry": sp.to_dict(),
         "element": p.element,
@@ -274,7 +355,8 @@ def run(ctx: StageContext) -> dict:
         "n_tets": int(len(normal.tets)),
         "quality": normal.quality.to_dict(),
         "quality_mirrored": mirrored.quality.to_dict(),
-        "fibers": {**fs, "mirror": "l_m(p) = M l(M p), M = diag(1, -1, 1)", "axis": "local 3 (soft l)"},
+        "fibers": {**fs, "mirror": "l_m(p) = M l(M p), M = diag(1, -1, 1)", "axis": "local 3 (soft l)",
+                   **({"fibre_field": field} if field else {})},
         "scene": scene_record(p, float(np.sum(np.abs(normal.volumes())))),
         "isotropic": p.isotropic,
         "material": {**material.to_dict(), "alpha_percent": material.alpha, "source": source},
@@ -289,10 +371,11 @@ def run(ctx: StageContext) -> dict:
     from ...viz.sheet import sheet_picture
 
     outline = geo.outline_polygon(sp)
+    extra = " + fibre_field" if p.fibre_field is not None else ""
     panels = [
-        (f"normal sheet (pitch {fs['pitch_deg']:g} deg)", lambda q: fb.spiral_fibers(q, **fs),
+        (f"normal sheet (pitch {fs['pitch_deg']:g} deg{extra})", lambda q: fibres_at(q, False),
          normal.points[normal.attach > 0]),
-        ("mirrored sheet (reflection y -> -y)", lambda q: fb.spiral_fibers(q, mirrored=True, **fs),
+        ("mirrored sheet (reflection y -> -y)", lambda q: fibres_at(q, True),
          mirrored.points[mirrored.attach > 0]),
     ]
     ctx.path("sheet.png").write_bytes(sheet_picture(outline, sp.hole_radius, panels))

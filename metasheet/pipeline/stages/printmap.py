@@ -132,7 +132,6 @@ def run(ctx: StageContext) -> dict:
     orient = read_orient(ctx.inputs["orient"])
     orient.sheets(need_constants=True)  # both sheets carry the five constants, else a clear error
     sp = orient.sheet_params
-    fs = orient.fiber_settings
     per_sheet = {}
     for label, mirrored in SHEETS.items():
         sheet = orient.mirrored if mirrored else orient.normal
@@ -166,7 +165,7 @@ def run(ctx: StageContext) -> dict:
         mirrored = SHEETS[label]
         pf = icesl.print_fields(
             mesh.points, mesh.tets, element_settings=element, params=sp,
-            fiber_fn=lambda q, m=mirrored: fb.spiral_fibers(q, mirrored=m, **fs),
+            fiber_fn=lambda q, m=mirrored: orient.fibers_at(q, m),
         )
         texts = {k: icesl.field_text(pf.textures[k]) for k in fields}
         held = {k: icesl.quantise(icesl.parse_field_text(texts[k], pf.box.n)) for k in fields}
