@@ -21,6 +21,7 @@ import json
 from typing import Literal
 
 from pydantic import Field
+from threadpoolctl import threadpool_limits
 
 from ...errors import ConfigError
 from ..artefacts import read_cell_design, read_material, read_orient, read_robot_scene
@@ -89,14 +90,16 @@ def run(ctx: StageContext) -> dict:
                         p.rtol, p.max_voxels)
              for r in range(p.realisations) for label in LABELS]
     ctx.progress("homogenised sheets", 0, 3)
-    hom = homogenised_grips(pair, material.model)
+    with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bytes on any thread count
+        hom = homogenised_grips(pair, material.model)
     sheets = ctx.executor.map(dns_sheet, specs, progress=lambda d, n: ctx.progress("printed sheets (DNS)", d, n))
     for s in sheets:  # manifest only: wall times differ run to run
         ctx.timings[f"dns_s.{s.label}.{s.seed}"] = round(s.build_s + s.solve_s, 3)
     fits = None
     if p.fit:
         ctx.progress("apparent constants", 1, 3)
-        fits = _fits(pair, sheets, material, orient.sheet_params)
+        with threadpool_limits(limits=1, user_api="blas"):
+            fits = _fits(pair, sheets, material, orient.sheet_params)
     study = dns_study(sheets, hom, robot, orient.sheet_params, length_scale=p.length_scale, fits=fits)
     rs = sc.__dict__ if hasattr(sc, "__dict__") else {}
     out = {"method": "printed Polyfoam from the print maps (metasheet.sheet.printed_foam), voxel DNS with the four "
