@@ -101,7 +101,6 @@ def run(ctx: StageContext) -> dict:
         with threadpool_limits(limits=1, user_api="blas"):
             fits = _fits(pair, sheets, material, orient.sheet_params)
     study = dns_study(sheets, hom, robot, orient.sheet_params, length_scale=p.length_scale, fits=fits)
-    rs = sc.__dict__ if hasattr(sc, "__dict__") else {}
     out = {"method": "printed Polyfoam from the print maps (metasheet.sheet.printed_foam), voxel DNS with the four "
                      "grips rigid, condensed on their 24 rigid DOF (metasheet.sheet.dns); the homogenised sheets "
                      "condensed the same way (metasheet.sheet.grips.fem_condensed); both robots' linear rest "
@@ -111,8 +110,8 @@ def run(ctx: StageContext) -> dict:
                      "singular_values": "of diag(1,1,1,L,L,L) J, L = length_scale [mm/rad]"},
            "voxel_mm": p.voxel_mm, "gauge": p.gauge, "seeds": [seed0 + r for r in range(p.realisations)],
            "material": {"model": material.model, "constants": material.material.to_dict(),
-                        "solid": design.material.model_dump() if hasattr(design.material, "model_dump") else None},
-           "element": pair.element, "scene": rs.get("scene"),
+                        "solid": design.material.model_dump()},
+           "element": pair.element, "scene": sc.scene,
            "homogenised_K": {"normal": hom[0].tolist(), "mirrored": hom[1].tolist()},
            **study}
     write_json_atomic(ctx.path("sheet_dns.json"), out)
