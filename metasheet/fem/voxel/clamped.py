@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ConfigError
-from .grips import point_modes, rigid_bodies_stiffness
+from .grips import bool_nodes, point_modes, rigid_bodies_stiffness
 from .homogenize import validate_grid
 from .operator import node_shape, touched_nodes
 
@@ -78,7 +78,7 @@ def rigid_body_stiffness(phases, size, stiffnesses: dict, *, clamped, tied, refe
     t0 = time.perf_counter()
     index, _, h, _ = validate_grid(phases, size, stiffnesses)
     N = node_shape(index.shape, False)
-    clamped, tied = (_nodes(a, name, N) for a, name in ((clamped, "clamped"), (tied, "tied")))
+    clamped, tied = (bool_nodes(a, name, N) for a, name in ((clamped, "clamped"), (tied, "tied")))
     if np.any(clamped & tied):
         raise ConfigError("clamped, tied: a node is both clamped and tied to the rigid body")
     touched = touched_nodes(index, False)
@@ -89,11 +89,3 @@ def rigid_body_stiffness(phases, size, stiffnesses: dict, *, clamped, tied, refe
                                clamped=clamped, scale=scale, rtol=rtol, maxiter=maxiter, coarsening=coarsening,
                                displacements=True)
     return RigidBodyStiffness(r.K, r.U, r.iterations, r.residuals, r.n_dof, r.levels, time.perf_counter() - t0)
-
-
-def _nodes(a, name: str, shape) -> np.ndarray:
-    m = np.asarray(a)
-    if m.shape != tuple(shape) or m.dtype != bool:
-        raise ConfigError(f"{name}: shape {m.shape}, dtype {m.dtype}: must be a bool array of the "
-                          f"{tuple(shape)} grid nodes (one more than voxels per direction)")
-    return m

@@ -211,7 +211,7 @@ def _stiffness(phases, size, stiffnesses, bodies, references, clamped, scale, rt
     N = node_shape(index.shape, False)
     body, B = _bodies(bodies, N)
     refs = _references(references, B)
-    clamped = np.zeros(N, bool) if clamped is None else _bool_nodes(clamped, "clamped", N)
+    clamped = np.zeros(N, bool) if clamped is None else bool_nodes(clamped, "clamped", N)
     floating = not clamped.any()
     if np.any(clamped & (body > 0)):
         raise ConfigError(f"clamped, bodies: {int((clamped & (body > 0)).sum())} nodes are both clamped and tied "
@@ -328,7 +328,8 @@ def _references(references, B: int) -> np.ndarray:
     return r
 
 
-def _bool_nodes(a, name: str, shape) -> np.ndarray:
+def bool_nodes(a, name: str, shape) -> np.ndarray:
+    """``a`` as a bool array of the grid's nodes ``shape``, or ConfigError naming ``name``."""
     m = np.asarray(a)
     if m.shape != tuple(shape) or m.dtype != bool:
         raise ConfigError(f"{name}: shape {m.shape}, dtype {m.dtype}: must be a bool array of the "
