@@ -77,7 +77,8 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
         worst = max(r["rms_log_ratio"] for r in res)
         lines += ["", f"Fit residual (rms of log eigen-ratios): up to {worst:.3f}"
                   + ("" if all(r["converged"] for r in res) else "; not converged for some realisation "
-                     "(a constant at its positive-definite limit): read the constants as bounds") + ".", ""]
+                     "(a constant at its positive-definite limit)") + ". A residual this large says no single "
+                  "transverse-isotropic material describes the print: read the constants as a diagnostic.", ""]
     if n > 1:
         lines += [(f"Print to print ({n} seeds): rod roll {_f(roll['min'], 4)} to {_f(roll['max'], 4)} deg/deg "
                   f"(sd {_f(roll['std'], 2)}); geometric mean stiffness ratio "
