@@ -37,6 +37,9 @@ import time
 import tomllib
 from pathlib import Path
 
+import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
+
+# isort: split
 import numpy as np
 from _results import add_save_option, saved_output
 

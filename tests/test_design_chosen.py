@@ -43,6 +43,7 @@ population = 4
 n_radial = 2
 maxiter = 5
 compare_published = false
+round_trip = false
 """
 # the robot stage's extra cases and picture are not what is compared here: left out for time
 ROBOT = "\n[robot]\ncompare_published = false\ncompare_models = false\npicture = false\n"

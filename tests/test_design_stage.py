@@ -84,6 +84,21 @@ def test_outputs(first):
     assert load_pipeline(f).section.stages == ["material", "orient", "robot"]  # a valid pipeline
 
 
+def test_trials_report_every_singular_value_translation_and_strain(first):
+    """trials.csv's reported columns: the best trial's singular values equal design.json's
+    re-evaluation of it; the other-DOF value lies between the two smallest (interlacing)."""
+    _, d, _ = first
+    rows = list(csv.DictReader((d / "trials.csv").open()))
+    s = json.loads((d / "design.json").read_text())
+    best = rows[s["search"]["best_abs_roll"]["trial"]]
+    sv = [float(best[f"sv{i}_mm_per_rad"]) for i in range(1, 7)]
+    assert sv == pytest.approx(s["search"]["best_abs_roll"]["singular_values_mm_per_rad"], rel=1e-5)
+    for r in rows:
+        sv = [float(r[f"sv{i}_mm_per_rad"]) for i in range(1, 7)]
+        assert sv == sorted(sv, reverse=True) and sv[5] - 1e-9 <= float(r["other_min_mm_per_rad"]) <= sv[4] + 1e-9
+        assert float(r["translation_mm_per_deg"]) > 0 and 0 < float(r["strain_max"]) < 10
+
+
 def test_gradient_improves_the_spiral(first):
     s = json.loads((first[1] / "design.json").read_text())
     g = s["gradient"]
@@ -94,10 +109,54 @@ def test_gradient_improves_the_spiral(first):
     assert s["chosen"]["other_min_mm_per_rad"] >= s["spiral"]["other_min_mm_per_rad"]
 
 
+def test_comparison_of_every_objective(first):
+    """design.json's comparison and comparison.md: the spiral and the chosen design on both
+    constant sets, agreeing with the search's own evaluation of them (another code path)."""
+    _, d, _ = first
+    s = json.loads((d / "design.json").read_text())
+    c = s["comparison"]
+    e = c["evaluations"]
+    assert set(e) == {"spiral", "chosen"} and set(e["spiral"]) == {"pipeline", "published"}
+    for name in ("spiral", "chosen"):
+        assert e[name]["pipeline"]["roll_deg_per_deg"] == pytest.approx(s[name]["roll_deg_per_deg"], rel=1e-5)
+        assert e[name]["pipeline"]["singular_values_mm_per_rad"] == pytest.approx(
+            s[name]["singular_values_mm_per_rad"], rel=1e-5)
+        assert e[name]["published"]["abs_roll_deg_per_deg"] == s["published"][name]["abs_roll_deg_per_deg"]
+        assert e[name]["pipeline"]["strain"]["limit"] == 0.3 and len(e[name]["pipeline"]["strain"]["goals"]) == 4
+        rt = c["printability"][name]["angle_round_trip"]
+        assert c["printability"][name]["in_range"] and 0 < rt["max_deg"] <= rt["tolerance_deg"] == 2.0
+    rows = {r["objective"]: r for r in c["table"]["rows"]}
+    roll = rows["rod roll per motor degree"]
+    assert roll["pipeline"]["ratio"] == pytest.approx(s["chosen"]["ratio_abs_roll"], rel=1e-5)
+    assert roll["published"]["ratio"] == pytest.approx(s["published"]["ratio_abs_roll"], rel=1e-5)
+    md = (d / "comparison.md").read_text().splitlines()
+    assert len([x for x in md if x.startswith("| ")]) == 1 + len(rows)  # header + one line per objective
+    assert any(x.startswith("| rod roll per motor degree | deg/deg | ") for x in md)
+
+
+def test_report_section(first):
+    """The report stage with the design stage in the pipeline: its section and pictures (the
+    design stage's outputs are reused, only the report runs)."""
+    tmp, d, _ = first
+    f = tmp / "r.toml"
+    _pipeline(tmp, 8)  # writes p.toml, the first run's pipeline
+    f.write_text((tmp / "p.toml").read_text().replace('"design"]', '"design", "report"]'))
+    out = run_pipeline(load_pipeline(f), out_root=tmp / "out")
+    assert {o.name: o.status for o in out}["design"] == "cached"
+    r = d.parent / "report"
+    text = (r / "report.md").read_text()
+    s = json.loads((d / "design.json").read_text())
+    assert "## Design: the chosen fibre field against the paper's spiral (issue 45)" in text
+    assert f"rod roll per motor degree {s['chosen']['ratio_abs_roll']:.3g} x the spiral's" in text
+    assert (d / "comparison.md").read_text().splitlines()[0] in text
+    assert (r / "design_field.png").is_file() and "![fibre fields](design_field.png)" in text
+
+
 def test_resume_and_same_bytes(first):
     tmp, _, before = first
     # twice the trials in the same outputs: the first 8 come from the journal, 8 are new
-    d2 = _run(tmp, tmp / "out", n=16)
+    # (round_trip off: its 1.6 s a design is tested on the first run; it is not in the study's name)
+    d2 = _run(tmp, tmp / "out", n=16, extra="round_trip = false")
     s = json.loads((d2 / "design.json").read_text())
     assert s["search"]["n_trials"] == 16 and s["search"]["evaluated_this_run"] == 8
     old, new = before["trials.csv"].decode().splitlines(), (d2 / "trials.csv").read_text().splitlines()
@@ -105,8 +164,8 @@ def test_resume_and_same_bytes(first):
     assert [strip(x) for x in new[:9]] == [strip(x) for x in old]
     assert not (tmp / "out" / "d" / ".design.units").exists()  # the journal is in the outputs now
     # the same config from scratch elsewhere: the same bytes as the resumed run
-    d3 = _run(tmp, tmp / "fresh", n=16)
-    for f in ("trials.csv", "pareto.csv", "sensitivity.csv"):
+    d3 = _run(tmp, tmp / "fresh", n=16, extra="round_trip = false")
+    for f in ("trials.csv", "pareto.csv", "sensitivity.csv", "comparison.md"):
         assert (d3 / f).read_bytes() == (d2 / f).read_bytes(), f
     a, b = (json.loads((x / "design.json").read_text()) for x in (d2, d3))
     a["search"].pop("evaluated_this_run"), b["search"].pop("evaluated_this_run")
@@ -126,6 +185,10 @@ def test_resume_and_same_bytes(first):
     ("oat_points = 1", "oat_points"),
     ("sobol_n = 12", "sobol_n"),
     ("colour = 1", "colour"),
+    ("goal_deg = 0.0", "goal_deg"),
+    # an infeasible print: a setting outside IceSL's range, refused before anything runs
+    ("print_settings = { infill_percentage = 120.0 }", "print_settings.infill_percentage: .*allowed range"),
+    ("print_settings = { kgon_x_shrink = 1.5 }", "print_settings.kgon_x_shrink: .*allowed range"),
 ])
 def test_bad_design_values_name_the_field(tmp_path, extra, field):
     with pytest.raises(ConfigError, match=field):

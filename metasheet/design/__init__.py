@@ -8,6 +8,10 @@ at the rest pose, and their adjoint gradients (issue 45, item 3's core).
   each with its derivative in J as a rank-one weight pair.
 * :mod:`.adjoint`: the robot's linear rest problem as a function of the design, and the
   adjoint gradient (one objective evaluation plus element-wise products).
+* :mod:`.strain`: the largest principal (linearised) strain at a stated set of motor goals.
+* :mod:`.printability`: IceSL's setting ranges and the fibre axis' 8-bit print round trip.
+* :mod:`.evaluation`: every objective of one design, and the chosen design against the spiral.
+* :mod:`.optimise`: the free-form field by L-BFGS-B and the adjoint gradient.
 
 The public names below load their module on first use.
 """
@@ -17,18 +21,21 @@ from importlib import import_module
 _PUBLIC = {
     "PolarBSpline": "fibre_field", "FibreField": "fibre_field", "fibres_at": "fibre_field",
     "rod_roll_per_degree": "objectives", "min_singular_value": "objectives",
-    "scaled_singular_values": "objectives", "RankOne": "objectives",
+    "scaled_singular_values": "objectives", "RankOne": "objectives", "decoupling": "objectives",
+    "Decoupling": "objectives",
     "RestProblem": "adjoint", "RestSolution": "adjoint", "Sensitivity": "adjoint",
     "rest_problem": "adjoint", "solve_rest": "adjoint", "roll_sensitivity": "adjoint",
     "min_singular_sensitivity": "adjoint", "gradient": "adjoint",
 }
 __all__ = [
+    "Decoupling",
     "FibreField",
     "PolarBSpline",
     "RankOne",
     "RestProblem",
     "RestSolution",
     "Sensitivity",
+    "decoupling",
     "fibres_at",
     "gradient",
     "min_singular_sensitivity",

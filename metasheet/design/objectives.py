@@ -14,6 +14,9 @@ adjoint (:mod:`.adjoint`) needs to turn dJ into a gradient over the design.
   (L = ``length_scale`` [mm], rotations counted as arc lengths), the
   ``Kinematics.singular_values[-1]`` of the kinematics; how far the robot is from losing a DOF.
   Differentiable where it is simple (its gap to the next one is reported).
+* :func:`decoupling`: what else the effector does during that roll (``J @ 1``): the parasitic
+  translation [mm per motor degree] and tilt (rotation about axes perpendicular to the rod)
+  [deg per motor degree], and both per degree of roll. Reported, not optimised.
 """
 
 from __future__ import annotations
@@ -98,6 +101,41 @@ def min_singular_weights(J, length_scale: float = LENGTH_SCALE) -> RankOne:
     k = len(s) - 1
     gap = float(s[k - 1] - s[k]) if k > 0 else float("inf")
     return RankOne(float(s[k]), D * U[:, k], Vt[k].copy(), gap)
+
+
+@dataclass(frozen=True)
+class Decoupling:
+    """The effector's motion besides the roll while every motor moves by +1 degree together.
+
+    Attributes
+    ----------
+    translation_mm_per_deg : |J[:3] @ 1| in mm per motor degree.
+    tilt_deg_per_deg : |(I - a a^T) J[3:] @ 1|, the rotation about axes perpendicular to the
+        rod axis a [deg per motor degree].
+    roll_deg_per_deg : a . J[3:] @ 1 (signed) [deg/deg], as :func:`rod_roll_per_degree`.
+    translation_per_roll : translation / |roll| [mm per degree of roll] (inf without roll).
+    tilt_per_roll : tilt / |roll| [-] (inf without roll).
+    """
+
+    translation_mm_per_deg: float
+    tilt_deg_per_deg: float
+    roll_deg_per_deg: float
+    translation_per_roll: float
+    tilt_per_roll: float
+
+
+def decoupling(J, axis) -> Decoupling:
+    """The parasitic motion of the all-together move ``J @ 1`` (J (6, na): mm/rad, rad/rad) about
+    the rod ``axis`` (3,): a motor degree is pi/180 rad, so translation [mm/deg] = |J[:3] 1| pi/180,
+    and a rotation in rad/rad is one in deg/deg."""
+    J = _check_jacobian(J)
+    a = _unit_axis(axis)
+    v = J @ np.ones(J.shape[1])
+    roll = float(a @ v[3:])
+    t = float(np.linalg.norm(v[:3])) * np.pi / 180.0
+    tilt = float(np.linalg.norm(v[3:] - roll * a))
+    per = (lambda x: x / abs(roll)) if roll != 0.0 else (lambda x: float("inf"))
+    return Decoupling(t, tilt, roll, per(t), per(tilt))
 
 
 def _scale(length_scale: float) -> np.ndarray:

@@ -32,11 +32,16 @@ def csv_text(header: Sequence[str], rows: Sequence[Sequence]) -> str:
 
 
 def trials_table(names: Sequence[str], values: np.ndarray, roll: np.ndarray, objectives: np.ndarray,
-                 pareto: np.ndarray) -> str:
+                 pareto: np.ndarray, extras: dict[str, np.ndarray] | None = None) -> str:
     """``trials.csv``: trial number, the variables [deg], the signed roll [deg/deg], the two
-    objectives and whether the trial is on the Pareto front."""
-    header = ["trial", *names, "roll_deg_per_deg", "abs_roll_deg_per_deg", "other_min_mm_per_rad", "pareto"]
-    rows = [[i, *values[i], roll[i], *objectives[i], bool(pareto[i])] for i in range(len(values))]
+    objectives, ``extras`` (column name -> (n,) reported values:
+    :data:`metasheet.design.search.EXTRAS`) and whether the trial is on the Pareto front (last:
+    the one column more trials may change)."""
+    extras = extras or {}
+    header = ["trial", *names, "roll_deg_per_deg", "abs_roll_deg_per_deg", "other_min_mm_per_rad", *extras,
+              "pareto"]
+    rows = [[i, *values[i], roll[i], *objectives[i], *(float(v[i]) for v in extras.values()), bool(pareto[i])]
+            for i in range(len(values))]
     return csv_text(header, rows)
 
 

@@ -43,6 +43,9 @@ from .fibre_field import PolarBSpline
 
 SAMPLERS = ("nsga2", "tpe")
 OBJECTIVES = ("roll", "other_min")  # both maximised
+#: what a trial reports besides its objectives (trials.csv's columns): six singular values
+#: [mm/rad], parasitic translation [mm/deg], largest principal strain at the goals [-]
+EXTRAS = tuple(f"sv{i + 1}_mm_per_rad" for i in range(6)) + ("translation_mm_per_deg", "strain_max")
 
 
 @dataclass(frozen=True)
@@ -104,11 +107,17 @@ class Scores:
     roll : rod roll per degree of all motors, signed [deg/deg] (the objective is ``abs(roll)``).
     singular_values : (6,) of the scaled Jacobian, largest first [mm/rad].
     other_min : the smallest singular value of the five directions other than the roll [mm/rad].
+    translation : parasitic translation of the all-together move [mm per motor degree]
+        (:func:`.objectives.decoupling`).
+    strain_max : largest principal small strain at the goals [-] (:func:`.strain.goal_strain`),
+        nan when not asked for.
     """
 
     roll: float
     singular_values: tuple[float, ...]
     other_min: float
+    translation: float = float("nan")
+    strain_max: float = float("nan")
 
     @property
     def objectives(self) -> tuple[float, float]:
@@ -136,11 +145,16 @@ def spiral_angles(centroids: np.ndarray, *, pitch_deg: float, law: str = "log", 
     return np.arctan2(f[:, 1], f[:, 0])
 
 
-def scores(problem: RestProblem, c) -> Scores:
-    """The objectives of design ``c`` (n,) [rad] on ``problem`` (its field's theta0 the start)."""
+def scores(problem: RestProblem, c, goal_deg: float | None = None) -> Scores:
+    """The objectives of design ``c`` (n,) [rad] on ``problem`` (its field's theta0 the start);
+    with ``goal_deg`` [deg], the strain at the goals too (~15 ms more on the coarse robot)."""
+    from .strain import goal_strain
+
     sol = solve_rest(problem, c)
+    strain = goal_strain(problem, sol, goal_deg).worst if goal_deg is not None else float("nan")
     return Scores(float(sol.roll), tuple(float(s) for s in sol.singular_values),
-                  other_five_min(sol.J, problem.robot.axis, problem.length_scale))
+                  other_five_min(sol.J, problem.robot.axis, problem.length_scale),
+                  obj.decoupling(sol.J, problem.robot.axis).translation_mm_per_deg, float(strain))
 
 
 @dataclass(frozen=True)
@@ -155,12 +169,14 @@ class Trials:
     centroids : (m, 3) sheet A's element centroids [mm]; spiral : keywords of
         :func:`spiral_angles` but the pitch; values : per design, the variables [deg]
         (:attr:`SearchSpace.names`).
+    goal_deg : [deg] score the strain at the goals too (None: not).
     """
 
     problem: RestProblem
     centroids: np.ndarray
     spiral: dict
     values: tuple[tuple[float, ...], ...]
+    goal_deg: float | None = None
 
 
 def evaluate_trials(t: Trials) -> list[Scores]:
@@ -170,7 +186,7 @@ def evaluate_trials(t: Trials) -> list[Scores]:
         theta0 = spiral_angles(t.centroids, pitch_deg=float(v[0]), **t.spiral)
         c = np.radians(np.asarray(v[1:], float))
         p = replace(t.problem, field=replace(t.problem.field, theta0=theta0))
-        res.append(scores(p, c if len(c) else np.zeros(p.n_coefficients)))
+        res.append(scores(p, c if len(c) else np.zeros(p.n_coefficients), t.goal_deg))
     return res
 
 
@@ -184,15 +200,20 @@ def design_angles(points: np.ndarray, design: dict, spiral: dict) -> np.ndarray:
     return theta
 
 
-def design_scores(sheets, material, design: dict, spiral: dict, r_max: float, **kw) -> Scores:
-    """The :class:`Scores` of ``design`` (as :func:`design_angles` reads it) on the rest problem
-    of ``sheets`` and ``material`` (``kw``: :func:`.adjoint.rest_problem`'s keywords)."""
+def design_problem(sheets, material, design: dict, spiral: dict, r_max: float, **kw) -> tuple[RestProblem, np.ndarray]:
+    """The rest problem of ``design`` (as :func:`design_angles` reads it) on ``sheets`` and
+    ``material`` (``kw``: :func:`.adjoint.rest_problem`'s keywords), and its coefficients (n,) [rad]."""
     basis = PolarBSpline(**design["basis"]) if design.get("basis") else SearchSpace((0.0, 1.0), r_max=r_max).basis()
     problem = rest_problem(sheets, material, basis, **kw)
     theta0 = spiral_angles(sheets.sheet.centroids(), pitch_deg=float(design["pitch_deg"]), **spiral)
     p = replace(problem, field=replace(problem.field, theta0=theta0))
     c = np.asarray(design["coefficients_rad"], float) if design.get("basis") else np.zeros(p.n_coefficients)
-    return scores(p, c)
+    return p, c
+
+
+def design_scores(sheets, material, design: dict, spiral: dict, r_max: float, **kw) -> Scores:
+    """The :class:`Scores` of ``design`` on the rest problem of :func:`design_problem`."""
+    return scores(*design_problem(sheets, material, design, spiral, r_max, **kw))
 
 
 def make_sampler(kind: str, seed: int, *, population: int = 8):
@@ -219,12 +240,15 @@ class SearchRecord:
     ----------
     values : (n, k) variables [deg]; objectives : (n, 2) (|roll| [deg/deg], other_min [mm/rad]).
     roll : (n,) signed roll [deg/deg]; evaluated : trials this call evaluated (not loaded).
+    extras : (n, len(EXTRAS)) the trials' reported values (:data:`EXTRAS`; nan where a trial
+        stored by an older version has none).
     """
 
     values: np.ndarray
     objectives: np.ndarray
     roll: np.ndarray
     evaluated: int
+    extras: np.ndarray | None = None
 
 
 def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, batch: int, sampler: str,
@@ -248,6 +272,7 @@ def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, b
         for t, s in zip(trials, res):
             # the signed roll rides along (a finished trial's attributes can no longer be set)
             study._storage.set_trial_user_attr(t._trial_id, "roll", float(s.roll))
+            study._storage.set_trial_user_attr(t._trial_id, "extras", _extras(s))
             study.tell(t.number, list(s.objectives))
         evaluated += len(trials)
 
@@ -271,7 +296,15 @@ def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, b
     complete = complete[:n_trials] if len(complete) > n_trials else complete
     return SearchRecord(np.array([[t.params[n] for n in space.names] for t in complete], float).reshape(-1, len(space.names)),
                         np.array([t.values for t in complete], float).reshape(-1, 2),
-                        np.array([t.user_attrs.get("roll", np.nan) for t in complete], float), evaluated)
+                        np.array([t.user_attrs.get("roll", np.nan) for t in complete], float), evaluated,
+                        np.array([t.user_attrs.get("extras", [np.nan] * len(EXTRAS)) for t in complete],
+                                 float).reshape(-1, len(EXTRAS)))
+
+
+def _extras(s: Scores) -> list:
+    """A trial's :data:`EXTRAS` as JSON numbers (None for nan: the journal is JSON)."""
+    v = [*s.singular_values, s.translation, s.strain_max]
+    return [float(x) if np.isfinite(x) else None for x in v]
 
 
 def pareto_mask(F: np.ndarray) -> np.ndarray:

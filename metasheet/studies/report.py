@@ -13,6 +13,7 @@ from ..material import CONSTANT_NAMES
 from .columns_report import columns_section, scene_facts_section
 from .constants_report import constants_section
 from .convergence_report import convergence_section
+from .design_report import design_section
 from .model_report import model_section
 from .reduce_report import reduce_section
 from .sheet_report import sheet_dns_section
@@ -133,6 +134,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         pic = [f"![robot]({pictures['robot']})", ""] if "robot" in pictures else []
         lines += ["## Robot, silicone vs foam (reproduces paper Fig. 4 and Fig. 8)", "", *pic, _table(flat), ""]
     section, found = sheet_dns_section(s.get("sheet_dns"), pictures, s.get("material"))
+    lines += section
+    diffs += found
+    section, found = design_section(s.get("design_json"), pictures)
     lines += section
     diffs += found
     section, found = model_section(s.get("robot"), s.get("anisotropy"))

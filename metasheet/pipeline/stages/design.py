@@ -13,7 +13,9 @@ constants, and on the robot's linear rest problem (:mod:`metasheet.design.adjoin
    +-``coefficient_deg``; ``symmetric`` ties it to the sheet's 120 deg symmetry);
 3. chooses the design of largest |roll| among the spiral, the Pareto trials and the gradient's
    design whose other-DOF singular value is at least ``other_floor`` x the spiral's, and
-   evaluates the spiral and the chosen design on the published constants too.
+   evaluates the spiral and the chosen design on every objective of issue 45's item 1 (roll,
+   six singular values, decoupling, strain at the goals, printability:
+   :mod:`metasheet.design.evaluation`) on the pipeline's material and the published constants.
 
 With ``oat_points`` and ``sobol_n`` it also writes the sensitivities of both objectives to the
 search's variables (:mod:`metasheet.design.sensitivity`): ``sensitivity.csv`` (one at a time,
@@ -21,7 +23,8 @@ about the spiral), Sobol indices in ``design.json`` and ``sensitivity.png``.
 
 Writes ``trials.csv``, ``pareto.csv``, ``pareto.png``, ``field.png`` (spiral | gradient design
 | chosen design), ``design.json`` (objectives before and after, iterations, the chosen design's
-coefficients), ``chosen.toml`` (a pipeline of material, orient and robot with the chosen
+coefficients, the comparison), ``comparison.md`` (the chosen design against the spiral on every
+objective, a markdown table), ``chosen.toml`` (a pipeline of material, orient and robot with the chosen
 pitch and, for a design with coefficients, ``[orient] fibre_field``: it rebuilds the chosen
 design's sheets exactly) and ``study.journal`` (Optuna's journal; it carries times,
 so its bytes differ between runs; the tables do not).
@@ -45,9 +48,13 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ... import paper
+from ...design import evaluation as ev
 from ...design import outputs as out
 from ...design import search as ds
 from ...design.fibre_field import PolarBSpline
+from ...design.optimise import basis_dict as _basis_dict
+from ...design.optimise import free_form
+from ...design.printability import check_settings
 from ...errors import ConfigError
 from ..artefacts import SHEET_FILES, read_material, read_orient
 from ..manifest import read_manifest, sha256_file, write_bytes_atomic, write_json_atomic
@@ -91,6 +98,12 @@ class DesignParams(Params):
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     compare_published: bool = Field(True, description="also evaluate the spiral and the chosen design on the "
                                     "published constants (paper.PAPER_FOAM)")
+    goal_deg: float = Field(10.0, gt=0, le=90, description="amplitude of the strain's goals [deg]: all motors "
+                            "and motor 0 alone at +-goal_deg (metasheet.design.strain)")
+    print_settings: dict[str, float] = Field(default_factory=dict, description="the foam's IceSL settings "
+                                             "(infill_percentage [%], kgon_x_shrink [-]), checked against IceSL's range")
+    round_trip: bool = Field(True, description="check the spiral's and the chosen design's fibre angle round "
+                             "trip through the print map's 8-bit texture")
     oat_points: int = Field(0, ge=0, le=1000, description="one-at-a-time sensitivity: values per variable about "
                             "the spiral (0: none; else >= 2)")
     sobol_n: int = Field(0, ge=0, le=65_536, description="Sobol indices (SALib): base samples, a power of two; "
@@ -99,6 +112,7 @@ class DesignParams(Params):
     @model_validator(mode="after")
     def _check(self):
         ds.SearchSpace(tuple(self.pitch_deg), self.n_radial, self.radial_deg)  # ConfigError names the field
+        check_settings(self.print_settings)  # an infeasible print is refused before anything runs
         if self.oat_points == 1:
             raise ConfigError("oat_points: 1: allowed values are 0 (none) or [2, 1000]")
         if self.sobol_n & (self.sobol_n - 1) or self.sobol_n == 1:
@@ -156,7 +170,7 @@ def run(ctx: StageContext) -> dict:
     pareto = ds.pareto_mask(record.objectives)
     names = space.names
     write_bytes_atomic(ctx.path("trials.csv"), out.trials_table(names, record.values, record.roll, record.objectives,
-                                                                pareto).encode())
+                                                                pareto, dict(zip(ds.EXTRAS, record.extras.T))).encode())
     write_bytes_atomic(ctx.path("pareto.csv"), out.pareto_table(names, record.values, record.roll, record.objectives,
                                                                 pareto).encode())
 
@@ -176,18 +190,25 @@ def run(ctx: StageContext) -> dict:
     grad = None
     if p.gradient:
         t0 = time.perf_counter()
-        grad = _gradient(ctx, sheets, mat.material, kw, p.field_basis(r_max), pitch0)
+        grad = free_form(sheets, mat.material, kw, p.field_basis(r_max), pitch0, maxiter=p.maxiter,
+                         bound_deg=p.coefficient_deg,
+                         progress=lambda i: ctx.progress("gradient iterations", i, p.maxiter))
         ctx.timings["gradient"] = round(time.perf_counter() - t0, 3)
         g = grad["scores"]
         cands.append(out.Candidate("gradient", g.roll, g.other_min, g.singular_values, grad["design"]))
 
-    # 3. the chosen design, and the check on the published constants
+    # 3. the chosen design, and every objective of it and of the spiral on both constant sets
     chosen = out.choose(cands, p.other_floor * spiral.other_min)
-    published = {}
-    if p.compare_published:
-        for name, d in (("spiral", spiral_design), ("chosen", chosen.design)):
-            s = ds.design_scores(sheets, paper.PAPER_FOAM, d, spiral_kw, r_max, **kw)
-            published[name] = out.scores_record(s.roll, s.other_min, s.singular_values)
+    t0 = time.perf_counter()
+    mats = {"pipeline": mat.material, **({"published": paper.PAPER_FOAM} if p.compare_published else {})}
+    cmp = ev.compare_designs(sheets, mats, {"spiral": spiral_design, "chosen": chosen.design}, spiral_kw, r_max,
+                             params=orient.sheet_params, settings=p.print_settings, round_trip=p.round_trip,
+                             goal_deg=p.goal_deg, **kw)
+    ctx.timings["comparison"] = round(time.perf_counter() - t0, 3)
+    e = cmp["evaluations"]
+    keys = ("roll_deg_per_deg", "abs_roll_deg_per_deg", "other_min_mm_per_rad", "singular_values_mm_per_rad")
+    published = {k: {x: e[k]["published"][x] for x in keys} for k in ("spiral", "chosen")} if p.compare_published else {}
+    if published:
         published["ratio_abs_roll"] = round(published["chosen"]["abs_roll_deg_per_deg"]
                                             / published["spiral"]["abs_roll_deg_per_deg"], 6)
     for f, data in out.pictures(orient, record, pareto, cands, chosen, grad, spiral_kw).items():
@@ -217,8 +238,11 @@ def run(ctx: StageContext) -> dict:
                    "chosen_toml": "the chosen design exactly: orient.pitch_deg, and orient.fibre_field for "
                    "design.coefficients_rad on design.basis"},
         "published": published or None,
+        "comparison": {"evaluations": e, "printability": cmp["printability"], "table": cmp["table"],
+                       "file": "comparison.md"},
     }
     write_json_atomic(ctx.path("design.json"), summary)
+    write_bytes_atomic(ctx.path("comparison.md"), ev.comparison_markdown(cmp["table"], ev.TITLES).encode())
     write_bytes_atomic(ctx.path("chosen.toml"), _chosen_toml(ctx, orient, mat, chosen).encode())
     shutil.rmtree(_cache_dir(ctx), ignore_errors=True)  # the journal is in the outputs now
     return {"spiral_roll": round(spiral.roll, 6), "chosen": chosen.name, "chosen_roll": round(chosen.roll, 6),
@@ -240,11 +264,6 @@ def _scores_of(record, i, problem, cent, spiral_kw):
     return ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, (tuple(record.values[i]),)))[0]
 
 
-def _basis_dict(b: PolarBSpline) -> dict:
-    return {"n_radial": b.n_radial, "n_angular": b.n_angular, "degree": b.degree, "r_max": b.r_max,
-            "symmetric": b.symmetric}
-
-
 def _cache_dir(ctx: StageContext):
     return ctx.workdir.parent / f".{ctx.name}.units"
 
@@ -257,7 +276,7 @@ def _study_name(ctx: StageContext) -> str:
     for d, f in ((ctx.inputs["orient"], SHEET_FILES["normal"]), (ctx.inputs["orient"], SHEET_FILES["mirrored"]),
                  (ctx.inputs["orient"], "sheet.json"), (ctx.inputs["material"], "material.json")):
         h.update(sha256_file(d / f).encode())
-    keys = ("sampler", "seed", "batch", "population", "pitch_deg", "n_radial", "radial_deg", "length_scale")
+    keys = ("sampler", "seed", "batch", "population", "pitch_deg", "n_radial", "radial_deg", "length_scale", "goal_deg")
     h.update(json.dumps({k: getattr(p, k) for k in keys}, sort_keys=True).encode())
     return "design-" + h.hexdigest()[:16]
 
@@ -282,18 +301,21 @@ def _search(ctx: StageContext, space, problem, cent, spiral_kw):
         journal.unlink()  # another study (other inputs or settings): start afresh
         st = storage()
     record = ds.run_search(st, name, space, n_trials=p.n_trials, batch=p.batch, sampler=p.sampler, seed=p.seed,
-                           population=p.population, evaluate=lambda v: _evaluate(ctx, problem, cent, spiral_kw, v),
+                           population=p.population, evaluate=lambda v: _evaluate(ctx, problem, cent, spiral_kw, v, goal_deg=p.goal_deg),
                            progress=lambda d, n: ctx.progress("search trials", d, n))
     shutil.copyfile(journal, ctx.path(JOURNAL))
     return record, name
 
 
-def _evaluate(ctx: StageContext, problem, cent, spiral_kw, values: list, label: str = "") -> list:
+def _evaluate(ctx: StageContext, problem, cent, spiral_kw, values: list, label: str = "",
+              goal_deg: float | None = None) -> list:
     """The :class:`~metasheet.design.search.Scores` of search designs ``values`` (variables
-    [deg]), in order: one work unit per worker (the problem travels once per unit)."""
+    [deg]), in order (with the strain at the goals of ``goal_deg`` [deg] when given): one work
+    unit per worker (the problem travels once per unit)."""
     workers = max(1, int(getattr(ctx.executor, "workers", 1)))
     chunks = [c for c in np.array_split(np.arange(len(values)), min(workers, len(values))) if len(c)]
-    units = [ds.Trials(problem, cent, spiral_kw, tuple(tuple(float(x) for x in values[i]) for i in c)) for c in chunks]
+    units = [ds.Trials(problem, cent, spiral_kw, tuple(tuple(float(x) for x in values[i]) for i in c), goal_deg)
+             for c in chunks]
     kw = {"progress": lambda d, n: ctx.progress(label, d, n)} if label else {}
     return [s for r in ctx.executor.map(ds.evaluate_trials, units, **kw) for s in r]
 
@@ -335,42 +357,6 @@ def _sensitivities(ctx: StageContext, space, problem, cent, spiral_kw, pitch0: f
     return rec
 
 
-def _gradient(ctx: StageContext, sheets, material, kw: dict, basis: PolarBSpline, pitch0: float) -> dict:
-    """L-BFGS-B on |rod roll per degree| with the adjoint gradient, from the spiral (c = 0)."""
-    from scipy.optimize import minimize
-
-    p: DesignParams = ctx.params
-    problem = ds.rest_problem(sheets, material, basis, **kw)
-    c0 = np.zeros(problem.n_coefficients)
-    before = ds.scores(problem, c0)
-    sign = 1.0 if before.roll >= 0 else -1.0  # more roll in the spiral's own sense
-    history, count = [], [0]
-
-    def f(c):
-        s = ds.roll_sensitivity(problem, c)
-        count[0] += 1
-        return -sign * s.value, -sign * s.gradient
-
-    def step(intermediate_result):
-        history.append(round(-sign * float(intermediate_result.fun), 6))
-        ctx.progress("gradient iterations", len(history), p.maxiter)
-
-    b = np.radians(p.coefficient_deg)
-    res = minimize(f, c0, jac=True, method="L-BFGS-B", bounds=[(-b, b)] * len(c0), callback=step,
-                   options={"maxiter": p.maxiter})
-    after = ds.scores(problem, res.x)
-    design = {"pitch_deg": pitch0, "basis": _basis_dict(basis), "coefficients_rad": [float(v) for v in res.x]}
-    record = {"method": "L-BFGS-B, adjoint gradient of the rod roll per degree", "start": "the orient stage's spiral",
-              "n_coefficients": len(c0), "bound_deg": p.coefficient_deg, "basis": _basis_dict(basis),
-              "iterations": int(res.nit), "evaluations": int(count[0]), "message": str(res.message),
-              "at_bounds": int(np.sum(np.abs(np.abs(res.x) - b) < 1e-9)),
-              "roll_per_iteration": history,
-              "before": out.scores_record(before.roll, before.other_min, before.singular_values),
-              "after": out.scores_record(after.roll, after.other_min, after.singular_values),
-              "ratio_abs_roll": round(abs(after.roll) / abs(before.roll), 6)}
-    return {"scores": after, "design": design, "record": record}
-
-
 def _chosen_toml(ctx: StageContext, orient, mat, chosen) -> str:
     """``chosen.toml`` (:func:`metasheet.design.outputs.chosen_pipeline`): the material's
     constants as given, the orient stage's table with the chosen pitch and field."""
@@ -383,6 +369,7 @@ def _chosen_toml(ctx: StageContext, orient, mat, chosen) -> str:
 
 register(Stage(
     name="design", params=DesignParams, run=run, requires=("orient", "material"),
-    outputs=("trials.csv", "pareto.csv", "pareto.png", "field.png", "design.json", "chosen.toml", JOURNAL),
+    outputs=("trials.csv", "pareto.csv", "pareto.png", "field.png", "design.json", "comparison.md", "chosen.toml",
+             JOURNAL),
     doc="fibre design: Optuna search (pitch, radial field) and adjoint L-BFGS-B (free-form field) for more rod roll",
 ))

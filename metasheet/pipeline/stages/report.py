@@ -74,6 +74,12 @@ def run(ctx: StageContext) -> dict:
             if (ctx.inputs["sheet"] / f"{key}.png").exists():
                 shutil.copyfile(ctx.inputs["sheet"] / f"{key}.png", ctx.path(f"{key}.png"))
                 pictures[key] = f"{key}.png"
+    if "design" in ctx.inputs and (ctx.inputs["design"] / "design.json").exists():  # the fibre design (issue 45)
+        summaries["design_json"] = json.loads((ctx.inputs["design"] / "design.json").read_text())
+        for f in ("field", "pareto"):
+            if (ctx.inputs["design"] / f"{f}.png").exists():
+                shutil.copyfile(ctx.inputs["design"] / f"{f}.png", ctx.path(f"design_{f}.png"))
+                pictures[f"design_{f}"] = f"design_{f}.png"
     summaries["columns"] = {name: _columns(ctx, name, pictures) for name in STUDIES if name in ctx.inputs}
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
@@ -134,6 +140,6 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
-              "ranges", "anisotropy", "maze", "sheet"),
+              "ranges", "anisotropy", "maze", "sheet", "design"),
     outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
 ))

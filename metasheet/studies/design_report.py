@@ -1,0 +1,75 @@
+"""Report section: the design stage's chosen fibre field against the paper's spiral (issue 45).
+
+Reads the ``design`` stage's ``design.json`` (:mod:`metasheet.pipeline.stages.design`): its
+``comparison`` (every objective of both designs on the pipeline's material and on the published
+constants, :mod:`metasheet.design.evaluation`). Every sentence is computed from it. Returns
+Markdown lines and the differences found, as the other sections do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+#: issue 45's target: the chosen design's rod roll per motor degree over the spiral's
+ROLL_TARGET = 1.5
+
+
+def _rows(table: Mapping) -> dict:
+    return {r["objective"]: r for r in table["rows"]}
+
+
+def targets(table: Mapping, material: str = "pipeline") -> dict:
+    """Issue 45's targets on ``material``'s columns of the comparison ``table``: the roll ratio
+    [-] (|chosen| / |spiral|), whether each of singular values 2-6 [mm/rad] and the five other
+    DOF's smallest is no lower than the spiral's, and whether the chosen design's strain at
+    every goal is within the limit."""
+    rows = _rows(table)
+    roll = rows["rod roll per motor degree"][material]
+    ratio = abs(roll["chosen"]) / abs(roll["spiral"])
+    others = [rows[f"singular value {i} of 6"][material] for i in range(2, 7)]
+    others.append(rows["smallest of the five other DOF"][material])
+    strain = [r[material] for k, r in rows.items() if k.startswith("largest principal strain")]
+    worst = max(s["chosen"] for s in strain)
+    return {"roll_ratio": ratio, "roll_met": ratio >= ROLL_TARGET,
+            "others_not_lower": all(o["chosen"] >= o["spiral"] for o in others),
+            "strain_max": worst, "spiral_strain_max": max(s["spiral"] for s in strain),
+            "strain_within": worst <= table["strain_limit"]}
+
+
+def design_section(d: Mapping | None, pictures: Mapping[str, str] | None = None) -> tuple[list[str], list[str]]:
+    """(Markdown lines, differences) of the section; ([], []) without the design stage's output
+    (or with one from before the comparison was recorded)."""
+    if not d or not d.get("comparison"):
+        return [], []
+    from ..design.evaluation import TITLES, comparison_markdown
+
+    pictures = pictures or {}
+    table = d["comparison"]["table"]
+    mats = table["materials"]
+    t = {m: targets(table, m) for m in mats}
+    p = t["pipeline"]
+    verdict = (f"rod roll per motor degree {p['roll_ratio']:.3g} x the spiral's (target {ROLL_TARGET:g}: "
+               f"{'met' if p['roll_met'] else 'not met'}); the other singular values "
+               f"{'no lower than' if p['others_not_lower'] else 'partly below'} the spiral's; the largest strain at "
+               f"the goals {p['strain_max']:.3g} ({'within' if p['strain_within'] else 'beyond'} the limit "
+               f"{table['strain_limit']:g}; the spiral's {p['spiral_strain_max']:.3g})")
+    c = d["chosen"]
+    lines = ["## Design: the chosen fibre field against the paper's spiral (issue 45)", "",
+             f"**Chosen design: {c['name']}, on the pipeline's material: {verdict}.**", "",
+             (f"Model: {d['model']}; {d['n_tets_per_sheet']} tetrahedra a sheet ({d['element']}); the numbers "
+              "show the direction of the gain, not the converged robot's values. Strain: the linear problem's "
+              f"small strain at the motors {d['comparison']['evaluations']['spiral']['pipeline']['strain']['goal_deg']:g}"
+              " deg from rest (all together, and motor 0 alone)."), ""]
+    for key, what in (("design_field", "fibre fields"), ("design_pareto", "the search's Pareto front")):
+        if key in pictures:
+            lines += [f"![{what}]({pictures[key]})", ""]
+    lines += [comparison_markdown(table, TITLES), ""]
+    diffs = []
+    if "published" in t:
+        q = t["published"]
+        diffs.append(f"Design (beyond the paper): on the published constants the chosen design's roll is "
+                     f"{q['roll_ratio']:.3g} x the spiral's (pipeline's material: {p['roll_ratio']:.3g} x).")
+    if not p["strain_within"]:
+        diffs.append(f"Design: the chosen design's linearised strain at the goals reaches {p['strain_max']:.3g}, "
+                     f"beyond the validity limit {table['strain_limit']:g}.")
+    return lines, diffs

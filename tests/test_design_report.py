@@ -1,0 +1,46 @@
+"""The report's design section (metasheet.studies.design_report) on a hand-made comparison:
+its verdict against issue 45's targets, computed from the numbers."""
+
+import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
+
+# isort: split
+from metasheet.design.evaluation import comparison
+from metasheet.studies.design_report import design_section, targets
+from metasheet.studies.report import build_report
+
+
+def _eval(roll, sv, strain):
+    return {"roll_deg_per_deg": roll, "singular_values_mm_per_rad": sv, "other_min_mm_per_rad": sv[-1],
+            "decoupling": {"translation_mm_per_deg": 0.01, "tilt_deg_per_deg": 0.0,
+                           "translation_mm_per_roll_deg": 0.01 / abs(roll), "tilt_per_roll": 0.0},
+            "strain": {"goal_deg": 10.0, "limit": 0.3, "goals": {"all +10 deg": strain, "motor 0 +10 deg": strain / 2}}}
+
+
+def _summary(chosen_sv, strain):
+    spiral = {"pipeline": _eval(-1.0, [50.0, 17, 15, 15, 12, 12], 0.2)}
+    chosen = {"pipeline": _eval(-2.0, chosen_sv, strain)}
+    pr = {"spiral": {"in_range": True}, "chosen": {"in_range": True}}
+    return {"model": "linear rest problem", "n_tets_per_sheet": 852, "element": "p1", "chosen": {"name": "gradient"},
+            "comparison": {"table": comparison(spiral, chosen, pr), "evaluations": {"spiral": spiral}}}
+
+
+def test_targets_from_the_numbers():
+    met = _summary([100.0, 18, 16, 15, 13, 12], 0.25)
+    t = targets(met["comparison"]["table"])
+    assert t["roll_ratio"] == 2.0 and t["roll_met"] and t["others_not_lower"] and t["strain_within"]
+    low = targets(_summary([100.0, 18, 16, 14.9, 13, 12], 0.31)["comparison"]["table"])
+    assert low["others_not_lower"] is False and low["strain_within"] is False and low["strain_max"] == 0.31
+    assert low["spiral_strain_max"] == 0.2
+
+
+def test_section_and_its_absence():
+    assert design_section(None) == ([], []) and design_section({"model": "old, no comparison"}) == ([], [])
+    lines, diffs = design_section(_summary([100.0, 18, 16, 15, 13, 12], 0.31), {"design_field": "design_field.png"})
+    text = "\n".join(lines)
+    assert "rod roll per motor degree 2 x the spiral's (target 1.5: met)" in text
+    assert "| rod roll per motor degree | deg/deg | -1 | -2 | 2 |" in text
+    assert "![fibre fields](design_field.png)" in text
+    assert diffs == [("Design: the chosen design's linearised strain at the goals reaches 0.31, beyond the "
+                      "validity limit 0.3.")]
+    assert "## Design: the chosen fibre field" in build_report({"design_json": _summary([100.0] * 6, 0.1)}, {})
+    assert "## Design" not in build_report({"material": None}, {})
