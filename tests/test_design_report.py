@@ -44,3 +44,21 @@ def test_section_and_its_absence():
                       "validity limit 0.3.")]
     assert "## Design: the chosen fibre field" in build_report({"design_json": _summary([100.0] * 6, 0.1)}, {})
     assert "## Design" not in build_report({"material": None}, {})
+
+
+def test_trade_off_is_stated():
+    """The constrained run's reach and strain front appear in the section, with the issue's
+    overall target (roll, other DOF and strain together) judged from the numbers."""
+    d = _summary([100.0, 18, 16, 15, 13, 12], 0.29)
+    d["chosen"].update({"strain_constrained": True, "reach": {
+        "spiral": {"motor_deg_at_limit": 9.6, "roll_deg_at_limit": 16.0},
+        "chosen": {"motor_deg_at_limit": 10.0, "roll_deg_at_limit": 22.0}}})
+    d["strain_front"] = {"goal_deg": 10.0, "reach_limit": 0.3, "rows": [
+        {"strain_limit": 0.4, "roll_deg_per_deg": -3.6, "ratio_abs_roll": 2.18, "goal_strain": 0.399,
+         "satisfied": True, "roll_deg_at_limit": 27.3}]}
+    lines, diffs = design_section(d)
+    text = "\n".join(lines)
+    assert "Issue 45's target (all three together): met" in text
+    assert "optimised subject to the strain limit" in text
+    assert "the chosen design 22 deg of rod roll at 10 deg of the motors, the spiral 16 deg at 9.6 deg (1.38 x)" in text
+    assert "| 0.4 | -3.6 | 2.18 | 0.399 | yes | 27.3 |" in text and diffs == []

@@ -34,7 +34,7 @@ element = "p1"
 {design}
 """
 DESIGN = {"n_trials": "8", "batch": "4", "population": "4", "n_radial": "2", "maxiter": "5", "oat_points": "3",
-          "sobol_n": "8"}
+          "sobol_n": "8", "strain_front": "[0.35]"}
 
 
 def _pipeline(tmp_path, n=8, extra="", name="p.toml"):
@@ -75,7 +75,11 @@ def test_outputs(first):
     assert set(sobol["indices"]["roll"]) == {"pitch_deg", "radial_0_deg", "radial_1_deg"}
     assert len((d / "sensitivity.csv").read_text().splitlines()) == 1 + 3 * 3
     assert s["published"]["spiral"]["abs_roll_deg_per_deg"] != s["spiral"]["abs_roll_deg_per_deg"]
-    assert s["published"]["ratio_abs_roll"] > 1.0  # the gain holds on the published constants too
+    # the spiral strains beyond the limit here (0.307 at 10 deg): the chosen design is the
+    # feasible one of most roll, whatever its roll against the spiral
+    assert s["chosen"]["meets_constraints"] and s["chosen"]["goal_strain"] <= 0.3
+    assert s["published"]["ratio_abs_roll"] == pytest.approx(
+        s["published"]["chosen"]["abs_roll_deg_per_deg"] / s["published"]["spiral"]["abs_roll_deg_per_deg"], rel=1e-5)
     chosen = tomllib.loads((d / "chosen.toml").read_text())
     assert chosen["orient"]["pitch_deg"] == s["chosen"]["design"]["pitch_deg"]
     assert chosen["material"]["E_l"] == 0.2
@@ -102,11 +106,22 @@ def test_trials_report_every_singular_value_translation_and_strain(first):
 def test_gradient_improves_the_spiral(first):
     s = json.loads((first[1] / "design.json").read_text())
     g = s["gradient"]
-    assert g["iterations"] >= 1 and g["before"] == {k: v for k, v in s["spiral"].items() if k in g["before"]}
-    assert g["after"]["abs_roll_deg_per_deg"] > 1.3 * g["before"]["abs_roll_deg_per_deg"]
+    assert g["iterations"] >= 1 and {k: v for k, v in g["before"].items() if k in s["spiral"]} == \
+        {k: v for k, v in s["spiral"].items() if k in g["before"]}
+    # constrained (the default): within the strain limit (exact maximum) and the other-DOF floor
+    assert g["constraints"]["strain"]["satisfied"] and g["after"]["goal_strain"] <= 0.3 + 1e-6
+    assert g["constraints"]["strain"]["ks"] >= g["constraints"]["strain"]["exact_max"]
+    assert g["after"]["other_min_mm_per_rad"] >= g["constraints"]["other_min_floor_mm_per_rad"] * (1 - 1e-5)
     assert abs(s["chosen"]["roll_deg_per_deg"]) >= g["after"]["abs_roll_deg_per_deg"] - 1e-12 or \
         s["chosen"]["name"] != "gradient"
     assert s["chosen"]["other_min_mm_per_rad"] >= s["spiral"]["other_min_mm_per_rad"]
+    front = s["strain_front"]["rows"]
+    # 5 SLSQP iterations from the spiral need not reach the limit: the row says whether it did
+    assert [r["strain_limit"] for r in front] == [0.35]
+    assert front[0]["satisfied"] == (front[0]["goal_strain"] <= 0.35 + 1e-6)
+    assert front[0]["motor_deg_at_limit"] == pytest.approx(10.0 * 0.3 / front[0]["goal_strain"], rel=1e-5)
+    reach = s["chosen"]["reach"]["spiral"]  # the strain is linear in the goal: the angle at the limit
+    assert reach["motor_deg_at_limit"] == pytest.approx(10.0 * 0.3 / s["gradient"]["before"]["goal_strain"], rel=1e-5)
 
 
 def test_comparison_of_every_objective(first):

@@ -40,9 +40,10 @@ def _tree(root: Path) -> dict[str, bytes]:
 BLAS_THREADS = {"a": "2", "b": "1"}
 
 
-@pytest.mark.bytes
 def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
     """Not marked slow: CI runs it (two quick runs, about a minute each on 2 shared cores).
+    Not marked ``bytes`` either: it sets the BLAS threads of each run itself (2, then 1), so
+    .ci/run's reruns under 1 and 2 threads would repeat it unchanged (2 x 2 minutes).
     The first runs serially with two BLAS threads asked for, the second with one, on a pool of
     two workers, its independent stages at once (``stages_at_once = 2``: printmap beside
     robot, both drawing pictures): the same bytes. Before: 10 of 26 files differed between

@@ -321,10 +321,8 @@ def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
     assert info["robot_key"] == red["robot_key"] and info["box_deg"] == red["box_deg"]
     manifest = json.loads((out / "ranges" / "manifest.json").read_text())
     assert manifest["summary"]["model_info"]["basis_key"] == info["basis_key"]
-    # the same config trains the same basis, byte for byte: the studies' model key is its hash
-    basis = (out / "reduce" / "basis.npz").read_bytes()
-    run_pipeline(load_pipeline(p), only="reduce", force=True)
-    assert (out / "reduce" / "basis.npz").read_bytes() == basis
+    # the same config trains the same basis, byte for byte (the studies' model key is its hash):
+    # tests/test_reduce_adapt.py::test_the_training_rounds_give_the_same_bytes_twice
     assert "training_ecsw_rows" in json.loads((out / "reduce" / "manifest.json").read_text())["timings_s"]
     # certify = 0: every point reached in any range re-solved by the full model
     assert cert["reachable"] == sum(r["reachable"].values()) == cert["certified"] > 0

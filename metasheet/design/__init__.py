@@ -11,7 +11,10 @@ at the rest pose, and their adjoint gradients (issue 45, item 3's core).
 * :mod:`.strain`: the largest principal (linearised) strain at a stated set of motor goals.
 * :mod:`.printability`: IceSL's setting ranges and the fibre axis' 8-bit print round trip.
 * :mod:`.evaluation`: every objective of one design, and the chosen design against the spiral.
-* :mod:`.optimise`: the free-form field by L-BFGS-B and the adjoint gradient.
+* :mod:`.constraints`: the KS aggregate of the strain at the goals and the other DOF's
+  smallest singular value, with their adjoint gradients.
+* :mod:`.optimise`: the free-form field by SLSQP under those constraints (or L-BFGS-B on the
+  roll alone), and the roll-strain front.
 
 The public names below load their module on first use.
 """

@@ -158,6 +158,8 @@ class RestSolution:
     dC : (2m, 6, 6) world-frame Voigt dC_e/dtheta_e [MPa/rad] (A's elements, then B's,
         each B element's derivative in its own angle theta_B = -theta_A).
     roll : rod roll per degree of all motors [deg/deg]; singular_values : (na,) [mm/rad].
+    ff : the factorised K_ff (``solve(b)`` gives ``K_ff^-1 b``), kept for the adjoint solves of
+        objectives that are not functions of J alone (the strain: :mod:`.constraints`).
     """
 
     c: np.ndarray
@@ -168,6 +170,7 @@ class RestSolution:
     dC: np.ndarray
     roll: float
     singular_values: np.ndarray
+    ff: object = None
 
 
 def _world_tensors(problem: RestProblem, theta: np.ndarray):
@@ -192,13 +195,14 @@ def solve_rest(problem: RestProblem, c) -> RestSolution:
     blk = {k: _block(sub, data[take]) for k, (sub, take) in problem.maps.items()}
     Bfr = np.asarray(blk["fr"] @ problem.Jr)
     A = problem.Jr.T @ np.asarray(blk["rr"] @ problem.Jr)
-    Y = spla.splu(blk["ff"].tocsc()).solve(Bfr)
+    ff = spla.splu(blk["ff"].tocsc())
+    Y = ff.solve(Bfr)
     S = A - Bfr.T @ Y
     S = 0.5 * (S + S.T)  # symmetric in exact arithmetic; made exactly so for the adjoint identity
     _, J = jacobian_from_schur(S)
     roll = obj.rod_roll_per_degree(J, problem.robot.axis)
     sv = obj.scaled_singular_values(J, problem.length_scale)
-    return RestSolution(problem.field.check(c), theta, S, J, Y, dC, roll, sv)
+    return RestSolution(problem.field.check(c), theta, S, J, Y, dC, roll, sv, ff)
 
 
 def _block(sub, data):
@@ -222,6 +226,13 @@ def angle_sensitivity(problem: RestProblem, sol: RestSolution, weights: obj.Rank
     w = np.concatenate([J @ weights.beta, weights.beta])
     lam = _field(problem, sol, np.concatenate([mu, np.zeros(na)]))
     u = _field(problem, sol, w)
+    return stiffness_product(problem, sol, lam, u)
+
+
+def stiffness_product(problem: RestProblem, sol: RestSolution, lam: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(m,) ``-lam^T (dK/dtheta_e) u`` per element of sheet A [unit of lam x N/mm x mm per rad]
+    for fields ``lam``, ``u`` (3 n,) [mm], sheet B's mirrored element folded in
+    (theta_B = -theta_A): the design derivative of any objective whose adjoint field is ``lam``."""
     dofs = problem.robot.body.pattern.dofs
     eps_l = np.einsum("mqia,ma->mqi", problem.B, lam[dofs])
     eps_u = np.einsum("mqia,ma->mqi", problem.B, u[dofs])

@@ -103,6 +103,21 @@ def min_singular_weights(J, length_scale: float = LENGTH_SCALE) -> RankOne:
     return RankOne(float(s[k]), D * U[:, k], Vt[k].copy(), gap)
 
 
+def other_five_weights(J, axis, length_scale: float = LENGTH_SCALE) -> RankOne:
+    """The smallest singular value [mm/rad] of ``D J`` projected on the five effector directions
+    orthogonal to the roll ``(0, 0, 0, axis)`` (``P = U^T D J``, U (6, 5) an orthonormal basis of
+    the complement), and its weights: ``ds = u^T U^T D dJ v``, so alpha = D U u, beta = v (valid
+    where s is simple: ``gap`` [mm/rad])."""
+    J = _check_jacobian(J)
+    D = _scale(length_scale)
+    e = np.concatenate([np.zeros(3), _unit_axis(axis)])
+    Uc = np.linalg.svd(e[:, None], full_matrices=True)[0][:, 1:]
+    U, s, Vt = np.linalg.svd(Uc.T @ (D[:, None] * J), full_matrices=False)
+    k = len(s) - 1
+    gap = float(s[k - 1] - s[k]) if k > 0 else float("inf")
+    return RankOne(float(s[k]), D * (Uc @ U[:, k]), Vt[k].copy(), gap)
+
+
 @dataclass(frozen=True)
 class Decoupling:
     """The effector's motion besides the roll while every motor moves by +1 degree together.

@@ -62,7 +62,8 @@ class Candidate:
     ----------
     name : "spiral", "trial <n>" or "gradient".
     roll : signed rod roll per degree [deg/deg]; other_min : [mm/rad];
-    singular_values : (6,) [mm/rad]; design : how to rebuild it (JSON-able).
+    singular_values : (6,) [mm/rad]; design : how to rebuild it (JSON-able);
+    strain : largest principal strain at the goals [-] (nan: not measured).
     """
 
     name: str
@@ -70,14 +71,19 @@ class Candidate:
     other_min: float
     singular_values: tuple[float, ...]
     design: dict
+    strain: float = float("nan")
 
 
-def choose(candidates: Sequence[Candidate], floor: float) -> Candidate:
-    """The candidate with the largest |roll| whose ``other_min`` is at least ``floor`` [mm/rad]
-    (the first candidate, the spiral, when none is); ties go to the earlier candidate."""
-    best = candidates[0]
-    for c in candidates[1:]:
-        if c.other_min >= floor and abs(c.roll) > abs(best.roll):
+def choose(candidates: Sequence[Candidate], floor: float, strain_limit: float | None = None) -> Candidate:
+    """The candidate with the largest |roll| among those whose ``other_min`` is at least
+    ``floor`` [mm/rad] and, with ``strain_limit`` [-], whose goal strain is within it (an
+    unmeasured, nan, strain is not); ties go to the earlier candidate. The first candidate, the
+    spiral, is the reference: it is chosen when it qualifies and nothing rolls more, or when
+    no candidate qualifies (then the result breaks the constraints: the caller reports it)."""
+    ok = [c for c in candidates if c.other_min >= floor and (strain_limit is None or c.strain <= strain_limit)]
+    best = ok[0] if ok else candidates[0]
+    for c in ok[1:]:
+        if abs(c.roll) > abs(best.roll):
             best = c
     return best
 

@@ -8,11 +8,15 @@ constants, and on the robot's linear rest problem (:mod:`metasheet.design.adjoin
    |rod roll per motor degree| and the smallest singular value of the five other DOF),
    sampler NSGA-II or TPE with a fixed seed, ``batch`` trials at a time through the stage's
    executor, stored in an Optuna journal so a rerun resumes from the stored trials;
-2. maximises |rod roll per degree| by L-BFGS-B with the adjoint gradient over a free-form
-   polar B-spline field starting from the orient stage's spiral (box bounds
-   +-``coefficient_deg``; ``symmetric`` ties it to the sheet's 120 deg symmetry);
+2. maximises |rod roll per degree| with the adjoint gradients over a free-form polar B-spline
+   field starting from the orient stage's spiral (box bounds +-``coefficient_deg``;
+   ``symmetric`` ties it to the sheet's 120 deg symmetry): by SLSQP subject to the goal strain
+   (KS aggregate) <= ``strain_limit`` and the other DOF's singular value >= ``other_floor`` x
+   the spiral's (``constrain_strain``, :mod:`metasheet.design.constraints`), else by L-BFGS-B
+   on the roll alone; with ``strain_front``, again at each of those strain limits;
 3. chooses the design of largest |roll| among the spiral, the Pareto trials and the gradient's
-   design whose other-DOF singular value is at least ``other_floor`` x the spiral's, and
+   design whose other-DOF singular value is at least ``other_floor`` x the spiral's (and, with
+   ``constrain_strain``, whose goal strain is within ``strain_limit``), and
    evaluates the spiral and the chosen design on every objective of issue 45's item 1 (roll,
    six singular values, decoupling, strain at the goals, printability:
    :mod:`metasheet.design.evaluation`) on the pipeline's material and the published constants.
@@ -22,7 +26,7 @@ search's variables (:mod:`metasheet.design.sensitivity`): ``sensitivity.csv`` (o
 about the spiral), Sobol indices in ``design.json`` and ``sensitivity.png``.
 
 Writes ``trials.csv``, ``pareto.csv``, ``pareto.png``, ``field.png`` (spiral | gradient design
-| chosen design), ``design.json`` (objectives before and after, iterations, the chosen design's
+| chosen design), ``design.json`` (objectives before and after, iterations, the strain front, the chosen design's
 coefficients, the comparison), ``comparison.md`` (the chosen design against the spiral on every
 objective, a markdown table), ``chosen.toml`` (a pipeline of material, orient and robot with the chosen
 pitch and, for a design with coefficients, ``[orient] fibre_field``: it rebuilds the chosen
@@ -52,8 +56,8 @@ from ...design import evaluation as ev
 from ...design import outputs as out
 from ...design import search as ds
 from ...design.fibre_field import PolarBSpline
+from ...design.optimise import StrainSettings, free_form, reach_at_limit, strain_front
 from ...design.optimise import basis_dict as _basis_dict
-from ...design.optimise import free_form
 from ...design.printability import check_settings
 from ...errors import ConfigError
 from ..artefacts import SHEET_FILES, read_material, read_orient
@@ -92,7 +96,12 @@ class DesignParams(Params):
     field_degree: int = Field(3, ge=1, le=5, description="free-form field: B-spline degree")
     symmetric: bool = Field(True, description="tie the free-form field to the sheet's 120 deg symmetry")
     coefficient_deg: float = Field(45.0, gt=0, le=90, description="box bound of each free-form coefficient [deg]")
-    maxiter: int = Field(15, ge=1, le=10_000, description="L-BFGS-B iterations")
+    maxiter: int = Field(15, ge=1, le=10_000, description="SLSQP (or L-BFGS-B) iterations")
+    constrain_strain: bool = Field(True, description="SLSQP under goal strain and other-DOF floor, else L-BFGS-B")
+    strain_limit: float = Field(0.3, gt=0, le=10, description="limit of the largest principal strain at the "
+                                "goals [-] (the foam's validity limit)")
+    ks_rho: float = Field(1000.0, gt=0, le=1e6, description="KS aggregation parameter of the strain [1/strain]")
+    strain_front: list[float] = Field(default_factory=list, description="strain limits [-] to optimise at too")
     other_floor: float = Field(1.0, ge=0, le=10, description="the chosen design's other-DOF singular value "
                                "must be at least this times the spiral's [-]")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
@@ -112,6 +121,8 @@ class DesignParams(Params):
     @model_validator(mode="after")
     def _check(self):
         ds.SearchSpace(tuple(self.pitch_deg), self.n_radial, self.radial_deg)  # ConfigError names the field
+        for v in self.strain_front:
+            StrainSettings(v, self.goal_deg, self.ks_rho)  # ConfigError: "strain_limit: ..."
         check_settings(self.print_settings)  # an infeasible print is refused before anything runs
         if self.oat_points == 1:
             raise ConfigError("oat_points: 1: allowed values are 0 (none) or [2, 1000]")
@@ -160,7 +171,8 @@ def run(ctx: StageContext) -> dict:
     cent = sheets.sheet.centroids()
     t0 = time.perf_counter()
     problem = ds.rest_problem(sheets, mat.material, space.basis(), **kw)
-    spiral = ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, ((pitch0,) + (0.0,) * p.n_radial,)))[0]
+    spiral = ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, ((pitch0,) + (0.0,) * p.n_radial,),
+                                          p.goal_deg))[0]
     ctx.timings["rest problem"] = round(time.perf_counter() - t0, 3)
 
     # 1. the parametric search, resumable through the journal
@@ -180,25 +192,32 @@ def run(ctx: StageContext) -> dict:
 
     # 2. the free-form field by L-BFGS-B and the adjoint gradient, from the spiral
     spiral_design = {"pitch_deg": pitch0, "basis": None, "coefficients_rad": []}
-    cands = [out.Candidate("spiral", spiral.roll, spiral.other_min, spiral.singular_values, spiral_design)]
+    cands = [out.Candidate("spiral", spiral.roll, spiral.other_min, spiral.singular_values, spiral_design,
+                           spiral.strain_max)]
     for i in np.flatnonzero(pareto):
         pitch, c = space.split(record.values[i])
-        s = _scores_of(record, i, problem, cent, spiral_kw)
+        s = _scores_of(record, i, problem, cent, spiral_kw, p.goal_deg)
         cands.append(out.Candidate(f"trial {i}", s.roll, s.other_min, s.singular_values,
                                    {"pitch_deg": pitch, "basis": _basis_dict(space.basis()) if len(c) else None,
-                                    "coefficients_rad": c.tolist()}))
-    grad = None
+                                    "coefficients_rad": c.tolist()}, s.strain_max))
+    grad, front, strain = None, None, StrainSettings(p.strain_limit, p.goal_deg, p.ks_rho) if p.constrain_strain else None
     if p.gradient:
         t0 = time.perf_counter()
-        grad = free_form(sheets, mat.material, kw, p.field_basis(r_max), pitch0, maxiter=p.maxiter,
-                         bound_deg=p.coefficient_deg,
+        gp = ds.rest_problem(sheets, mat.material, p.field_basis(r_max), **kw)
+        grad = free_form(None, None, {}, p.field_basis(r_max), pitch0, maxiter=p.maxiter,
+                         bound_deg=p.coefficient_deg, strain=strain, floor_ratio=p.other_floor, problem=gp,
                          progress=lambda i: ctx.progress("gradient iterations", i, p.maxiter))
         ctx.timings["gradient"] = round(time.perf_counter() - t0, 3)
         g = grad["scores"]
-        cands.append(out.Candidate("gradient", g.roll, g.other_min, g.singular_values, grad["design"]))
+        cands.append(out.Candidate("gradient", g.roll, g.other_min, g.singular_values, grad["design"], g.strain_max))
+        if strain is not None and p.strain_front:
+            t0 = time.perf_counter()
+            front = strain_front(gp, pitch0, p.field_basis(r_max), p.strain_front, strain, maxiter=p.maxiter,
+                                 bound_deg=p.coefficient_deg, floor_ratio=p.other_floor)
+            ctx.timings["strain front"] = round(time.perf_counter() - t0, 3)
 
     # 3. the chosen design, and every objective of it and of the spiral on both constant sets
-    chosen = out.choose(cands, p.other_floor * spiral.other_min)
+    chosen = out.choose(cands, p.other_floor * spiral.other_min, p.strain_limit if p.constrain_strain else None)
     t0 = time.perf_counter()
     mats = {"pipeline": mat.material, **({"published": paper.PAPER_FOAM} if p.compare_published else {})}
     cmp = ev.compare_designs(sheets, mats, {"spiral": spiral_design, "chosen": chosen.design}, spiral_kw, r_max,
@@ -231,8 +250,14 @@ def run(ctx: StageContext) -> dict:
                    "best_abs_roll": _best(record, problem, cent, spiral_kw)},
         "sensitivity": sensitivity,
         "gradient": None if grad is None else grad["record"],
+        "strain_front": front,
         "chosen": {"name": chosen.name, **out.scores_record(chosen.roll, chosen.other_min, chosen.singular_values),
                    "ratio_abs_roll": round(abs(chosen.roll) / abs(spiral.roll), 6),
+                   "goal_strain": out._r(chosen.strain), "strain_limit": p.strain_limit,
+                   "strain_constrained": p.constrain_strain, "meets_constraints": bool(
+                       chosen.other_min >= p.other_floor * spiral.other_min and chosen.strain <= p.strain_limit),
+                   "reach": {k: reach_at_limit(x.roll, x.strain, p.goal_deg, p.strain_limit)
+                             for k, x in (("spiral", cands[0]), ("chosen", chosen))},
                    "other_floor_mm_per_rad": round(p.other_floor * spiral.other_min, 6),
                    "design": chosen.design, "chosen_toml_reproduces": True,
                    "chosen_toml": "the chosen design exactly: orient.pitch_deg, and orient.fibre_field for "
@@ -259,9 +284,9 @@ def _best(record, problem, cent, spiral_kw) -> dict:
             **out.scores_record(s.roll, s.other_min, s.singular_values)}
 
 
-def _scores_of(record, i, problem, cent, spiral_kw):
+def _scores_of(record, i, problem, cent, spiral_kw, goal_deg=None):
     """A stored trial's scores, re-evaluated (the journal keeps only its two objectives)."""
-    return ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, (tuple(record.values[i]),)))[0]
+    return ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, (tuple(record.values[i]),), goal_deg))[0]
 
 
 def _cache_dir(ctx: StageContext):
