@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import check_range
+from ..homogenize.localisation import voigt_to_tensor
 from . import objectives as obj
 from .adjoint import (
     RestProblem,
@@ -70,13 +71,7 @@ def principal_max(eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Largest principal strain (...,) [-] of Voigt strains ``eps`` (..., 6) (engineering shear)
     and its derivative in the Voigt components (..., 6) (module docstring; valid where the
     largest eigenvalue is simple)."""
-    e = np.asarray(eps, float)
-    T = np.empty(e.shape[:-1] + (3, 3))
-    T[..., 0, 0], T[..., 1, 1], T[..., 2, 2] = e[..., 0], e[..., 1], e[..., 2]
-    T[..., 1, 2] = T[..., 2, 1] = 0.5 * e[..., 3]
-    T[..., 0, 2] = T[..., 2, 0] = 0.5 * e[..., 4]
-    T[..., 0, 1] = T[..., 1, 0] = 0.5 * e[..., 5]
-    lam, V = np.linalg.eigh(T)
+    lam, V = np.linalg.eigh(voigt_to_tensor(eps))
     v = V[..., :, -1]
     d = np.stack([v[..., 0] ** 2, v[..., 1] ** 2, v[..., 2] ** 2, v[..., 1] * v[..., 2], v[..., 0] * v[..., 2],
                   v[..., 0] * v[..., 1]], axis=-1)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, check_range
+from ..homogenize.localisation import voigt_to_tensor
 
 #: [-] validity limit of the homogenised foam's constants (the studies' ``strain_limit``)
 STRAIN_LIMIT = 0.3
@@ -82,12 +83,7 @@ def principal_strains(eps: np.ndarray) -> np.ndarray:
     e = np.asarray(eps, float)
     if e.shape[-1] != 6:
         raise ConfigError(f"eps: shape {e.shape}: expected (..., 6) Voigt strains")
-    T = np.empty(e.shape[:-1] + (3, 3))
-    T[..., 0, 0], T[..., 1, 1], T[..., 2, 2] = e[..., 0], e[..., 1], e[..., 2]
-    T[..., 1, 2] = T[..., 2, 1] = 0.5 * e[..., 3]
-    T[..., 0, 2] = T[..., 2, 0] = 0.5 * e[..., 4]
-    T[..., 0, 1] = T[..., 1, 0] = 0.5 * e[..., 5]
-    return np.linalg.eigvalsh(T)
+    return np.linalg.eigvalsh(voigt_to_tensor(e))
 
 
 def element_strains(B: np.ndarray, dofs: np.ndarray, u: np.ndarray) -> np.ndarray:
