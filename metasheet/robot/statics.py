@@ -18,13 +18,14 @@ part, a modified Newton) and are always judged on the true residual.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..fem.assembly import submatrix_map
 from ..fem.factor import SparseSolver
+from .memo import LinearizationMemo, factor_bytes, state_key
 from ..rotations import rotation_matrix, rotation_vector
 
 
@@ -69,6 +70,7 @@ class Linearizer:
         self.solver = SparseSolver(solver)
         self.factor = None
         self.factorizations = 0
+        self.memo = LinearizationMemo()  # repeated states: the same bits without a factorisation
 
     @property
     def solver_name(self) -> str:
@@ -122,7 +124,21 @@ class Linearizer:
         uses the factor as it is: with CHOLMOD, the symmetric part of K_ff, which makes the
         Newton step a modified one (the control loop's choice: it checks the true residual
         and the pending correction every step); with SuperLU nothing changes.
+
+        A state equal (array for array) to one of the last few linearised gets their result
+        back, factor included (:mod:`.memo`): the same bits, counted as a factorisation.
         """
+        key = state_key(state, exact)
+        hit = self.memo.get(key)
+        if hit is not None:
+            lin, self.factor = hit
+            self.factorizations += 1
+            return replace(lin, state=state)
+        lin = self._linearize(state, exact)
+        self.memo.put(key, (lin, self.factor), factor_bytes(self.factor) + lin.Y.nbytes)
+        return lin
+
+    def _linearize(self, state: RobotState, exact: bool) -> "Linearization":
         rob = self.robot
         c = rob.coupling
         f, K = rob.body.forces_and_tangent(state.x)

@@ -6,9 +6,12 @@ as on the full model's; a linearisation's "free" part is the basis coordinates `
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import scipy.linalg as sla
 
+from ..robot.memo import LinearizationMemo, state_key
 from ..robot.statics import Linearization
 from ..rotations import rotation_matrix
 from .coordinates import ReducedState
@@ -38,6 +41,7 @@ class ReducedLinearizer:
         self.stats = {"tangents": 0, "forces": 0}
         self.library = TangentLibrary(lambda st: self._exact(st)[0], near_deg=near_deg, background=background)
         self._current = None
+        self.memo = LinearizationMemo()  # exact tangents at repeated states (:mod:`metasheet.robot.memo`)
 
     def uses(self, solver: str) -> bool:
         return True  # one dense solver whatever the sparse one asked for
@@ -73,7 +77,7 @@ class ReducedLinearizer:
         # the library only in real-time use: studies and certificates keep exact tangents
         # (the inverse loop on stored ones can wander off on a large move: not yet robust)
         if exact or not self.library.background:
-            t, g_int, g_ext = self._exact(state)
+            t, g_int, g_ext = self._remembered(state)
             self.stats["tangents"] += 1
             self.library.add(t)
         else:
@@ -83,6 +87,18 @@ class ReducedLinearizer:
             exact = t.state is state  # computed here and now (an empty library)
         self._use(t)
         return self._lin(state, g_int, g_ext, t, exact, exact)
+
+    def _remembered(self, state: ReducedState):
+        """:meth:`_exact` at ``state``, or its result at an equal state taken lately (the same
+        bits; a new :class:`.tangents.Tangent` object, as a recomputation gives)."""
+        key = state_key(state, True)
+        hit = self.memo.get(key)
+        if hit is not None:
+            t, g_int, g_ext = hit
+            return replace(t, state=state), g_int, g_ext
+        out = self._exact(state)
+        self.memo.put(key, out)
+        return out
 
     def update(self, lin: Linearization, state: ReducedState, f=None) -> Linearization:
         """Fresh residual at ``state`` on ``lin``'s tangent (a chord step)."""

@@ -249,10 +249,19 @@ class FemRobot:
 
     def max_principal_strain(self, state) -> float:
         """Largest principal Green-Lagrange strain over the sheets' quadrature points [-], away
-        from the grips' clamped edges (``spec.strain_band_mm``, :mod:`metasheet.robot.validity`)."""
+        from the grips' clamped edges (``spec.strain_band_mm``, :mod:`metasheet.robot.validity`).
+        An equal state's strain (the study asks again for the state a reach stopped at) is kept."""
         from ..robot.validity import validity_strain
 
-        return validity_strain(self.robot.body, state.x, self.strain_elements)
+        return remembered_strain(self._strains, state, lambda: validity_strain(self.robot.body, state.x,
+                                                                               self.strain_elements))
+
+    @cached_property
+    def _strains(self):
+        """The strains [-] of the last 8 states, by their arrays' digest (:mod:`metasheet.robot.memo`)."""
+        from ..robot.memo import LinearizationMemo
+
+        return LinearizationMemo(size=8)
 
     def min_singular_value(self, state) -> float:
         """Smallest singular value of the Jacobian scaled by diag(1, 1, 1, 50 mm) [mm/rad].
@@ -266,6 +275,20 @@ class FemRobot:
         if not lin.exact:  # a modified-Newton factor (CHOLMOD): the Jacobian needs the exact one
             lin = self.lz.linearize(state)
         return float(kinematics(lin).singular_values.min())
+
+
+def remembered_strain(memo, state, compute) -> float:
+    """``compute()``, the strain [-] at ``state``, or the one ``memo`` (a
+    :class:`~metasheet.robot.memo.LinearizationMemo`) kept for an equal state (a pure function
+    of the state's arrays: the same value)."""
+    from ..robot.memo import state_key
+
+    key = state_key(state, True)
+    got = memo.get(key)
+    if got is None:
+        got = float(compute())
+        memo.put(key, got)
+    return got
 
 
 def paper_robot_spec(*, mesh_size: float = 5.0, rest_angle: float = paper.REST_ANGLE, material=None,

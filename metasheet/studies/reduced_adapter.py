@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
-from .adapter import FemRobot, RobotSpec
+from .adapter import FemRobot, RobotSpec, remembered_strain
 from .model import pose_errors
 
 log = logging.getLogger(__name__)
@@ -275,7 +275,8 @@ class ReducedFem(FemRobot):
 
         if self._is_full(state):
             return self.full.max_principal_strain(state)
-        return validity_strain(self.full.robot.body, self.robot.positions(state), self.full.strain_elements)
+        return remembered_strain(self._strains, state, lambda: validity_strain(
+            self.full.robot.body, self.robot.positions(state), self.full.strain_elements))
 
     def min_singular_value(self, state) -> float:
         if self._is_full(state):
