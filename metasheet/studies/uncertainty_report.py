@@ -57,7 +57,9 @@ def uncertainty_rows(h: Mapping, timings: Mapping | None) -> tuple[list[str], li
         if half is not None and abs(paper[k] - h[k]) > half:
             diffs.append(f"{k}: the published {paper[k]:.3g} lies outside our 95 % interval {_pm(h[k], half)}: "
                          "a difference of model, not of sampling.")
-    lines.append("")
+    lines += ["", "What a difference beyond the interval points to (infill mapping, walls vs struts, layer "
+              "bonding), each assumption changed one at a time and measured: docs/validation.md, \"What the "
+              "differences with the published constants point to\" (`benchmarks/assumption_sensitivity.py`).", ""]
     target = float(ens.get("target_rel_halfwidth", 0.05))
     met = [k for k in CONSTANT_NAMES if ens["meets_target"].get(k)]
     missed = [k for k in CONSTANT_NAMES if not ens["meets_target"].get(k)]
