@@ -20,31 +20,11 @@ from metasheet.errors import ConfigError
 from metasheet.pipeline.artefacts import read_material, read_orient
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
+from test_design_stage import BASE
 
 # the coarse robot of tests/test_design_stage.py; a short search, the gradient chosen
-DESIGN = """
-[pipeline]
-name = "d"
-stages = ["material", "orient", "design"]
-
-[material]
-source = "config"
-E_l = 0.2
-
-[orient]
-scene = "authors"
-mesh_size = 15.0
-element = "p1"
-
-[design]
-n_trials = 4
-batch = 4
-population = 4
-n_radial = 2
-maxiter = 5
-compare_published = false
-round_trip = false
-"""
+DESIGN = BASE.format(design="n_trials = 4\nbatch = 4\npopulation = 4\nn_radial = 2\nmaxiter = 5\n"
+                            "compare_published = false\nround_trip = false")
 # the robot stage's extra cases and picture are not what is compared here: left out for time
 ROBOT = "\n[robot]\ncompare_published = false\ncompare_models = false\npicture = false\n"
 
