@@ -62,3 +62,11 @@ def test_trade_off_is_stated():
     assert "optimised subject to the strain limit" in text
     assert "the chosen design 22 deg of rod roll at 10 deg of the motors, the spiral 16 deg at 9.6 deg (1.38 x)" in text
     assert "| 0.4 | -3.6 | 2.18 | 0.399 | yes | 27.3 |" in text and diffs == []
+
+
+def test_an_unconverged_optimisation_is_said():
+    d = _summary([100.0, 18, 16, 15, 13, 12], 0.31)
+    assert "did not converge" not in "\n".join(design_section(d)[0])
+    d["gradient"] = {"converged": False, "iterations": 30, "message": "Iteration limit reached"}
+    text = "\n".join(design_section(d)[0])
+    assert "**The gradient optimisation did not converge** after 30 iterations: Iteration limit reached." in text

@@ -132,9 +132,10 @@ def free_form(sheets, material, kw: dict, basis: PolarBSpline, pitch0: float, *,
     design = {"pitch_deg": pitch0, "basis": basis_dict(basis), "coefficients_rad": [float(v) for v in res.x]}
     record = {"method": ("SLSQP, adjoint gradients of the roll, the KS strain aggregate and the other DOF's "
                          "singular value" if strain else "L-BFGS-B, adjoint gradient of the rod roll per degree"),
-              "start": "the orient stage's spiral", "n_coefficients": len(c0), "bound_deg": bound_deg,
+              "start": "the orient stage's spiral" if start is None else "the given coefficients",
+              "n_coefficients": len(c0), "bound_deg": bound_deg,
               "basis": basis_dict(basis), "iterations": int(res.nit), "evaluations": int(evaluations),
-              "message": str(res.message),
+              "converged": bool(res.success), "message": str(res.message),
               "at_bounds": int(np.sum(np.abs(np.abs(res.x) - np.radians(bound_deg)) < 1e-9)),
               "roll_per_iteration": history,
               "before": {**out.scores_record(before.roll, before.other_min, before.singular_values),

@@ -61,6 +61,14 @@ def trade_off_lines(d: Mapping, limit: float) -> list[str]:
     return lines
 
 
+def _convergence_lines(g: Mapping) -> list[str]:
+    """A line when the gradient optimisation stopped without converging (its message)."""
+    if g.get("converged", True):
+        return []
+    return [f"**The gradient optimisation did not converge** after {g.get('iterations')} iterations: "
+            f"{g.get('message')}.", ""]
+
+
 def design_section(d: Mapping | None, pictures: Mapping[str, str] | None = None) -> tuple[list[str], list[str]]:
     """(Markdown lines, differences) of the section; ([], []) without the design stage's output
     (or with one from before the comparison was recorded)."""
@@ -85,6 +93,7 @@ def design_section(d: Mapping | None, pictures: Mapping[str, str] | None = None)
     lines = ["## Design: the chosen fibre field against the paper's spiral (issue 45)", "",
              (f"**Chosen design: {c['name']}, on the pipeline's material: {verdict}. Issue 45's target "
              f"(all three together): {'met' if met else 'not met'}.**"), "", f"The design was {how}.", "",
+             *_convergence_lines(d.get("gradient") or {}),
              *trade_off_lines(d, table["strain_limit"]),
              (f"Model: {d['model']}; {d['n_tets_per_sheet']} tetrahedra a sheet ({d['element']}); the numbers "
               "show the direction of the gain, not the converged robot's values. Strain: the linear problem's "
