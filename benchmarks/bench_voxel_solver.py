@@ -11,10 +11,18 @@ percolating voxels and rtol; "C err" is the relative Frobenius distance of C* to
     python benchmarks/bench_voxel_solver.py --solvers pardiso voxel voxel:1   # voxel on 1 numba thread
     python benchmarks/bench_voxel_solver.py --solvers pardiso voxel:1 voxel-trilinear:1   # both coarsenings
     python benchmarks/bench_voxel_solver.py --sizes 40 --voxels out/paper/cell/voxels.npz  # + a cell stage's voxels
+    python benchmarks/bench_voxel_solver.py --sizes --voxels a.npz b.npz --solvers voxel voxel-gpu  # GPU beside CPU
 
-``--voxels`` adds the case n = 0: the phases and size of a cell stage's ``voxels.npz`` and the
-materials of the ``cell.json`` beside it (the paper's Polyfoam cell: ``cells/paper_polyfoam.toml``),
-one tile.
+``--voxels`` adds one case per file, listed as n = 0 with the file's name: the phases and size of
+a cell stage's ``voxels.npz`` and the materials of the ``cell.json`` beside it (the paper's
+Polyfoam cell: ``cells/paper_polyfoam.toml``), or a file holding ``phases``, ``size``, ``E`` and
+``nu`` itself (``benchmarks/polyfoam_cells.py`` writes the paper's cell at other sizes), one tile.
+
+"voxel-gpu" runs the same split multigrid CG on a CUDA GPU through CuPy
+(:func:`metasheet.fem.voxel.device_solve.periodic_stiffness_device`; set-up on the host), and adds
+the GPU memory pool's high-water mark ("gpu GB"); "voxel-numpy" runs that array code on the host
+(a check of the script, not a speed). The ratios and "C err" are against the first solver of
+``--solvers`` that ran on the case (PARDISO by default).
 
 "voxel" runs the default coarsening ("split": face-split coarse levels with K-cycles,
 :mod:`metasheet.fem.voxel.split_hierarchy`); "voxel-split" and "voxel-trilinear" name the coarsening
@@ -64,8 +72,11 @@ def stage_voxels(path: str):
     from metasheet.material import Isotropic
 
     d = np.load(path)
-    meta = json.loads((Path(path).parent / "cell.json").read_text())
-    mats = {int(k): Isotropic(E=float(m["E"]), nu=float(m["nu"])) for k, m in meta["materials"].items()}
+    if "E" in d:  # a self-contained file: one solid phase
+        mats = {1: Isotropic(E=float(d["E"]), nu=float(d["nu"]))}
+    else:
+        meta = json.loads((Path(path).parent / "cell.json").read_text())
+        mats = {int(k): Isotropic(E=float(m["E"]), nu=float(m["nu"])) for k, m in meta["materials"].items()}
     ph = np.asarray(d["phases"], np.int64)
     keep, _ = percolating_solid(ph > 0)
     return np.where(keep, ph, 0), np.asarray(d["size"], float), mats
@@ -74,13 +85,20 @@ def stage_voxels(path: str):
 def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | None = None) -> dict:
     """Child process: homogenise one case with one solver, print JSON."""
     from metasheet.fem.voxel import periodic_stiffness
+    from metasheet.fem.voxel.device_solve import periodic_stiffness_device
     from metasheet.homogenize import homogenize_voxels
 
     ph, size, mats = stage_voxels(voxels) if n == 0 else foam(n, tile)
     rows = []
     for _ in range(repeat):
         t = time.perf_counter()
-        if solver.startswith("voxel"):
+        gpu = 0.0
+        if solver in ("voxel-gpu", "voxel-numpy"):
+            r = periodic_stiffness_device(ph, size, {k: m.stiffness() for k, m in mats.items()}, rtol=rtol,
+                                          device="cupy" if solver == "voxel-gpu" else "numpy")
+            setup, solve, dofs, iters, C = r.setup_seconds, r.solve_seconds, r.n_dof, max(r.iterations), r.C
+            gpu = r.device_bytes / 2**30
+        elif solver.startswith("voxel"):
             coarsening = solver.partition("-")[2]
             r = periodic_stiffness(ph, size, {k: m.stiffness() for k, m in mats.items()}, rtol=rtol,
                                    **({"coarsening": coarsening} if coarsening else {}))
@@ -90,7 +108,7 @@ def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | 
             setup, solve, dofs, C = r.timings["setup"], r.timings["solve"], r.n_dof, r.C
             iters = max(lc.iterations for lc in r.load_cases)
         rows.append({"s": time.perf_counter() - t, "setup": setup, "solve": solve, "dofs": dofs, "iters": iters,
-                     "C": C.tolist()})
+                     "gpu_gb": gpu, "C": C.tolist()})
     out = {k: statistics.median(x[k] for x in rows) if isinstance(rows[0][k], float) else rows[0][k]
            for k in rows[0]}
     out["peak_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
@@ -120,20 +138,20 @@ def main():
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--rtol", type=float, default=1e-8)
     ap.add_argument("--timeout", type=float, default=1800.0, help="per row [s]")
-    ap.add_argument("--voxels", help="a cell stage's voxels.npz (cell.json beside it) instead of the iso foam")
+    ap.add_argument("--voxels", nargs="*", default=[], help="cell files: a cell stage's voxels.npz (cell.json "
+                    "beside it) or an npz with phases, size, E, nu; one case each (n = 0)")
     ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     add_save_option(ap)
     args = ap.parse_args()
     if args.one:
         n, tile, solver = args.one
-        print(json.dumps(one(int(n), int(tile), solver, args.repeat, args.rtol, args.voxels)))
+        print(json.dumps(one(int(n), int(tile), solver, args.repeat, args.rtol, args.voxels[0] if args.voxels else None)))
         return
     if args.quick:
         args.sizes, args.tile, args.repeat = [40], [1], 1
-    if args.voxels and 0 not in args.sizes:
-        args.sizes = args.sizes + [0]
-    if 0 in args.sizes and not args.voxels:
-        ap.error("size 0 is the --voxels case: give --voxels")
+    if 0 in args.sizes:
+        ap.error("size 0 is a --voxels case: give --voxels FILE")
+    cases = [(n, tile, None) for n in args.sizes for tile in args.tile] + [(0, 1, v) for v in args.voxels]
     from metasheet.fem.solvers import available
 
     solvers = [s for s in args.solvers if s != "pardiso" or available("pardiso")]
@@ -141,26 +159,24 @@ def main():
         print(f"cores={os.cpu_count()} load={os.getloadavg()[0]:.1f} repeat={args.repeat} rtol={args.rtol:g} "
               f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '-')}")
         print(f"{'n':>4} {'tile':>4} {'solver':>13} {'dofs':>9} {'iters':>6} {'setup s':>8} {'solve s':>8} "
-              f"{'median s':>9} {'peak GB':>8} {'t/pardiso':>9} {'GB/pardiso':>10} {'C err':>9}")
-        for n in args.sizes:
-            for tile in ([1] if n == 0 else args.tile):
-                ref = None
-                for solver in solvers:
-                    r = run_child(n, tile, solver, args.repeat, args.rtol, args.timeout, args.voxels)
-                    if "error" in r:
-                        print(f"{n:>4} {tile:>4} {solver:>13} failed: {r['error']}", flush=True)
-                        continue
-                    if solver == "pardiso":
-                        ref = r
-                    base = ref or {}
-                    C, Cref = np.array(r["C"]), np.array(base.get("C", np.full((6, 6), np.nan)))
-                    err = np.linalg.norm(C - Cref) / np.linalg.norm(Cref)
-                    tr = r["s"] / base["s"] if base else float("nan")
-                    mr = r["peak_gb"] / base["peak_gb"] if base else float("nan")
-                    print(f"{n:>4} {tile:>4} {solver:>13} {r['dofs']:>9} {r['iters']:>6} {r['setup']:>8.2f} "
-                          f"{r['solve']:>8.2f} {r['s']:>9.2f} {r['peak_gb']:>8.2f} {tr:>9.2f} {mr:>10.2f} {err:>9.1e}",
-                          flush=True)
-        print("ratios and C err: against the PARDISO row of the same case (listed first in --solvers)")
+              f"{'median s':>9} {'peak GB':>8} {'gpu GB':>7} {'t/ref':>6} {'GB/ref':>6} {'C err':>9}")
+        for n, tile, voxels in cases:
+            ref = None
+            if voxels:
+                print(f"   0: {Path(voxels).name}")
+            for solver in solvers:
+                r = run_child(n, tile, solver, args.repeat, args.rtol, args.timeout, voxels)
+                if "error" in r:
+                    print(f"{n:>4} {tile:>4} {solver:>13} failed: {r['error']}", flush=True)
+                    continue
+                ref = ref or r
+                C, Cref = np.array(r["C"]), np.array(ref["C"])
+                err = np.linalg.norm(C - Cref) / np.linalg.norm(Cref)
+                print(f"{n:>4} {tile:>4} {solver:>13} {r['dofs']:>9} {r['iters']:>6} {r['setup']:>8.2f} "
+                      f"{r['solve']:>8.2f} {r['s']:>9.2f} {r['peak_gb']:>8.2f} {r['gpu_gb']:>7.2f} "
+                      f"{r['s'] / ref['s']:>6.2f} {r['peak_gb'] / ref['peak_gb']:>6.2f} {err:>9.1e}", flush=True)
+        print("t/ref, GB/ref and C err: against the first solver that ran on the case (the first of --solvers); "
+              "peak GB: host")
 
 
 if __name__ == "__main__":

@@ -234,7 +234,7 @@ HAVE_CHOLMOD = available("cholmod")
 SPD_SOLVERS = ("auto", "direct", "amg", *BACKENDS)
 #: Matrix-free solvers of voxel grids (:mod:`metasheet.fem.voxel`): they never see an assembled
 #: matrix, so they are chosen before assembly (:func:`solve_voxel_correctors`).
-GRID_SOLVERS = ("voxel",)
+GRID_SOLVERS = ("voxel", "voxel-gpu")
 #: "auto" homogenises a voxel cell matrix-free from this many unknowns (3 per grid node the
 #: solid touches). Measured against PARDISO in the same run (docs/voxel.md, benchmarks/results/
 #: bench_voxel_solver.md): a tie at 67k unknowns, 0.55 of its time at 154k, 0.36-0.52 at 754k
@@ -372,7 +372,9 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
     ----------
     phases : (nx, ny, nz) int, 0 = void, k > 0 = phase k; the percolating solid only.
     size : (3,) float [mm]; stiffnesses : dict phase -> (6, 6) Voigt stiffness [MPa].
-    solver : a name in :data:`GRID_SOLVERS`; rtol : relative residual per load case.
+    solver : a name in :data:`GRID_SOLVERS`: "voxel" (CPU) or "voxel-gpu" (the same split multigrid CG
+        on a CUDA GPU through CuPy, :mod:`metasheet.fem.voxel.device_solve`; a ConfigError when CuPy or
+        the GPU is missing; never chosen by "auto"); rtol : relative residual per load case.
     coarsening : the multigrid's coarse spaces, "split" (default) or "trilinear"
         (:func:`metasheet.fem.voxel.periodic_stiffness`; a ConfigError names the allowed values).
 
@@ -385,8 +387,15 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
     if solver not in GRID_SOLVERS:
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(GRID_SOLVERS)}")
     # imported here: its numba kernels are compiled (or loaded from cache) on first use only
-    from .voxel import periodic_stiffness
+    if solver == "voxel-gpu":
+        from .voxel.device_solve import periodic_stiffness_device
 
-    r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter, coarsening=coarsening)
+        if coarsening != "split":
+            raise ConfigError(f"coarsening: {coarsening!r}: solver 'voxel-gpu' runs the split hierarchy only")
+        r = periodic_stiffness_device(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter)
+    else:
+        from .voxel import periodic_stiffness
+
+        r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter, coarsening=coarsening)
     report = SolveReport(solver, r.iterations, r.residuals, r.setup_seconds, r.solve_seconds, r.n_dof)
     return r.C, r.C_raw, r.U.reshape(-1, 6), report

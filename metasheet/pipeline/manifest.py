@@ -33,7 +33,7 @@ SIGNIFICANT_DIGITS = 12
 TRACKED = (
     "numpy", "scipy", "scikit-fem", "gmsh", "meshio", "pyvista", "vtk", "trimesh",
     "manifold3d", "scikit-image", "pyamg", "numba", "qpsolvers", "daqp", "pydantic",
-    "matplotlib", "distributed",
+    "matplotlib", "distributed", "cupy", "cupy-cuda12x", "cupy-cuda13x",
 )
 
 

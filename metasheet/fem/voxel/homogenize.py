@@ -47,6 +47,8 @@ class VoxelHomogenization:
     setup_seconds : hierarchy build [s]; solve_seconds : six solves and C [s].
     n_dof : unknowns (3 per node touched by a solid voxel).
     levels : voxel grid shape of each multigrid level, finest first.
+    device : what ran the CG: "cpu", or the device's name (:mod:`.device_solve`: the GPU, or "host"
+        for the numpy back-end); device_bytes : the device's memory pool high-water mark [B] (0: none).
     """
 
     C: np.ndarray
@@ -58,6 +60,8 @@ class VoxelHomogenization:
     solve_seconds: float
     n_dof: int
     levels: tuple[tuple[int, int, int], ...]
+    device: str = "cpu"
+    device_bytes: int = 0
 
 
 def validate_grid(phases, size, stiffnesses: dict):
@@ -107,7 +111,7 @@ def node_parts(index: np.ndarray, periodic: bool) -> tuple[np.ndarray, int]:
 
 def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: float = 1e-8, maxiter: int = 500,
                        smoother: str = "chebyshev", degree: int = 2,
-                       coarsening: str = "split") -> VoxelHomogenization:
+                       coarsening: str = "split", direct_dofs: int | None = None) -> VoxelHomogenization:
     """Effective stiffness of a periodic voxel cell by matrix-free multigrid CG.
 
     Parameters
@@ -122,6 +126,8 @@ def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: flo
     coarsening : "split" (default: split coarse levels with K-cycles, flexible CG; far fewer
         iterations on thin walls, measured in docs/voxel.md) or "trilinear"
         (:func:`~.multigrid.build_hierarchy`).
+    direct_dofs : "split": factorise the first split level with at most this many unknowns (None:
+        :data:`~.split_hierarchy.DIRECT_DOFS`; smaller values give deeper hierarchies on small cells).
 
     Returns
     -------
@@ -140,40 +146,80 @@ def periodic_stiffness(phases, size, stiffnesses: dict, *, scale=None, rtol: flo
     # 648 unknowns took 5 s instead of 0.05 s).
     with threadpool_limits(limits=1, user_api="blas"):
         return _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree,
-                                   coarsening)
+                                   coarsening, direct_dofs)
 
 
-def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree, coarsening):
+@dataclass(frozen=True)
+class CellProblem:
+    """The six corrector problems of a cell, set up on the host (shared by the CPU and device solves).
+
+    index (nx, ny, nz) int64 phase row (-1 void); table: the phases' matrices; sc (nx, ny, nz)
+    modulus factors; op: the fine operator; H: its multigrid hierarchy; labels (a,) the compact
+    nodes' parts, n_parts their count; F (a, 3, 6) [N] the compact unit-strain forces;
+    setup_seconds [s].
+    """
+
+    index: np.ndarray
+    table: object
+    sc: np.ndarray
+    op: VoxelOperator
+    H: object
+    labels: np.ndarray
+    n_parts: int
+    F: np.ndarray
+    setup_seconds: float
+
+
+def prepare_cell(phases, size, stiffnesses, scale=None, smoother: str = "chebyshev", degree: int = 2,
+                 coarsening: str = "split", direct_dofs: int | None = None) -> CellProblem:
+    """Validate the cell, build its operator and hierarchy, and the six right-hand sides."""
     t0 = time.perf_counter()
     index, table, h, _ = validate_grid(phases, size, stiffnesses)
     sc = _scale(scale, index.shape)
     free = np.repeat(touched_nodes(index, True)[..., None], 3, axis=3).astype(float)
     op = VoxelOperator(index, table.K, sc, True, free, h)
     labels, n_parts = node_parts(index, True)
-    H = build_hierarchy(op, smoother=smoother, degree=degree, coarsening=coarsening)
+    H = build_hierarchy(op, smoother=smoother, degree=degree, coarsening=coarsening, direct_dofs=direct_dofs)
     cop = H.fine  # vectors on the nodes with unknowns only (:mod:`.compact`)
-    project = translation_projector(cop.to_compact(labels), n_parts)
-    t1 = time.perf_counter()
     # (a, 3, 6) [N] on the active nodes: only U, the result, is kept on the full grid (each full
     # (Nx, Ny, Nz, 3, 6) array is 130 MB on the paper cell, void nodes included)
     F = cop.to_compact(scatter(index, table.F, sc, True)) * cop.free[..., None]
-    # the six load cases in lockstep: one sweep of the voxels and one V-cycle serve all six
-    out = pcg(cop.apply, -F, H.precondition, rtol=rtol, maxiter=maxiter, project=project, flexible=H.flexible)
+    return CellProblem(index, table, sc, op, H, cop.to_compact(labels), n_parts, F, time.perf_counter() - t0)
+
+
+def energy_form(cell: CellProblem, size, X: np.ndarray, KX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(C, C_raw) (6, 6) [MPa] from the compact correctors X (a, 3, 6) [mm] and K X [N]:
+    ``C_raw = (C_vol + X^T f) / |Y|``, ``C = (C_vol + f^T X + X^T f + X^T K X) / |Y|`` (not symmetrised)."""
+    volume = float(np.prod(size))
+    index, sc, table = cell.index, cell.sc, cell.table
+    occ = index >= 0
+    c_vol = np.einsum("e,eij->ij", sc[occ] * table.volume, table.C[index[occ]])  # [N mm]
+    f, u, ku = (a.reshape(-1, 6) for a in (cell.F, X, KX))
+    return (c_vol + f.T @ u + u.T @ f + u.T @ ku) / volume, (c_vol + u.T @ f) / volume
+
+
+def check_converged(out, rtol: float) -> None:
+    """Raise ConvergenceError naming the first load case that missed rtol."""
     for I in np.flatnonzero(~out.converged):
         raise ConvergenceError(f"voxel: load case {I}: relative residual {out.residual[I]:.2e} after "
                                f"{out.iterations[I]} iterations, asked {rtol:g}", history=out.history[:, I].tolist())
-    U = cop.to_full(out.x)
-    iters, res = out.iterations.tolist(), out.residual.tolist()
-    KU = cop.apply(out.x)
-    volume = float(np.prod(size))
-    occ = index >= 0
-    c_vol = np.einsum("e,eij->ij", sc[occ] * table.volume, table.C[index[occ]])  # [N mm]
-    f, u, ku = (a.reshape(-1, 6) for a in (F, out.x, KU))
-    C_raw = (c_vol + u.T @ f) / volume
-    C = (c_vol + f.T @ u + u.T @ f + u.T @ ku) / volume
+
+
+def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoother, degree, coarsening,
+                        direct_dofs=None):
+    cell = prepare_cell(phases, size, stiffnesses, scale, smoother, degree, coarsening, direct_dofs)
+    t1 = time.perf_counter()
+    cop = cell.H.fine
+    project = translation_projector(cell.labels, cell.n_parts)
+    # the six load cases in lockstep: one sweep of the voxels and one V-cycle serve all six
+    out = pcg(cop.apply, -cell.F, cell.H.precondition, rtol=rtol, maxiter=maxiter, project=project,
+              flexible=cell.H.flexible)
+    check_converged(out, rtol)
+    C, C_raw = energy_form(cell, size, out.x, cop.apply(out.x))
     t2 = time.perf_counter()
-    return VoxelHomogenization(0.5 * (C + C.T), C_raw, U, tuple(iters), tuple(res), t1 - t0, t2 - t1,
-                               op.n_free, H.shapes)
+    return VoxelHomogenization(0.5 * (C + C.T), C_raw, cop.to_full(out.x), tuple(out.iterations.tolist()),
+                               tuple(out.residual.tolist()), cell.setup_seconds, t2 - t1, cell.op.n_free,
+                               cell.H.shapes)
 
 
 def _scale(scale, shape) -> np.ndarray:

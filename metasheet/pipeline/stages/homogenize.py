@@ -37,9 +37,10 @@ from ..registry import Params, Stage, StageContext, register
 
 
 class HomogenizeParams(Params):
-    solver: Literal["auto", "direct", "amg", "voxel"] = Field(
+    solver: Literal["auto", "direct", "amg", "voxel", "voxel-gpu"] = Field(
         "auto", description="linear solver: direct (CHOLMOD or SuperLU), amg (pyamg + CG), "
-                            "voxel (matrix-free multigrid CG, voxel route only), auto by size"
+                            "voxel (matrix-free multigrid CG, voxel route only), voxel-gpu (the same on a "
+                            "CUDA GPU, needs CuPy), auto by size (never the GPU)"
     )
     tolerance: float = Field(1e-8, gt=0, le=1e-4, description="relative residual of the corrector solves [-]")
     mesh_route: bool = Field(False, description="homogenise the periodic tet mesh cell.vtu instead of the voxels")
