@@ -41,9 +41,9 @@ def _storage(path):
     return JournalStorage(JournalFileBackend(str(path)))
 
 
-def _search(coarse, path, n, evaluate, sampler="nsga2"):
+def _search(coarse, path, n, evaluate, sampler="nsga2", **kw):
     return ds.run_search(_storage(path), "s", coarse[1], n_trials=n, batch=4, sampler=sampler, seed=3,
-                         population=4, evaluate=evaluate)
+                         population=4, evaluate=evaluate, **kw)
 
 
 def test_space_and_bad_values():
@@ -62,6 +62,49 @@ def test_space_and_bad_values():
 def test_pareto_mask():
     F = np.array([[1.0, 1.0], [2.0, 0.5], [0.5, 2.0], [0.9, 0.9], [2.0, 0.5], [1.0, 0.2]])
     assert ds.pareto_mask(F).tolist() == [True, True, True, False, True, False]
+    # infeasible rows are never on the front and dominate nothing: (0.9, 0.9) and (1.0, 0.2) come up
+    feasible = np.array([False, False, True, True, False, True])
+    assert ds.pareto_mask(F, feasible).tolist() == [False, False, True, True, False, True]
+    assert not ds.pareto_mask(F, np.zeros(6, bool)).any()
+
+
+def _evaluate_strain(coarse, log=None):
+    sheets, _, problem = coarse
+
+    def evaluate(values):
+        if log is not None:
+            log.extend(values)
+        return ds.evaluate_trials(ds.Trials(problem, sheets.sheet.centroids(), SPIRAL, tuple(values), 10.0))
+    return evaluate
+
+
+def test_constrained_search_records_feasibility_and_resumes(coarse, tmp_path):
+    """With a strain limit the sampler sees each trial's ``strain_max - limit`` (Optuna's
+    constraints_func) and the record says which trials keep to it; a constrained search resumes
+    to the same trials as one run straight through."""
+    free = ds.run_search(_storage(tmp_path / "f.journal"), "s", coarse[1], n_trials=8, batch=4, sampler="nsga2",
+                         seed=3, population=4, evaluate=_evaluate_strain(coarse))
+    strain = free.extras[:, ds.EXTRAS.index("strain_max")]
+    assert free.feasible.all() and np.isfinite(strain).all()
+    limit = float(np.median(strain))  # about half the trials within it
+
+    def run(path, n):
+        return ds.run_search(_storage(path), "c", coarse[1], n_trials=n, batch=4, sampler="nsga2", seed=3,
+                             population=4, evaluate=_evaluate_strain(coarse), strain_limit=limit)
+
+    first = run(tmp_path / "c.journal", 8)
+    strain_c = first.extras[:, ds.EXTRAS.index("strain_max")]
+    assert np.array_equal(first.feasible, strain_c <= limit)
+    study = __import__("optuna").load_study(study_name="c", storage=_storage(tmp_path / "c.journal"))
+    stored = [ds.trial_constraints(t)[0] for t in study.get_trials(deepcopy=False)]
+    np.testing.assert_allclose(stored, strain_c - limit, rtol=0, atol=1e-15)
+    resumed, straight = run(tmp_path / "c.journal", 12), run(tmp_path / "d.journal", 12)
+    assert resumed.evaluated == 4 and np.array_equal(resumed.values, straight.values)
+    assert np.array_equal(resumed.feasible, straight.feasible)
+    front = ds.pareto_mask(straight.objectives, straight.feasible)
+    assert not (front & ~straight.feasible).any()
+    if hasattr(study.trials[0], "constraints"):  # Optuna >= 5: the sampler's own record of them
+        assert [t.constraints["strain"] for t in study.get_trials()][:8] == pytest.approx(list(strain_c - limit))
 
 
 def test_other_five_between_the_two_smallest_singular_values(coarse):
@@ -88,22 +131,25 @@ def test_resumed_search_continues_from_stored_trials(coarse, tmp_path, sampler):
     assert np.array_equal(straight.objectives, second.objectives)
 
 
-def test_a_killed_batch_is_evaluated_on_resume(coarse, tmp_path):
+@pytest.mark.parametrize("limit", [None, 0.05])
+def test_a_killed_batch_is_evaluated_on_resume(coarse, tmp_path, limit):
     calls = []
+    scorer = _evaluate(coarse) if limit is None else _evaluate_strain(coarse)
 
     def dies(values):
         calls.append(len(values))
         if len(calls) == 2:
             raise KeyboardInterrupt  # the second batch was asked, never told
-        return _evaluate(coarse)(values)
+        return scorer(values)
 
     with pytest.raises(KeyboardInterrupt):
-        _search(coarse, tmp_path / "k.journal", 12, dies)
-    resumed = _search(coarse, tmp_path / "k.journal", 12, _evaluate(coarse))
+        _search(coarse, tmp_path / "k.journal", 12, dies, strain_limit=limit)
+    resumed = _search(coarse, tmp_path / "k.journal", 12, scorer, strain_limit=limit)
     assert resumed.evaluated == 8  # the stale batch, then the last one
-    straight = _search(coarse, tmp_path / "s.journal", 12, _evaluate(coarse))
+    straight = _search(coarse, tmp_path / "s.journal", 12, scorer, strain_limit=limit)
     assert np.array_equal(straight.values, resumed.values)
     assert np.array_equal(straight.objectives, resumed.objectives)
+    assert np.array_equal(straight.feasible, resumed.feasible)
 
 
 def test_sobol_indices_of_a_known_function_and_the_same_bits_at_seed_0():

@@ -101,6 +101,15 @@ def test_trials_report_every_singular_value_translation_and_strain(first):
         sv = [float(r[f"sv{i}_mm_per_rad"]) for i in range(1, 7)]
         assert sv == sorted(sv, reverse=True) and sv[5] - 1e-9 <= float(r["other_min_mm_per_rad"]) <= sv[4] + 1e-9
         assert float(r["translation_mm_per_deg"]) > 0 and 0 < float(r["strain_max"]) < 10
+    # the search keeps to the strain limit (constrain_strain): the front holds feasible trials only
+    limit = s["search"]["strain_limit"]
+    feasible = [int(r["trial"]) for r in rows if float(r["strain_max"]) <= limit]
+    assert s["search"]["feasible_trials"] == len(feasible)
+    assert set(s["search"]["pareto_trials"]) <= set(feasible)
+    assert all(r["pareto"] == "0" for r in rows if int(r["trial"]) not in feasible)
+    if feasible:
+        best = max(feasible, key=lambda i: float(rows[i]["abs_roll_deg_per_deg"]))
+        assert s["search"]["best_feasible"]["trial"] == best
 
 
 def test_gradient_improves_the_spiral(first):

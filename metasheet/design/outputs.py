@@ -125,7 +125,7 @@ def pictures(orient, record, pareto, cands: Sequence[Candidate], chosen: Candida
     if grad is not None and chosen.name != "gradient":
         panels.append((f"gradient design: roll {grad['scores'].roll:.3f}", fn(grad["design"]), grips))
     panels.append((f"chosen ({chosen.name}): roll {chosen.roll:.3f}", fn(chosen.design), grips))
-    return {"pareto.png": pareto_picture(record.objectives, pareto, marks),
+    return {"pareto.png": pareto_picture(record.objectives, pareto, marks, feasible=record.feasible),
             "field.png": field_picture(geo.outline_polygon(sp), sp.hole_radius, panels)}
 
 

@@ -216,15 +216,39 @@ def design_scores(sheets, material, design: dict, spiral: dict, r_max: float, **
     return scores(*design_problem(sheets, material, design, spiral, r_max, **kw))
 
 
-def make_sampler(kind: str, seed: int, *, population: int = 8):
-    """The Optuna sampler ``kind`` ("nsga2" or "tpe") seeded with ``seed``."""
+def make_sampler(kind: str, seed: int, *, population: int = 8, constrained: bool = False):
+    """The Optuna sampler ``kind`` ("nsga2" or "tpe") seeded with ``seed``; ``constrained``: it
+    prefers trials whose constraints are <= 0 (NSGA-II's constrained domination, TPE's split of
+    the infeasible trials). Optuna >= 5 reads the constraints :func:`run_search` sets on each trial;
+    Optuna 4 asks :func:`trial_constraints` for them (its ``constraints_func``)."""
     import optuna
 
+    kw = {"constraints_func": trial_constraints} if constrained and not _trial_constraints_api() else {}
     if kind == "nsga2":
-        return optuna.samplers.NSGAIISampler(population_size=int(population), seed=int(seed))
+        return optuna.samplers.NSGAIISampler(population_size=int(population), seed=int(seed), **kw)
     if kind == "tpe":
-        return optuna.samplers.TPESampler(seed=int(seed), n_startup_trials=min(10, int(population)), multivariate=True)
+        return optuna.samplers.TPESampler(seed=int(seed), n_startup_trials=min(10, int(population)), multivariate=True,
+                                          **kw)
     raise ConfigError(f"sampler: {kind!r}: allowed values are {list(SAMPLERS)}")
+
+
+def _trial_constraints_api() -> bool:
+    """Optuna >= 5: constraints are set on the trial (``Trial.set_constraint``)."""
+    import optuna
+
+    return hasattr(optuna.trial.Trial, "set_constraint")
+
+
+def trial_constraints(trial) -> tuple[float, ...]:
+    """A finished trial's constraint values, feasible when all are <= 0: (strain_max - limit,)
+    as :func:`run_search` stored them (``user_attrs["constraint"]``)."""
+    return tuple(trial.user_attrs.get("constraint", (0.0,)))
+
+
+def strain_constraint(s: Scores, limit: float) -> float:
+    """``strain_max - limit`` [-]: <= 0 when the trial's largest goal strain is within the limit;
+    a trial scored without goals (nan strain) counts as infeasible (+inf)."""
+    return float(s.strain_max - limit) if np.isfinite(s.strain_max) else float("inf")
 
 
 def trial_seed(seed: int, number: int) -> int:
@@ -242,6 +266,7 @@ class SearchRecord:
     roll : (n,) signed roll [deg/deg]; evaluated : trials this call evaluated (not loaded).
     extras : (n, len(EXTRAS)) the trials' reported values (:data:`EXTRAS`; nan where a trial
         stored by an older version has none).
+    feasible : (n,) bool, within the search's strain limit (all True for an unconstrained search).
     """
 
     values: np.ndarray
@@ -249,20 +274,26 @@ class SearchRecord:
     roll: np.ndarray
     evaluated: int
     extras: np.ndarray | None = None
+    feasible: np.ndarray | None = None
 
 
 def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, batch: int, sampler: str,
                seed: int, population: int, evaluate: Callable[[list[tuple[float, ...]]], list[Scores]],
-               progress: Callable[[int, int], None] = lambda d, n: None) -> SearchRecord:
+               progress: Callable[[int, int], None] = lambda d, n: None,
+               strain_limit: float | None = None) -> SearchRecord:
     """Run (or resume) the multi-objective search ``study_name`` in ``storage`` until it holds
-    ``n_trials`` completed trials; ``evaluate(values_list) -> [Scores]`` scores a batch in order."""
+    ``n_trials`` completed trials; ``evaluate(values_list) -> [Scores]`` scores a batch in order.
+    ``strain_limit`` [-]: the sampler is constrained to trials whose goal strain is within it
+    (:func:`strain_constraint`; the scores must carry the strain); None: unconstrained."""
     import optuna
     from optuna.distributions import FloatDistribution
     from optuna.trial import TrialState
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
+    constrained = strain_limit is not None
     study = optuna.create_study(storage=storage, study_name=study_name, directions=["maximize", "maximize"],
-                                sampler=make_sampler(sampler, seed, population=population), load_if_exists=True)
+                                sampler=make_sampler(sampler, seed, population=population, constrained=constrained),
+                                load_if_exists=True)
     dists = {n: FloatDistribution(lo, hi) for n, (lo, hi) in zip(space.names, space.bounds())}
     evaluated = 0
 
@@ -273,6 +304,11 @@ def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, b
             # the signed roll rides along (a finished trial's attributes can no longer be set)
             study._storage.set_trial_user_attr(t._trial_id, "roll", float(s.roll))
             study._storage.set_trial_user_attr(t._trial_id, "extras", _extras(s))
+            if constrained:  # the sampler reads it when the trial is told (Optuna 4: through constraints_func)
+                g = strain_constraint(s, strain_limit)
+                study._storage.set_trial_user_attr(t._trial_id, "constraint", [g])
+                if _trial_constraints_api():  # a live Trial also for a stale (frozen) one of a killed run
+                    optuna.trial.Trial(study, t._trial_id).set_constraint("strain", g)
             study.tell(t.number, list(s.objectives))
         evaluated += len(trials)
 
@@ -289,7 +325,8 @@ def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, b
         asked = []
         for _ in range(end - done):
             number = len(study.get_trials(deepcopy=False))
-            study.sampler = make_sampler(sampler, trial_seed(seed, number), population=population)
+            study.sampler = make_sampler(sampler, trial_seed(seed, number), population=population,
+                                         constrained=constrained)
             asked.append(study.ask(dists))
         tell(asked)
     complete = sorted(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)), key=lambda t: t.number)
@@ -298,7 +335,8 @@ def run_search(storage, study_name: str, space: SearchSpace, *, n_trials: int, b
                         np.array([t.values for t in complete], float).reshape(-1, 2),
                         np.array([t.user_attrs.get("roll", np.nan) for t in complete], float), evaluated,
                         np.array([t.user_attrs.get("extras", [np.nan] * len(EXTRAS)) for t in complete],
-                                 float).reshape(-1, len(EXTRAS)))
+                                 float).reshape(-1, len(EXTRAS)),
+                        np.array([max(trial_constraints(t)) <= 0 for t in complete], bool))
 
 
 def _extras(s: Scores) -> list:
@@ -307,10 +345,12 @@ def _extras(s: Scores) -> list:
     return [float(x) if np.isfinite(x) else None for x in v]
 
 
-def pareto_mask(F: np.ndarray) -> np.ndarray:
+def pareto_mask(F: np.ndarray, feasible: np.ndarray | None = None) -> np.ndarray:
     """(n,) True where row i of ``F`` (n, k) (all maximised) is not dominated by another row
-    (>= in every column, > in one); exact ties are all kept."""
+    (>= in every column, > in one); exact ties are all kept. With ``feasible`` (n,) bool, the
+    front of the feasible rows only (no front when none is feasible)."""
     F = np.asarray(F, float)
+    ok = np.ones(len(F), bool) if feasible is None else np.asarray(feasible, bool)
     ge = np.all(F[None, :, :] >= F[:, None, :], axis=2)   # ge[i, j]: j >= i everywhere
     gt = np.any(F[None, :, :] > F[:, None, :], axis=2)
-    return ~np.any(ge & gt, axis=1)
+    return ok & ~np.any(ge & gt & ok[None, :], axis=1)

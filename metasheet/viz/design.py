@@ -16,7 +16,7 @@ from .sheet import _figure, sheet_picture
 
 @one_at_a_time
 def pareto_picture(objectives: np.ndarray, pareto: np.ndarray, marks: Sequence[tuple[str, float, float, str]],
-                   *, title: str = "") -> bytes:
+                   *, title: str = "", feasible: np.ndarray | None = None) -> bytes:
     """Every trial's objectives, the Pareto front joined, and named points.
 
     Parameters
@@ -25,14 +25,23 @@ def pareto_picture(objectives: np.ndarray, pareto: np.ndarray, marks: Sequence[t
     pareto : (n,) bool, the non-dominated trials.
     marks : (label, roll, other_min, matplotlib marker) per named design (the spiral, the
         gradient's design, the chosen one).
+    feasible : (n,) bool, the trials within the search's strain limit (None: all; else the others
+        are drawn hollow).
     """
     fig, axes = _figure(1, size=5.5)
     ax = axes[0, 0]
     F = np.asarray(objectives, float).reshape(-1, 2)
-    ax.plot(F[:, 0], F[:, 1], ".", color="0.6", ms=6, label=f"trials ({len(F)})")
+    ok = np.ones(len(F), bool) if feasible is None else np.asarray(feasible, bool)
+    if ok.all():
+        ax.plot(F[:, 0], F[:, 1], ".", color="0.6", ms=6, label=f"trials ({len(F)})")
+    else:
+        ax.plot(F[ok, 0], F[ok, 1], ".", color="0.35", ms=7, label=f"trials within the strain limit ({ok.sum()})")
+        ax.plot(F[~ok, 0], F[~ok, 1], "o", mfc="none", color="0.6", ms=4,
+                label=f"trials beyond it ({(~ok).sum()})")
     front = F[np.asarray(pareto, bool)]
     front = front[np.argsort(front[:, 0])]
-    ax.plot(front[:, 0], front[:, 1], "o-", color="C0", ms=5, lw=1.2, label=f"Pareto front ({len(front)})")
+    ax.plot(front[:, 0], front[:, 1], "o-", color="C0", ms=6, lw=1.2, mec="w", zorder=6,  # over the marks
+            label=f"Pareto front ({len(front)})")
     for i, (label, x, y, marker) in enumerate(marks):
         ax.plot([x], [y], marker, color=f"C{i + 1}", ms=11, mec="k", label=label)
     ax.set_xlabel("|rod roll per motor degree| [deg/deg]  (maximise)")

@@ -7,7 +7,9 @@ constants, and on the robot's linear rest problem (:mod:`metasheet.design.adjoin
    the spiral's pitch and ``n_radial`` radial corrections of the fibre angle; maximise
    |rod roll per motor degree| and the smallest singular value of the five other DOF),
    sampler NSGA-II or TPE with a fixed seed, ``batch`` trials at a time through the stage's
-   executor, stored in an Optuna journal so a rerun resumes from the stored trials;
+   executor, stored in an Optuna journal so a rerun resumes from the stored trials; with
+   ``constrain_strain`` the sampler is constrained to trials within ``strain_limit`` at the goals
+   and the Pareto front holds those trials only;
 2. maximises |rod roll per degree| with the adjoint gradients over a free-form polar B-spline
    field starting from the orient stage's spiral (box bounds +-``coefficient_deg``;
    ``symmetric`` ties it to the sheet's 120 deg symmetry): by SLSQP subject to the goal strain
@@ -41,8 +43,6 @@ else from the last finished run's ``design/study.journal``, when its study is th
 
 from __future__ import annotations
 
-import hashlib
-import json
 import shutil
 import time
 from dataclasses import replace
@@ -60,11 +60,10 @@ from ...design.optimise import StrainSettings, free_form, reach_at_limit, strain
 from ...design.optimise import basis_dict as _basis_dict
 from ...design.printability import check_settings
 from ...errors import ConfigError
-from ..artefacts import SHEET_FILES, read_material, read_orient
-from ..manifest import read_manifest, sha256_file, write_bytes_atomic, write_json_atomic
+from ..artefacts import read_material, read_orient
+from ..manifest import read_manifest, write_bytes_atomic, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
-
-JOURNAL = "study.journal"
+from .design_trials import JOURNAL, cache_dir, evaluate_designs, search
 
 
 class PitchBounds(NamedTuple):
@@ -97,7 +96,8 @@ class DesignParams(Params):
     symmetric: bool = Field(True, description="tie the free-form field to the sheet's 120 deg symmetry")
     coefficient_deg: float = Field(45.0, gt=0, le=90, description="box bound of each free-form coefficient [deg]")
     maxiter: int = Field(15, ge=1, le=10_000, description="SLSQP (or L-BFGS-B) iterations")
-    constrain_strain: bool = Field(True, description="SLSQP under goal strain and other-DOF floor, else L-BFGS-B")
+    constrain_strain: bool = Field(True, description="SLSQP under goal strain and other-DOF floor, else L-BFGS-B; "
+                                   "the search's sampler and Pareto front keep to the strain limit too")
     strain_limit: float = Field(0.3, gt=0, le=10, description="limit of the largest principal strain at the "
                                 "goals [-] (the foam's validity limit)")
     ks_rho: float = Field(1000.0, gt=0, le=1e6, description="KS aggregation parameter of the strain [1/strain]")
@@ -177,9 +177,9 @@ def run(ctx: StageContext) -> dict:
 
     # 1. the parametric search, resumable through the journal
     t0 = time.perf_counter()
-    record, study = _search(ctx, space, problem, cent, spiral_kw)
+    record, study = search(ctx, space, problem, cent, spiral_kw)
     ctx.timings["search"] = round(time.perf_counter() - t0, 3)
-    pareto = ds.pareto_mask(record.objectives)
+    pareto = ds.pareto_mask(record.objectives, record.feasible)
     names = space.names
     write_bytes_atomic(ctx.path("trials.csv"), out.trials_table(names, record.values, record.roll, record.objectives,
                                                                 pareto, dict(zip(ds.EXTRAS, record.extras.T))).encode())
@@ -247,7 +247,10 @@ def run(ctx: StageContext) -> dict:
         "search": {"study": study, "sampler": p.sampler, "seed": p.seed, "n_trials": len(record.values),
                    "evaluated_this_run": int(record.evaluated), "batch": p.batch, "variables": names,
                    "bounds_deg": space.bounds(), "pareto_trials": np.flatnonzero(pareto).tolist(),
-                   "best_abs_roll": _best(record, problem, cent, spiral_kw)},
+                   "best_abs_roll": _best(record, problem, cent, spiral_kw),
+                   "strain_limit": p.strain_limit if p.constrain_strain else None,
+                   "feasible_trials": int(record.feasible.sum()),
+                   "best_feasible": _best(record, problem, cent, spiral_kw, record.feasible)},
         "sensitivity": sensitivity,
         "gradient": None if grad is None else grad["record"],
         "strain_front": front,
@@ -269,16 +272,20 @@ def run(ctx: StageContext) -> dict:
     write_json_atomic(ctx.path("design.json"), summary)
     write_bytes_atomic(ctx.path("comparison.md"), ev.comparison_markdown(cmp["table"], ev.TITLES).encode())
     write_bytes_atomic(ctx.path("chosen.toml"), _chosen_toml(ctx, orient, mat, chosen).encode())
-    shutil.rmtree(_cache_dir(ctx), ignore_errors=True)  # the journal is in the outputs now
+    shutil.rmtree(cache_dir(ctx), ignore_errors=True)  # the journal is in the outputs now
     return {"spiral_roll": round(spiral.roll, 6), "chosen": chosen.name, "chosen_roll": round(chosen.roll, 6),
             "ratio_abs_roll": summary["chosen"]["ratio_abs_roll"], "trials": len(record.values),
             "evaluated_this_run": int(record.evaluated),
             "gradient_roll": None if grad is None else grad["record"]["after"]["roll_deg_per_deg"]}
 
 
-def _best(record, problem, cent, spiral_kw) -> dict:
-    """The trial of largest |roll| (the first such) and its objectives."""
-    i = int(np.argmax(record.objectives[:, 0]))
+def _best(record, problem, cent, spiral_kw, among=None) -> dict | None:
+    """The trial of largest |roll| (the first such; among the ``among`` (n,) bool trials) and its
+    objectives; None when ``among`` holds none."""
+    ok = np.ones(len(record.objectives), bool) if among is None else np.asarray(among, bool)
+    if not ok.any():
+        return None
+    i = int(np.argmax(np.where(ok, record.objectives[:, 0], -np.inf)))
     s = _scores_of(record, i, problem, cent, spiral_kw)
     return {"trial": i, "values_deg": [float(v) for v in record.values[i]],
             **out.scores_record(s.roll, s.other_min, s.singular_values)}
@@ -287,62 +294,6 @@ def _best(record, problem, cent, spiral_kw) -> dict:
 def _scores_of(record, i, problem, cent, spiral_kw, goal_deg=None):
     """A stored trial's scores, re-evaluated (the journal keeps only its two objectives)."""
     return ds.evaluate_trials(ds.Trials(problem, cent, spiral_kw, (tuple(record.values[i]),), goal_deg))[0]
-
-
-def _cache_dir(ctx: StageContext):
-    return ctx.workdir.parent / f".{ctx.name}.units"
-
-
-def _study_name(ctx: StageContext) -> str:
-    """The study's name: a hash of what a trial's value depends on (the input files and the
-    search settings), not of ``n_trials``: more trials resume the same study."""
-    p: DesignParams = ctx.params
-    h = hashlib.sha256()
-    for d, f in ((ctx.inputs["orient"], SHEET_FILES["normal"]), (ctx.inputs["orient"], SHEET_FILES["mirrored"]),
-                 (ctx.inputs["orient"], "sheet.json"), (ctx.inputs["material"], "material.json")):
-        h.update(sha256_file(d / f).encode())
-    keys = ("sampler", "seed", "batch", "population", "pitch_deg", "n_radial", "radial_deg", "length_scale", "goal_deg")
-    h.update(json.dumps({k: getattr(p, k) for k in keys}, sort_keys=True).encode())
-    return "design-" + h.hexdigest()[:16]
-
-
-def _search(ctx: StageContext, space, problem, cent, spiral_kw):
-    import optuna
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
-    p: DesignParams = ctx.params
-    name, cache = _study_name(ctx), _cache_dir(ctx)
-    cache.mkdir(parents=True, exist_ok=True)
-    journal, previous = cache / JOURNAL, ctx.workdir.parent / ctx.name / JOURNAL
-    if not journal.exists() and previous.is_file():
-        shutil.copyfile(previous, journal)  # the last finished run's trials
-
-    def storage():
-        return JournalStorage(JournalFileBackend(str(journal)))
-
-    st = storage()
-    if journal.exists() and name not in optuna.get_all_study_names(st):
-        journal.unlink()  # another study (other inputs or settings): start afresh
-        st = storage()
-    record = ds.run_search(st, name, space, n_trials=p.n_trials, batch=p.batch, sampler=p.sampler, seed=p.seed,
-                           population=p.population, evaluate=lambda v: _evaluate(ctx, problem, cent, spiral_kw, v, goal_deg=p.goal_deg),
-                           progress=lambda d, n: ctx.progress("search trials", d, n))
-    shutil.copyfile(journal, ctx.path(JOURNAL))
-    return record, name
-
-
-def _evaluate(ctx: StageContext, problem, cent, spiral_kw, values: list, label: str = "",
-              goal_deg: float | None = None) -> list:
-    """The :class:`~metasheet.design.search.Scores` of search designs ``values`` (variables
-    [deg]), in order (with the strain at the goals of ``goal_deg`` [deg] when given): one work
-    unit per worker (the problem travels once per unit)."""
-    workers = max(1, int(getattr(ctx.executor, "workers", 1)))
-    chunks = [c for c in np.array_split(np.arange(len(values)), min(workers, len(values))) if len(c)]
-    units = [ds.Trials(problem, cent, spiral_kw, tuple(tuple(float(x) for x in values[i]) for i in c), goal_deg)
-             for c in chunks]
-    kw = {"progress": lambda d, n: ctx.progress(label, d, n)} if label else {}
-    return [s for r in ctx.executor.map(ds.evaluate_trials, units, **kw) for s in r]
 
 
 def _sensitivities(ctx: StageContext, space, problem, cent, spiral_kw, pitch0: float) -> dict | None:
@@ -358,7 +309,7 @@ def _sensitivities(ctx: StageContext, space, problem, cent, spiral_kw, pitch0: f
         lo, hi = space.bounds()[0]
         base = np.array([min(max(pitch0, lo), hi)] + [0.0] * space.n_radial)
         X, which = sens.oat_designs(space, base, p.oat_points)
-        S = _evaluate(ctx, problem, cent, spiral_kw, list(X), "one-at-a-time designs")
+        S = evaluate_designs(ctx, problem, cent, spiral_kw, list(X), "one-at-a-time designs")
         rows = [[space.names[w], *x, s.roll, *s.objectives] for w, x, s in zip(which, X, S)]
         text = out.csv_text(["variable", *space.names, "roll_deg_per_deg", "abs_roll_deg_per_deg",
                              "other_min_mm_per_rad"], rows)
@@ -372,7 +323,7 @@ def _sensitivities(ctx: StageContext, space, problem, cent, spiral_kw, pitch0: f
                                 "range_other_min": {c[0]: out._r(np.ptp(c[3])) for c in curves}}
     if p.sobol_n:
         X = sens.sobol_designs(space, p.sobol_n, p.seed)
-        F = np.array([s.objectives for s in _evaluate(ctx, problem, cent, spiral_kw, list(X), "Sobol designs")])
+        F = np.array([s.objectives for s in evaluate_designs(ctx, problem, cent, spiral_kw, list(X), "Sobol designs")])
         sobol = {o: sens.sobol_indices(space, F[:, j], p.seed).to_dict() for j, o in enumerate(ds.OBJECTIVES)}
         rec["sobol"] = {"method": "SALib Saltelli / Sobol, first-order and total, bootstrap 95 %", "n": p.sobol_n,
                         "designs": len(X), "indices": sobol}
