@@ -13,7 +13,9 @@
 - :mod:`.pcg`: (flexible) CG with the null space projected out, several right-hand sides in lockstep;
 - :mod:`.homogenize`: the six periodic load cases -> C*;
 - :mod:`.clamped`: clamped and rigid-tied nodes -> a rigid body's condensed 6 x 6 stiffness;
-- :mod:`.grips`: several rigid grips -> their condensed 6 B x 6 B stiffness (the printed sheet).
+- :mod:`.grips`: several rigid grips -> their condensed 6 B x 6 B stiffness (the printed sheet);
+- :mod:`.device`, :mod:`.device_solve`: the split multigrid CG on a CUDA GPU through CuPy
+  (``solver = "voxel-gpu"``, optional, imported only when asked), or on numpy for its tests.
 """
 
 from .clamped import RigidBodyStiffness, rigid_body_stiffness

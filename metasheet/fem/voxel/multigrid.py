@@ -42,7 +42,7 @@ from .coarsen import (
 )
 from .compact import CompactOperator, compact
 from .operator import VoxelOperator, diagonal
-from .split_hierarchy import SplitHierarchy, build_split_hierarchy
+from .split_hierarchy import SplitHierarchy, build_split_hierarchy, chebyshev_steps
 
 #: Smoothers accepted by :func:`build_hierarchy`.
 SMOOTHERS = ("chebyshev", "jacobi")
@@ -269,17 +269,11 @@ def _smooth(H: Hierarchy, lv: Level, x: np.ndarray | None, b: np.ndarray) -> np.
                 vec.subtract(r, lv.cop.apply(dx))
         return x
     # Chebyshev on [1.1 lmax / ratio, 1.1 lmax] (Saad, Iterative Methods, alg. 12.1; Adams et al. 2003)
-    hi = 1.1 * lv.lmax
-    lo = hi / H.ratio
-    theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
-    sigma = theta / delta
-    rho = 1.0 / sigma
+    theta, steps = chebyshev_steps(lv.lmax, H.ratio, H.degree)
     d = vec.chebyshev_first(x, r, lv.dinv, theta)  # d = dinv r / theta; x += d
-    for _ in range(H.degree - 1):
+    for a, c in steps:
         vec.subtract(r, lv.cop.apply(d))  # r -= K d
-        rho_new = 1.0 / (2.0 * sigma - rho)
-        vec.chebyshev_next(x, d, r, lv.dinv, rho_new * rho, 2.0 * rho_new / delta)  # d = a d + b dinv r; x += d
-        rho = rho_new
+        vec.chebyshev_next(x, d, r, lv.dinv, a, c)  # d = a d + c dinv r; x += d
     return x
 
 

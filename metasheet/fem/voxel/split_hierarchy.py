@@ -238,23 +238,34 @@ def factor_pinned(A: sp.csr_matrix, *, pin_parts: bool = True) -> tuple[np.ndarr
     return keep, lu.solve
 
 
+def chebyshev_steps(lmax: float, ratio: float, degree: int) -> tuple[float, list[tuple[float, float]]]:
+    """Chebyshev's scalars on [1.1 lmax / ratio, 1.1 lmax] (Saad, Iterative Methods, alg. 12.1):
+    ``1 / theta`` of the first step ``d = D^-1 r / theta``, and ``(a, b)`` of each of the next
+    ``degree - 1`` steps ``d = a d + b D^-1 r`` (after ``r -= A d``)."""
+    hi = 1.1 * lmax
+    lo = hi / ratio
+    theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    sigma = theta / delta
+    rho = 1.0 / sigma
+    steps = []
+    for _ in range(degree - 1):
+        rho_new = 1.0 / (2.0 * sigma - rho)
+        steps.append((rho_new * rho, 2.0 * rho_new / delta))
+        rho = rho_new
+    return theta, steps
+
+
 def chebyshev(apply: Callable, dinv: np.ndarray, lmax: float, degree: int, ratio: float, x: np.ndarray | None,
               b: np.ndarray) -> np.ndarray:
     """Chebyshev smoothing of ``A x = b`` on ``D^-1 A`` over [1.1 lmax / ratio, 1.1 lmax] from x
     (None: zero); the new x (``x`` updated in place when given). As :func:`.multigrid._smooth`."""
     r = b.copy() if x is None else vec.residual(b, apply(x))
     x = np.zeros_like(b) if x is None else x
-    hi = 1.1 * lmax
-    lo = hi / ratio
-    theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
-    sigma = theta / delta
-    rho = 1.0 / sigma
+    theta, steps = chebyshev_steps(lmax, ratio, degree)
     d = vec.chebyshev_first(x, r, dinv, theta)
-    for _ in range(degree - 1):
+    for a, c in steps:
         vec.subtract(r, apply(d))
-        rho_new = 1.0 / (2.0 * sigma - rho)
-        vec.chebyshev_next(x, d, r, dinv, rho_new * rho, 2.0 * rho_new / delta)
-        rho = rho_new
+        vec.chebyshev_next(x, d, r, dinv, a, c)
     return x
 
 
