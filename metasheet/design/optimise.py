@@ -63,9 +63,9 @@ def reach_at_limit(roll: float, strain: float, goal_deg: float, limit: float) ->
 
 
 def _optimise(problem, c0: np.ndarray, sign: float, bound: float, maxiter: int, strain: StrainSettings | None,
-              floor: float | None, step: Callable[[np.ndarray], None]):
+              floor: float | None, step: Callable[[np.ndarray], None], printable=None):
     """(the optimiser's result, evaluations): SLSQP with the constraints or L-BFGS-B without,
-    from ``c0`` (n,) [rad]."""
+    from ``c0`` (n,) [rad]; ``printable``: a :class:`.print_constraint.PrintConstraint` (linear)."""
     from scipy.optimize import minimize
 
     count = [0]
@@ -98,6 +98,8 @@ def _optimise(problem, c0: np.ndarray, sign: float, bound: float, maxiter: int, 
     if floor:
         cons.append({"type": "ineq", "fun": lambda c: (at(c)[2].value - floor) / floor,
                      "jac": lambda c: at(c)[2].gradient / floor})
+    if printable is not None:
+        cons.append({"type": "ineq", "fun": printable.slack, "jac": printable.slack_jacobian})
     res = minimize(lambda c: -sign * at(c)[0].value / scale, c0, jac=lambda c: -sign * at(c)[0].gradient / scale,
                    method="SLSQP", bounds=[(-bound, bound)] * len(c0), constraints=cons, callback=step,
                    options={"maxiter": maxiter, "ftol": 1e-9})
@@ -106,7 +108,7 @@ def _optimise(problem, c0: np.ndarray, sign: float, bound: float, maxiter: int, 
 
 def free_form(sheets, material, kw: dict, basis: PolarBSpline, pitch0: float, *, maxiter: int, bound_deg: float,
               strain: StrainSettings | None = None, floor_ratio: float = 0.0,
-              progress: Callable[[int], None] = lambda i: None, problem=None, start=None) -> dict:
+              progress: Callable[[int], None] = lambda i: None, problem=None, start=None, printable=None) -> dict:
     """The free-form design from the spiral (c = 0) of pitch ``pitch0`` [deg] on ``sheets`` of
     ``material`` (``kw``: :func:`.adjoint.rest_problem`'s keywords; ``problem``: that rest
     problem when already built): SLSQP under ``strain`` and the other-DOF floor ``floor_ratio``
@@ -127,7 +129,8 @@ def free_form(sheets, material, kw: dict, basis: PolarBSpline, pitch0: float, *,
 
     floor = floor_ratio * before.other_min if strain is not None and floor_ratio > 0 else None
     x0 = c0 if start is None else np.clip(problem.field.check(start), -np.radians(bound_deg), np.radians(bound_deg))
-    res, evaluations = _optimise(problem, x0, sign, np.radians(bound_deg), maxiter, strain, floor, step)
+    printable = printable if strain is not None else None  # a constraint: SLSQP's only
+    res, evaluations = _optimise(problem, x0, sign, np.radians(bound_deg), maxiter, strain, floor, step, printable)
     after = scores(problem, res.x, goal)
     design = {"pitch_deg": pitch0, "basis": basis_dict(basis), "coefficients_rad": [float(v) for v in res.x]}
     record = {"method": ("SLSQP, adjoint gradients of the roll, the KS strain aggregate and the other DOF's "
@@ -152,11 +155,19 @@ def free_form(sheets, material, kw: dict, basis: PolarBSpline, pitch0: float, *,
                        "ks_minus_max": out._r(ks.overshoot), "satisfied": bool(ks.exact <= strain.limit + 1e-6)},
             "other_min_floor_mm_per_rad": None if floor is None else out._r(floor),
             "other_min_satisfied": None if floor is None else bool(after.other_min >= floor * (1 - 1e-6))}
+        if printable is not None:
+            e = np.abs(printable.errors(res.x))
+            record["constraints"]["print_round_trip"] = {
+                "what": "the fibre angle read back from the print map's texture, linear in the coefficients "
+                        "(before the 8-bit rounding), within the tolerance less half an 8-bit step",
+                "budget_deg": out._r(printable.budget_deg), "compared": printable.compared, "seam": printable.seam,
+                "max_before_deg": out._r(float(np.abs(printable.e0).max())), "max_after_deg": out._r(float(e.max())),
+                "satisfied": bool(e.max() <= printable.budget_deg * (1 + 1e-6))}
     return {"scores": after, "design": design, "record": record}
 
 
 def strain_front(problem, pitch0: float, basis: PolarBSpline, limits: Sequence[float], base: StrainSettings, *,
-                 maxiter: int, bound_deg: float, floor_ratio: float) -> dict:
+                 maxiter: int, bound_deg: float, floor_ratio: float, printable=None) -> dict:
     """The constrained optimum at each strain limit of ``limits`` [-] (goals and rho of ``base``),
     each from the spiral: per limit, its roll [deg/deg], other_min [mm/rad], exact goal strain
     [-], whether that is within the limit (false: SLSQP found no feasible design in ``maxiter``,
@@ -166,7 +177,7 @@ def strain_front(problem, pitch0: float, basis: PolarBSpline, limits: Sequence[f
     for lim in limits:
         st = StrainSettings(float(lim), base.goal_deg, base.rho)
         r = free_form(None, None, {}, basis, pitch0, maxiter=maxiter, bound_deg=bound_deg, strain=st,
-                      floor_ratio=floor_ratio, problem=problem)
+                      floor_ratio=floor_ratio, problem=problem, printable=printable)
         s, rec = r["scores"], r["record"]
         rows.append({"strain_limit": float(lim), "roll_deg_per_deg": out._r(s.roll),
                      "ratio_abs_roll": round(abs(s.roll) / abs(rec["before"]["roll_deg_per_deg"]), 6),

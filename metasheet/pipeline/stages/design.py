@@ -98,6 +98,9 @@ class DesignParams(Params):
     maxiter: int = Field(15, ge=1, le=10_000, description="SLSQP (or L-BFGS-B) iterations")
     constrain_strain: bool = Field(True, description="SLSQP under goal strain and other-DOF floor, else L-BFGS-B; "
                                    "the search's sampler and Pareto front keep to the strain limit too")
+    constrain_print: bool = Field(True, description="SLSQP (constrain_strain) also keeps sheet A's fibre angle, read "
+                                  "back from the print map's 8-bit texture, within 2 deg (linearised; "
+                                  "metasheet.design.print_constraint)")
     strain_limit: float = Field(0.3, gt=0, le=10, description="limit of the largest principal strain at the "
                                 "goals [-] (the foam's validity limit)")
     ks_rho: float = Field(1000.0, gt=0, le=1e6, description="KS aggregation parameter of the strain [1/strain]")
@@ -204,16 +207,18 @@ def run(ctx: StageContext) -> dict:
     if p.gradient:
         t0 = time.perf_counter()
         gp = ds.rest_problem(sheets, mat.material, p.field_basis(r_max), **kw)
+        printable = _print_constraint(sheets, orient, p.field_basis(r_max), pitch0, spiral_kw) \
+            if strain is not None and p.constrain_print else None
         grad = free_form(None, None, {}, p.field_basis(r_max), pitch0, maxiter=p.maxiter,
                          bound_deg=p.coefficient_deg, strain=strain, floor_ratio=p.other_floor, problem=gp,
-                         progress=lambda i: ctx.progress("gradient iterations", i, p.maxiter))
+                         progress=lambda i: ctx.progress("gradient iterations", i, p.maxiter), printable=printable)
         ctx.timings["gradient"] = round(time.perf_counter() - t0, 3)
         g = grad["scores"]
         cands.append(out.Candidate("gradient", g.roll, g.other_min, g.singular_values, grad["design"], g.strain_max))
         if strain is not None and p.strain_front:
             t0 = time.perf_counter()
             front = strain_front(gp, pitch0, p.field_basis(r_max), p.strain_front, strain, maxiter=p.maxiter,
-                                 bound_deg=p.coefficient_deg, floor_ratio=p.other_floor)
+                                 bound_deg=p.coefficient_deg, floor_ratio=p.other_floor, printable=printable)
             ctx.timings["strain front"] = round(time.perf_counter() - t0, 3)
 
     # 3. the chosen design, and every objective of it and of the spiral on both constant sets
@@ -277,6 +282,14 @@ def run(ctx: StageContext) -> dict:
             "ratio_abs_roll": summary["chosen"]["ratio_abs_roll"], "trials": len(record.values),
             "evaluated_this_run": int(record.evaluated),
             "gradient_roll": None if grad is None else grad["record"]["after"]["roll_deg_per_deg"]}
+
+
+def _print_constraint(sheets, orient, basis: PolarBSpline, pitch0: float, spiral_kw: dict):
+    """The free-form designs' print round trip on sheet A, linear in the coefficients."""
+    from ...design.print_constraint import print_constraint
+
+    return print_constraint(sheets.sheet.points, sheets.sheet.tets, orient.sheet_params,
+                            lambda q: ds.spiral_angles(q, pitch_deg=pitch0, **spiral_kw), basis.design_matrix)
 
 
 def _best(record, problem, cent, spiral_kw, among=None) -> dict | None:
