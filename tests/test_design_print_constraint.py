@@ -1,0 +1,72 @@
+"""The print round trip as a linear constraint (metasheet.design.print_constraint).
+
+Its derivative against central differences of the whole (unrounded) round trip; its prediction
+against the round trip at another design; the 8-bit check within the model plus half a step."""
+
+import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
+
+# isort: split
+import numpy as np
+import pytest
+
+from metasheet.design import printability as pr
+from metasheet.design.fibre_field import PolarBSpline, fibres_at
+from metasheet.design.print_constraint import QUANTUM_DEG, foam_centroids, print_constraint, read_back_errors
+from metasheet.design.search import spiral_angles
+from metasheet.errors import ConfigError
+from metasheet.robot import SheetPair
+from metasheet.sheet import SheetParams
+
+
+@pytest.fixture(scope="module")
+def case():
+    params = SheetParams(mesh_size=15.0)
+    mesh = SheetPair.spiral(params, pitch_deg=30.0).sheet
+    basis = PolarBSpline(n_radial=2, n_angular=3, degree=1, r_max=68.0, symmetric=True)
+
+    def spiral(q):
+        return spiral_angles(q, pitch_deg=30.0, law="log", r_ref=33.0)
+
+    pc = print_constraint(mesh.points, mesh.tets, params, spiral, basis.design_matrix)
+    return params, mesh, basis, spiral, pc
+
+
+def _field(spiral, basis, c):
+    return lambda q: spiral(q) + basis.design_matrix(q) @ c
+
+
+def test_derivative_equals_central_differences(case):
+    params, mesh, basis, spiral, pc = case
+    cent = foam_centroids(mesh.points, mesh.tets, params)
+    _, seam0, _ = read_back_errors(mesh.points, mesh.tets, params, spiral, cent)
+    assert pc.compared == int((~seam0).sum()) and pc.seam == int(seam0.sum()) and pc.G.shape[1] == 2
+    h = 1e-3
+    for j in range(2):
+        step = np.zeros(2)
+        step[j] = h
+        hi, s_hi, _ = read_back_errors(mesh.points, mesh.tets, params, _field(spiral, basis, step), cent)
+        lo, s_lo, _ = read_back_errors(mesh.points, mesh.tets, params, _field(spiral, basis, -step), cent)
+        assert np.array_equal(s_hi, seam0) and np.array_equal(s_lo, seam0)
+        fd = (hi - lo)[~seam0] / (2 * h)
+        np.testing.assert_allclose(pc.G[:, j], fd, rtol=0, atol=1e-6 * np.abs(fd).max())
+
+
+def test_prediction_and_the_8_bit_check_at_another_design(case):
+    params, mesh, basis, spiral, pc = case
+    c = np.array([0.3, -0.25])  # [rad], tens of degrees
+    cent = foam_centroids(mesh.points, mesh.tets, params)
+    _, seam0, _ = read_back_errors(mesh.points, mesh.tets, params, spiral, cent)
+    e, seam, _ = read_back_errors(mesh.points, mesh.tets, params, _field(spiral, basis, c), cent)
+    same = ~seam[~seam0]  # elements off the seam in both designs
+    np.testing.assert_allclose(pc.errors(c)[same], e[~seam0][same], rtol=0, atol=1e-9)
+    rt = pr.angle_round_trip(mesh.points, mesh.tets, params, lambda q: fibres_at(_field(spiral, basis, c)(q)))
+    assert rt.max_deg <= np.abs(e[~seam]).max() + QUANTUM_DEG + 1e-9  # rounding moves it by half a step at most
+    slack = pc.slack(c)
+    assert slack.shape == (2 * pc.compared,)
+    assert np.allclose(pc.slack_jacobian(c) @ c, slack - pc.slack(np.zeros(2)))
+
+
+def test_no_budget_is_refused(case):
+    params, mesh, basis, spiral, _ = case
+    with pytest.raises(ConfigError, match="angle_tolerance_deg"):
+        print_constraint(mesh.points, mesh.tets, params, spiral, basis.design_matrix, tolerance_deg=0.5)
