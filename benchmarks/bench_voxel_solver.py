@@ -112,7 +112,16 @@ def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | 
     out = {k: statistics.median(x[k] for x in rows) if isinstance(rows[0][k], float) else rows[0][k]
            for k in rows[0]}
     out["peak_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    out["ti"] = ti_constants(np.array(out["C"]), axis=(1.0, 0.0, 0.0) if n == 0 else None)
     return out
+
+
+def ti_constants(C: np.ndarray, axis) -> list[float]:
+    """(E_t, E_l, nu_t, nu_tl, mu_l) of the transverse-isotropic fit of C (axis None: searched)."""
+    from metasheet.material import TransverseIsotropic
+
+    m = TransverseIsotropic.fit(C, axis=axis).material
+    return [m.E_t, m.E_l, m.nu_t, m.nu_tl, m.mu_l]
 
 
 def run_child(n, tile, solver, repeat, rtol, timeout, voxels=None):
@@ -140,6 +149,8 @@ def main():
     ap.add_argument("--timeout", type=float, default=1800.0, help="per row [s]")
     ap.add_argument("--voxels", nargs="*", default=[], help="cell files: a cell stage's voxels.npz (cell.json "
                     "beside it) or an npz with phases, size, E, nu; one case each (n = 0)")
+    ap.add_argument("--constants", action="store_true", help="print each row's transverse-isotropic constants "
+                    "(axis x for --voxels cases, the Polyfoam's soft axis; searched for the iso foam)")
     ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     add_save_option(ap)
     args = ap.parse_args()
@@ -175,6 +186,8 @@ def main():
                 print(f"{n:>4} {tile:>4} {solver:>13} {r['dofs']:>9} {r['iters']:>6} {r['setup']:>8.2f} "
                       f"{r['solve']:>8.2f} {r['s']:>9.2f} {r['peak_gb']:>8.2f} {r['gpu_gb']:>7.2f} "
                       f"{r['s'] / ref['s']:>6.2f} {r['peak_gb'] / ref['peak_gb']:>6.2f} {err:>9.1e}", flush=True)
+                if args.constants:
+                    print("        E_t {:.4f}  E_l {:.5f}  nu_t {:.4f}  nu_tl {:.4f}  mu_l {:.5f} MPa".format(*r["ti"]))
         print("t/ref, GB/ref and C err: against the first solver that ran on the case (the first of --solvers); "
               "peak GB: host")
 

@@ -16,7 +16,14 @@ from metasheet.errors import ConfigError
 from metasheet.fem import solvers
 from metasheet.fem.voxel import periodic_stiffness
 from metasheet.fem.voxel.blocks import csr_apply
-from metasheet.fem.voxel.device import DENSE_BOTTOM, Bottom, FineLevel, SparseLevel, backend, transfer
+from metasheet.fem.voxel.device import (
+    DENSE_BOTTOM,
+    Bottom,
+    FineLevel,
+    SparseLevel,
+    backend,
+    transfer,
+)
 from metasheet.fem.voxel.device_solve import periodic_stiffness_device, projector
 from metasheet.fem.voxel.homogenize import prepare_cell
 from metasheet.fem.voxel.pcg import translation_projector

@@ -12,10 +12,26 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.sparse as sp
 
 from ...errors import ConfigError
-from .device import Backend, Bottom, FineLevel, SparseLevel, backend, chebyshev, dots, transfer
-from .homogenize import VoxelHomogenization, check_converged, energy_form, prepare_cell, _periodic_stiffness
+from .device import (
+    Backend,
+    Bottom,
+    FineLevel,
+    SparseLevel,
+    backend,
+    chebyshev,
+    dots,
+    transfer,
+)
+from .homogenize import (
+    VoxelHomogenization,
+    _periodic_stiffness,
+    check_converged,
+    energy_form,
+    prepare_cell,
+)
 from .pcg import PCGResult
 
 
@@ -84,8 +100,6 @@ def projector(be: Backend, labels: np.ndarray, n_parts: int):
     lab = np.asarray(labels).reshape(-1)
     on = np.flatnonzero(lab >= 0)
     count = np.bincount(lab[on], minlength=n_parts).astype(float)
-    import scipy.sparse as sp
-
     mean = be.put(sp.csr_matrix((1.0 / np.maximum(count, 1.0)[lab[on]], (lab[on], on)), shape=(n_parts, len(lab))))
     spread = be.put(sp.csr_matrix((np.ones(len(on)), (on, lab[on])), shape=(len(lab), n_parts)))
 
