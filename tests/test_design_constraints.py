@@ -143,3 +143,85 @@ def test_unconstrained_option_is_lbfgsb_on_the_roll(problem):
     rec = r["record"]
     assert rec["method"].startswith("L-BFGS-B") and "constraints" not in rec
     assert rec["ratio_abs_roll"] > 1.5 and rec["after"]["goal_strain"] > 0.26
+
+
+def test_other_singular_values_gradients_match_central_differences(problem):
+    """Each of the five singular values other than the roll's, where it is simple (its gap to
+    its neighbours at least 100 times the change a step makes): adjoint against central
+    differences of numpy's SVD of the rest problem's J."""
+    from metasheet.design.constraints import other_singular_sensitivities
+    from metasheet.design.objectives import roll_index, scaled_singular_values
+
+    rng = np.random.default_rng(47)
+    checked = 0
+    for _ in range(2):
+        c = rng.uniform(-0.4, 0.4, problem.n_coefficients)
+        d = rng.standard_normal(problem.n_coefficients)
+        sol = solve_rest(problem, c)
+        k_roll = roll_index(sol.J, problem.robot.axis)
+        others = [k for k in range(6) if k != k_roll]
+        sens = other_singular_sensitivities(problem, c, sol)
+        assert np.allclose([s.value for s in sens], sol.singular_values[others], rtol=1e-12, atol=0)
+        sp, sm = (scaled_singular_values(solve_rest(problem, c + t * H * d).J) for t in (1, -1))
+        for s, k in zip(sens, others):
+            fd = (sp[k] - sm[k]) / (2 * H)
+            if s.gap > 100 * abs(fd) * H:
+                assert abs(s.gradient @ d - fd) < RTOL * max(abs(fd), 1e-3 * s.value), (k, s.gradient @ d, fd)
+                checked += 1
+    assert checked >= 6
+
+
+def test_roll_index_is_the_roll_direction(problem):
+    """At the spiral the roll's singular value is the largest, its effector direction the rod
+    axis; a Jacobian whose roll is made the smallest moves the index."""
+    from metasheet.design.objectives import LENGTH_SCALE, roll_index
+
+    J = solve_rest(problem, np.zeros(problem.n_coefficients)).J
+    axis = problem.robot.axis
+    assert roll_index(J, axis) == 0
+    U = np.linalg.svd(np.array([1, 1, 1, LENGTH_SCALE, LENGTH_SCALE, LENGTH_SCALE])[:, None] * J)[0]
+    assert abs(U[3:, 0] @ axis) > 0.99
+    e = np.concatenate([np.zeros(3), axis])
+    weak = J - 0.999 * np.outer(e, e @ J)  # the roll nearly gone
+    assert roll_index(weak, axis) == 5
+
+
+def test_multi_start_keeps_the_best_feasible_run(problem):
+    """Three starts (the spiral, two seeded random points): every run is recorded, the kept one
+    is feasible with the largest roll among the feasible ones, and the same seed repeats it."""
+    st = StrainSettings(limit=0.26)
+    kw = dict(maxiter=15, bound_deg=90.0, strain=st, floor_ratio=1.0, problem=problem, starts=3, seed=5)
+    r = free_form(None, None, {}, problem.field.basis, 30.0, **kw)
+    runs = r["record"]["starts"]["runs"]
+    assert len(runs) == 3
+    feasible = [x["ratio_abs_roll"] for x in runs if x["feasible"]]
+    assert feasible and r["record"]["ratio_abs_roll"] == max(feasible)
+    assert runs[r["record"]["starts"]["kept"]]["ratio_abs_roll"] == max(feasible)
+    c = r["record"]["constraints"]
+    assert c["strain"]["satisfied"] and c["other_min_satisfied"] and c["other_singular_values"]["satisfied"]
+    assert all(v >= f for v, f in zip(c["other_singular_values"]["values_mm_per_rad"],
+                                       c["other_singular_values"]["floors_mm_per_rad"]))
+    again = free_form(None, None, {}, problem.field.basis, 30.0, **kw)
+    assert again["design"] == r["design"]
+
+
+def test_start_points_are_seeded_and_start_at_the_spiral():
+    from metasheet.design.optimise import start_points
+
+    a, b = start_points(16, 4, 1.0, seed=3), start_points(16, 4, 1.0, seed=3)
+    assert a.shape == (4, 16) and np.array_equal(a, b) and not a[0].any()
+    assert np.abs(a[1:]).max() <= 0.25 and not np.array_equal(a, start_points(16, 4, 1.0, seed=4))
+    with pytest.raises(ConfigError, match="starts"):
+        start_points(16, 0, 1.0, seed=3)
+
+
+def test_choose_keeps_each_other_singular_value_above_its_floor():
+    from metasheet.design.outputs import Candidate, choose
+
+    sv = (1.0,) * 6
+    cands = [Candidate("spiral", -1.6, 12.0, sv, {}, 0.29, (17.3, 15.1, 15.0, 12.8, 12.7)),
+             Candidate("a", -2.5, 13.0, sv, {}, 0.29, (17.2, 15.9, 15.9, 13.4, 13.0)),  # the 2nd one lower
+             Candidate("b", -2.4, 12.8, sv, {}, 0.29, (17.4, 15.2, 15.0, 12.9, 12.8))]
+    floors = (17.3, 15.1, 15.0, 12.8, 12.7)
+    assert choose(cands, 12.0, 0.3).name == "a"
+    assert choose(cands, 12.0, 0.3, floors).name == "b"

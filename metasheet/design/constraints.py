@@ -144,3 +144,22 @@ def other_min_sensitivity(problem: RestProblem, c, sol: RestSolution | None = No
     wts = obj.other_five_weights(sol.J, problem.robot.axis, problem.length_scale)
     per = angle_sensitivity(problem, sol, wts)
     return Sensitivity("other_min", wts.value, problem.field.N.T @ per, per, wts.gap)
+
+
+def other_singular_sensitivities(problem: RestProblem, c, sol: RestSolution | None = None,
+                                 index: int | None = None) -> list[Sensitivity]:
+    """The scaled singular values [mm/rad] other than the roll's (:func:`.objectives.roll_index`,
+    or ``index``), largest first, each with its adjoint gradient (exact where it is simple: see
+    each one's ``gap``; at a crossing the sorted value has a kink and this is one side's slope)."""
+    sol = solve_rest(problem, c) if sol is None else sol
+    axis, L = problem.robot.axis, problem.length_scale
+    skip = obj.roll_index(sol.J, axis, L) if index is None else int(index)
+    res = []
+    for k in range(len(sol.singular_values)):
+        if k == skip:
+            continue
+        w = obj.singular_weights(sol.J, k, L)
+        per = angle_sensitivity(problem, sol, w)
+        res.append(Sensitivity(f"singular_value_{k + 1}", w.value, problem.field.N.T @ per, per, w.gap))
+    return res
+

@@ -103,6 +103,29 @@ def min_singular_weights(J, length_scale: float = LENGTH_SCALE) -> RankOne:
     return RankOne(float(s[k]), D * U[:, k], Vt[k].copy(), gap)
 
 
+def singular_weights(J, k: int, length_scale: float = LENGTH_SCALE) -> RankOne:
+    """The ``k``-th (0-based, largest first) of :func:`scaled_singular_values` [mm/rad] and its
+    weights alpha = D u_k, beta = v_k (as :func:`min_singular_weights`; ``gap`` is its distance
+    to the nearer neighbour [mm/rad], where the sorted value stops being differentiable)."""
+    J = _check_jacobian(J)
+    D = _scale(length_scale)
+    U, s, Vt = np.linalg.svd(D[:, None] * J, full_matrices=False)
+    if not 0 <= k < len(s):
+        raise ConfigError(f"k: {k!r}: allowed range is [0, {len(s) - 1}]")
+    near = [abs(s[k] - s[j]) for j in (k - 1, k + 1) if 0 <= j < len(s)]
+    return RankOne(float(s[k]), D * U[:, k], Vt[k].copy(), float(min(near)) if near else float("inf"))
+
+
+def roll_index(J, axis, length_scale: float = LENGTH_SCALE) -> int:
+    """The index (largest first) of the scaled singular value whose effector direction is the
+    rod roll: the left singular vector of ``D J`` (6,) closest to ``(0, 0, 0, axis)``. The other
+    five are "the other five singular values" that a design must not lower."""
+    J = _check_jacobian(J)
+    e = np.concatenate([np.zeros(3), _unit_axis(axis)])
+    U = np.linalg.svd(_scale(length_scale)[:, None] * J, full_matrices=False)[0]
+    return int(np.argmax(np.abs(e @ U)))
+
+
 def other_five_weights(J, axis, length_scale: float = LENGTH_SCALE) -> RankOne:
     """The smallest singular value [mm/rad] of ``D J`` projected on the five effector directions
     orthogonal to the roll ``(0, 0, 0, axis)`` (``P = U^T D J``, U (6, 5) an orthonormal basis of

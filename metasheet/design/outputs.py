@@ -64,6 +64,7 @@ class Candidate:
     roll : signed rod roll per degree [deg/deg]; other_min : [mm/rad];
     singular_values : (6,) [mm/rad]; design : how to rebuild it (JSON-able);
     strain : largest principal strain at the goals [-] (nan: not measured).
+    others : the five singular values other than the roll's [mm/rad] (:attr:`.search.Scores.others`).
     """
 
     name: str
@@ -72,20 +73,38 @@ class Candidate:
     singular_values: tuple[float, ...]
     design: dict
     strain: float = float("nan")
+    others: tuple[float, ...] = ()
+
+    @classmethod
+    def of(cls, name: str, scores, design: dict) -> Candidate:
+        """The candidate ``name`` of ``design`` with :class:`.search.Scores` ``scores``."""
+        return cls(name, scores.roll, scores.other_min, scores.singular_values, design, scores.strain_max,
+                   scores.others)
 
 
-def choose(candidates: Sequence[Candidate], floor: float, strain_limit: float | None = None) -> Candidate:
+def choose(candidates: Sequence[Candidate], floor: float, strain_limit: float | None = None,
+           others_floor: Sequence[float] | None = None) -> Candidate:
     """The candidate with the largest |roll| among those whose ``other_min`` is at least
-    ``floor`` [mm/rad] and, with ``strain_limit`` [-], whose goal strain is within it (an
+    ``floor`` [mm/rad], with ``others_floor`` (5,) [mm/rad] whose other five singular values are
+    each at least theirs, and, with ``strain_limit`` [-], whose goal strain is within it (an
     unmeasured, nan, strain is not); ties go to the earlier candidate. The first candidate, the
     spiral, is the reference: it is chosen when it qualifies and nothing rolls more, or when
     no candidate qualifies (then the result breaks the constraints: the caller reports it)."""
-    ok = [c for c in candidates if c.other_min >= floor and (strain_limit is None or c.strain <= strain_limit)]
+    ok = [c for c in candidates if c.other_min >= floor and (strain_limit is None or c.strain <= strain_limit)
+          and meets_floors(c.others, others_floor)]
     best = ok[0] if ok else candidates[0]
     for c in ok[1:]:
         if abs(c.roll) > abs(best.roll):
             best = c
     return best
+
+
+def meets_floors(values: Sequence[float], floors: Sequence[float] | None, rtol: float = 1e-6) -> bool:
+    """Whether each of ``values`` is at least its floor (less ``rtol`` relative: SLSQP's
+    constraint tolerance); True without ``floors``."""
+    if floors is None:
+        return True
+    return len(values) == len(floors) and all(v >= f * (1 - rtol) for v, f in zip(values, floors))
 
 
 def scores_record(roll: float, other_min: float, singular_values) -> dict:

@@ -111,6 +111,7 @@ class Scores:
         (:func:`.objectives.decoupling`).
     strain_max : largest principal small strain at the goals [-] (:func:`.strain.goal_strain`),
         nan when not asked for.
+    roll_index : which of ``singular_values`` is the roll's (:func:`.objectives.roll_index`).
     """
 
     roll: float
@@ -118,6 +119,12 @@ class Scores:
     other_min: float
     translation: float = float("nan")
     strain_max: float = float("nan")
+    roll_index: int = 0
+
+    @property
+    def others(self) -> tuple[float, ...]:
+        """The five singular values other than the roll's [mm/rad], largest first."""
+        return tuple(v for k, v in enumerate(self.singular_values) if k != self.roll_index)
 
     @property
     def objectives(self) -> tuple[float, float]:
@@ -154,7 +161,8 @@ def scores(problem: RestProblem, c, goal_deg: float | None = None) -> Scores:
     strain = goal_strain(problem, sol, goal_deg).worst if goal_deg is not None else float("nan")
     return Scores(float(sol.roll), tuple(float(s) for s in sol.singular_values),
                   other_five_min(sol.J, problem.robot.axis, problem.length_scale),
-                  obj.decoupling(sol.J, problem.robot.axis).translation_mm_per_deg, float(strain))
+                  obj.decoupling(sol.J, problem.robot.axis).translation_mm_per_deg, float(strain),
+                  obj.roll_index(sol.J, problem.robot.axis, problem.length_scale))
 
 
 @dataclass(frozen=True)

@@ -95,7 +95,9 @@ class DesignParams(Params):
     field_degree: int = Field(3, ge=1, le=5, description="free-form field: B-spline degree")
     symmetric: bool = Field(True, description="tie the free-form field to the sheet's 120 deg symmetry")
     coefficient_deg: float = Field(45.0, gt=0, le=90, description="box bound of each free-form coefficient [deg]")
-    maxiter: int = Field(15, ge=1, le=10_000, description="SLSQP (or L-BFGS-B) iterations")
+    maxiter: int = Field(15, ge=1, le=10_000, description="SLSQP (or L-BFGS-B) iterations per start")
+    starts: int = Field(1, ge=1, le=1000, description="SLSQP starts: the spiral, then starts - 1 seeded random "
+                        "points (seed: the search's); the best feasible run is kept")
     constrain_strain: bool = Field(True, description="SLSQP under goal strain and other-DOF floor, else L-BFGS-B; "
                                    "the search's sampler and Pareto front keep to the strain limit too")
     constrain_print: bool = Field(True, description="SLSQP (constrain_strain) also keeps sheet A's fibre angle, read "
@@ -195,14 +197,12 @@ def run(ctx: StageContext) -> dict:
 
     # 2. the free-form field by L-BFGS-B and the adjoint gradient, from the spiral
     spiral_design = {"pitch_deg": pitch0, "basis": None, "coefficients_rad": []}
-    cands = [out.Candidate("spiral", spiral.roll, spiral.other_min, spiral.singular_values, spiral_design,
-                           spiral.strain_max)]
+    cands = [out.Candidate.of("spiral", spiral, spiral_design)]
     for i in np.flatnonzero(pareto):
         pitch, c = space.split(record.values[i])
         s = _scores_of(record, i, problem, cent, spiral_kw, p.goal_deg)
-        cands.append(out.Candidate(f"trial {i}", s.roll, s.other_min, s.singular_values,
-                                   {"pitch_deg": pitch, "basis": _basis_dict(space.basis()) if len(c) else None,
-                                    "coefficients_rad": c.tolist()}, s.strain_max))
+        cands.append(out.Candidate.of(f"trial {i}", s, {"pitch_deg": pitch, "basis": _basis_dict(space.basis())
+                                                        if len(c) else None, "coefficients_rad": c.tolist()}))
     grad, front, strain = None, None, StrainSettings(p.strain_limit, p.goal_deg, p.ks_rho) if p.constrain_strain else None
     if p.gradient:
         t0 = time.perf_counter()
@@ -211,10 +211,11 @@ def run(ctx: StageContext) -> dict:
             if strain is not None and p.constrain_print else None
         grad = free_form(None, None, {}, p.field_basis(r_max), pitch0, maxiter=p.maxiter,
                          bound_deg=p.coefficient_deg, strain=strain, floor_ratio=p.other_floor, problem=gp,
-                         progress=lambda i: ctx.progress("gradient iterations", i, p.maxiter), printable=printable)
+                         progress=lambda i: ctx.progress("gradient iterations", i, p.maxiter * p.starts),
+                         printable=printable, starts=p.starts, seed=p.seed)
         ctx.timings["gradient"] = round(time.perf_counter() - t0, 3)
         g = grad["scores"]
-        cands.append(out.Candidate("gradient", g.roll, g.other_min, g.singular_values, grad["design"], g.strain_max))
+        cands.append(out.Candidate.of("gradient", g, grad["design"]))
         if strain is not None and p.strain_front:
             t0 = time.perf_counter()
             front = strain_front(gp, pitch0, p.field_basis(r_max), p.strain_front, strain, maxiter=p.maxiter,
@@ -222,7 +223,9 @@ def run(ctx: StageContext) -> dict:
             ctx.timings["strain front"] = round(time.perf_counter() - t0, 3)
 
     # 3. the chosen design, and every objective of it and of the spiral on both constant sets
-    chosen = out.choose(cands, p.other_floor * spiral.other_min, p.strain_limit if p.constrain_strain else None)
+    others_floor = [p.other_floor * v for v in spiral.others]
+    chosen = out.choose(cands, p.other_floor * spiral.other_min, p.strain_limit if p.constrain_strain else None,
+                        others_floor)
     t0 = time.perf_counter()
     mats = {"pipeline": mat.material, **({"published": paper.PAPER_FOAM} if p.compare_published else {})}
     cmp = ev.compare_designs(sheets, mats, {"spiral": spiral_design, "chosen": chosen.design}, spiral_kw, r_max,
@@ -263,7 +266,10 @@ def run(ctx: StageContext) -> dict:
                    "ratio_abs_roll": round(abs(chosen.roll) / abs(spiral.roll), 6),
                    "goal_strain": out._r(chosen.strain), "strain_limit": p.strain_limit,
                    "strain_constrained": p.constrain_strain, "meets_constraints": bool(
-                       chosen.other_min >= p.other_floor * spiral.other_min and chosen.strain <= p.strain_limit),
+                       chosen.other_min >= p.other_floor * spiral.other_min and chosen.strain <= p.strain_limit
+                       and out.meets_floors(chosen.others, others_floor)),
+                   "other_singular_values_mm_per_rad": [out._r(v) for v in chosen.others],
+                   "other_singular_floors_mm_per_rad": [out._r(v) for v in others_floor],
                    "reach": {k: reach_at_limit(x.roll, x.strain, p.goal_deg, p.strain_limit)
                              for k, x in (("spiral", cands[0]), ("chosen", chosen))},
                    "other_floor_mm_per_rad": round(p.other_floor * spiral.other_min, 6),
