@@ -131,3 +131,50 @@ def test_split_space_converges_on_thin_walls():
     n_unsplit = _two_level_iterations(K, unsplit[keep].tocsr(), rhs)
     assert n_split <= 30
     assert n_unsplit > 4 * n_split
+
+
+def _graph_parts(index, occ, cflat, periodic, reach):
+    """The parts by an explicit graph of the (voxel, corner) pairs and scipy's connected
+    components: the independent reference of split._parts' union-find."""
+    from scipy.sparse.csgraph import connected_components
+
+    nv, S = len(occ), np.array(index.shape)
+    vid = np.full(index.shape, -1, np.int64)
+    vid[tuple(occ.T)] = np.arange(nv)
+    rows, cols = [], []
+    for o in np.ndindex(3, 3, 3):
+        o = np.array(o) - 1
+        if not reach[0] <= np.abs(o).sum() <= reach[1]:
+            continue  # both orders of each pair: the graph is undirected anyway
+        nb = occ + o
+        inside = np.ones(nv, bool) if periodic else np.all((nb >= 0) & (nb < S), axis=1)
+        w = np.full(nv, -1, np.int64)
+        w[inside] = vid[tuple((nb[inside] % S).T)]
+        v1 = np.flatnonzero(w >= 0)
+        for a in range(8):
+            for b in range(8):
+                same = cflat[v1, a] == cflat[w[v1], b]
+                rows.append(8 * v1[same] + a)
+                cols.append(8 * w[v1][same] + b)
+    G = sp.coo_matrix((np.ones(sum(map(len, rows))), (np.concatenate(rows), np.concatenate(cols))), (8 * nv,) * 2)
+    return connected_components(G, directed=False)[1].reshape(nv, 8)
+
+
+def test_parts_union_find_equals_the_graph_components():
+    """Random solids, periodic or not, each connectivity, coarse grids down to one node along an
+    axis (a voxel's corners then repeat): the same labels, numbered alike."""
+    from metasheet.fem.voxel.split import CONNECTIVITY, _parts
+
+    rng = np.random.default_rng(0)
+    corners = np.array([[a & 1, (a >> 1) & 1, (a >> 2) & 1] for a in range(8)])
+    for _ in range(5):
+        shape = tuple(int(n) for n in rng.integers(2, 12, 3))
+        index = np.where(rng.random(shape) < rng.uniform(0.2, 0.7), 0, -1)
+        occ = np.argwhere(index >= 0)
+        Nc = np.maximum(np.array(shape) // 2, 1)
+        cn = (occ[:, None, :] // 2 + corners) % Nc
+        cflat = (cn[..., 0] * Nc[1] + cn[..., 1]) * Nc[2] + cn[..., 2]
+        for periodic in (True, False):
+            for reach in CONNECTIVITY.values():
+                assert np.array_equal(_parts(index, occ, cflat, periodic, reach),
+                                      _graph_parts(index, occ, cflat, periodic, reach))
