@@ -178,3 +178,33 @@ def test_parts_union_find_equals_the_graph_components():
             for reach in CONNECTIVITY.values():
                 assert np.array_equal(_parts(index, occ, cflat, periodic, reach),
                                       _graph_parts(index, occ, cflat, periodic, reach))
+
+
+def test_node_parts_equal_the_graph_components():
+    """The homogenisation's node parts (union-find) against scipy's components of the explicit
+    node graph (each voxel joins its 8 nodes), periodic or not, on solids with several pieces."""
+    from scipy.sparse.csgraph import connected_components
+
+    from metasheet.fem.voxel.homogenize import node_parts
+    from metasheet.fem.voxel.operator import node_shape
+
+    rng = np.random.default_rng(1)
+    corners = np.array([[a & 1, (a >> 1) & 1, (a >> 2) & 1] for a in range(8)])
+    pieces = []
+    for periodic in (True, False):
+        for _ in range(4):
+            index = np.where(rng.random(tuple(int(n) for n in rng.integers(3, 10, 3))) < 0.15, 0, -1)
+            N = node_shape(index.shape, periodic)
+            nodes = (np.argwhere(index >= 0)[:, None, :] + corners) % np.array(N)
+            flat = (nodes[..., 0] * N[1] + nodes[..., 1]) * N[2] + nodes[..., 2]
+            n = int(np.prod(N))
+            G = sp.coo_matrix((np.ones(7 * len(flat)), (np.repeat(flat[:, 0], 7), flat[:, 1:].ravel())), (n, n))
+            lab = connected_components(G, directed=False)[1]
+            touched = np.zeros(n, bool)
+            touched[flat.ravel()] = True
+            used, want = np.unique(np.where(touched, lab, -1), return_inverse=True)
+            want = want.reshape(-1) - (1 if used[0] == -1 else 0)
+            got, count = node_parts(index, periodic)
+            assert np.array_equal(got.ravel(), want) and count == int((used >= 0).sum())
+            pieces.append(count)
+    assert max(pieces) > 1  # several pieces are what the test is about

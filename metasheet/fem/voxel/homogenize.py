@@ -19,11 +19,10 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from threadpoolctl import threadpool_limits
 
 from ...errors import ConfigError, ConvergenceError
+from .components import components
 from .element import phase_table
 from .multigrid import build_hierarchy
 from .operator import VoxelOperator, node_shape, scatter, touched_nodes
@@ -100,9 +99,7 @@ def node_parts(index: np.ndarray, periodic: bool) -> tuple[np.ndarray, int]:
     nodes = (occ[:, None, :] + corners[None]) % np.array(N)
     flat = (nodes[..., 0] * N[1] + nodes[..., 1]) * N[2] + nodes[..., 2]
     n = int(np.prod(N))
-    rows = np.repeat(flat[:, :1], 7, axis=1).ravel()
-    G = sp.coo_matrix((np.ones(len(rows), np.int8), (rows, flat[:, 1:].ravel())), shape=(n, n))
-    _, lab = connected_components(G, directed=False)
+    lab = components(n, np.repeat(flat[:, :1], 7, axis=1).ravel(), flat[:, 1:].ravel())
     touched = touched_nodes(index, periodic).ravel()
     used, lab = np.unique(np.where(touched, lab, -1), return_inverse=True)
     lab = lab.reshape(-1) - (1 if used[0] == -1 else 0)

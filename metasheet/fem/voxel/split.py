@@ -36,6 +36,7 @@ from scipy.sparse.csgraph import connected_components
 from ...errors import ConfigError
 from .coarsen import cell_bounds, choose_directions, node_weights
 from .compact import CompactOperator
+from .components import first_member_labels, union
 from .operator import node_shape
 
 #: Voxel neighbourhoods that join two voxels of one support into one part.
@@ -85,7 +86,6 @@ def split_prolongation(cop: CompactOperator, *, connectivity: str = "face", coar
     Nf = np.array(op.node_shape)
     weights = [node_weights(b, int(n), op.periodic) for b, n in zip(bounds, Nf)]
     occ = np.argwhere(op.index >= 0)
-    nv = len(occ)
     cnode = (np.stack([cells[d][occ[:, d]] for d in range(3)], 1)[:, None, :] + _CORNERS) % Nc  # (nv, 8, 3)
     cflat = (cnode[..., 0] * Nc[1] + cnode[..., 1]) * Nc[2] + cnode[..., 2]
     part = _parts(op.index, occ, cflat, op.periodic, CONNECTIVITY[connectivity])  # (nv, 8) part of (voxel, corner)
@@ -183,14 +183,6 @@ def _parts(index, occ, cflat, periodic: bool, reach) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _find(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]  # path halving
-        i = parent[i]
-    return i
-
-
-@numba.njit(cache=True)
 def _union_parts(vid, occ, cflat, periodic, offsets):
     """Union-find over the 8 nv (voxel, corner) pairs; the labels in order of first member."""
     nv = occ.shape[0]
@@ -209,19 +201,8 @@ def _union_parts(vid, occ, cflat, periodic, offsets):
             for a in range(8):
                 for b in range(8):
                     if cflat[v, a] == cflat[w, b]:
-                        r1, r2 = _find(parent, 8 * v + a), _find(parent, 8 * w + b)
-                        if r1 != r2:
-                            parent[max(r1, r2)] = min(r1, r2)
-    label = np.full(8 * nv, -1, np.int64)
-    out = np.empty(8 * nv, np.int64)
-    n = 0
-    for i in range(8 * nv):
-        r = _find(parent, i)
-        if label[r] < 0:
-            label[r] = n
-            n += 1
-        out[i] = label[r]
-    return out
+                        union(parent, 8 * v + a, 8 * w + b)
+    return first_member_labels(parent)
 
 
 def assemble(cop: CompactOperator) -> sp.csr_matrix:
