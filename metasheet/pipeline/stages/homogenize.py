@@ -42,7 +42,9 @@ class HomogenizeParams(Params):
                             "voxel (matrix-free multigrid CG, voxel route only), voxel-gpu (the same on a "
                             "CUDA GPU, needs CuPy), auto by size (never the GPU)"
     )
-    tolerance: float = Field(1e-8, gt=0, le=1e-4, description="relative residual of the corrector solves [-]")
+    tolerance: float = Field(1e-5, gt=0, le=1e-4, description="relative residual of the corrector solves [-]; C* "
+                             "is in energy form, its error second order in the residual (1e-5: C* within 1.3e-9 "
+                             "and the constants within 3e-9 on the paper's Polyfoam at 27 cells; docs/voxel.md)")
     mesh_route: bool = Field(False, description="homogenise the periodic tet mesh cell.vtu instead of the voxels")
     fit_axis: Literal["cell", "search"] = Field(
         "cell", description="TI axis of the fit: the cell's design axis, or the best-fitting one"
