@@ -25,7 +25,7 @@ from ...errors import ConfigError, ConvergenceError
 from .components import components
 from .element import phase_table
 from .multigrid import build_hierarchy
-from .operator import VoxelOperator, node_shape, scatter, touched_nodes
+from .operator import VoxelOperator, node_shape, scatter_compact, touched_nodes
 from .pcg import pcg, translation_projector
 
 
@@ -180,7 +180,7 @@ def prepare_cell(phases, size, stiffnesses, scale=None, smoother: str = "chebysh
     cop = H.fine  # vectors on the nodes with unknowns only (:mod:`.compact`)
     # (a, 3, 6) [N] on the active nodes: only U, the result, is kept on the full grid (each full
     # (Nx, Ny, Nz, 3, 6) array is 130 MB on the paper cell, void nodes included)
-    F = cop.to_compact(scatter(index, table.F, sc, True)) * cop.free[..., None]
+    F = scatter_compact(index, table.F, sc, True, cop.node_map) * cop.free[..., None]
     return CellProblem(index, table, sc, op, H, cop.to_compact(labels), n_parts, F, time.perf_counter() - t0)
 
 

@@ -178,7 +178,8 @@ def _level(op: VoxelOperator, transfer, coarse_nodes) -> Level:
     d = diagonal(op)
     dinv = np.where(d > 0, op.free / np.where(d > 0, d, 1.0), 0.0)
     cop = compact(op)
-    return Level(op, cop, np.ascontiguousarray(cop.to_compact(dinv)), _lambda_max(op, dinv), transfer, coarse_nodes)
+    dc = np.ascontiguousarray(cop.to_compact(dinv))
+    return Level(op, cop, dc, _lambda_max(cop, dc), transfer, coarse_nodes)
 
 
 def _split_hierarchy(op, fixed, smoother, degree, ratio, omega, direct_dofs, coarsest_unknowns) -> Hierarchy:
@@ -221,16 +222,19 @@ def _check_held(index: np.ndarray, fixed: np.ndarray) -> None:
                           "(metasheet.fem.voxel.grips.held_solid) or use 'trilinear'")
 
 
-def _lambda_max(op: VoxelOperator, dinv: np.ndarray, steps: int = 12) -> float:
-    """Power-iteration estimate of the largest eigenvalue of ``D^-1 K`` from a fixed start."""
-    v = op.free * np.random.default_rng(12345).standard_normal(op.free.shape)
+def _lambda_max(cop, dinv: np.ndarray, steps: int = 12) -> float:
+    """Power-iteration estimate of the largest eigenvalue of ``D^-1 K`` from a fixed start, on
+    the compact vectors of ``cop`` (dinv (a, 3)); the start is the full grid's seeded draw on the
+    active nodes, so the estimate does not depend on how the grid is stored."""
+    op = cop.op
+    v = cop.to_compact(op.free * np.random.default_rng(12345).standard_normal(op.free.shape))[..., None]
     lam = 0.0
     for _ in range(steps):
         nv = np.linalg.norm(v)
         if nv == 0:
             return 1.0
         v = v / nv
-        w = dinv * op.apply(v)
+        w = dinv[..., None] * cop.apply(v)
         lam = float(np.vdot(v, w))
         v = w
     return max(lam, float(np.linalg.norm(v)))

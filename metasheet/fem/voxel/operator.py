@@ -143,6 +143,16 @@ def scatter(index: np.ndarray, table: np.ndarray, scale: np.ndarray, periodic: b
     return out
 
 
+def scatter_compact(index: np.ndarray, table: np.ndarray, scale: np.ndarray, periodic: bool,
+                    node_map: np.ndarray) -> np.ndarray:
+    """:func:`scatter` onto the compact nodes of ``node_map`` (Nx Ny Nz,) -> compact index or -1:
+    (a, 3, r), the same sums in the same order (the same bits), without the full grid."""
+    out = np.zeros((int(node_map.max()) + 1, 3, table.shape[2]))
+    N = node_shape(index.shape, periodic)
+    _scatter_compact(index, np.ascontiguousarray(table), scale, node_map.reshape(N), out)
+    return out
+
+
 def touched_nodes(index: np.ndarray, periodic: bool) -> np.ndarray:
     """(Nx, Ny, Nz) bool: nodes of at least one non-empty voxel."""
     t = np.zeros(node_shape(index.shape, periodic), np.bool_)
@@ -273,6 +283,28 @@ def _scatter(index, table, scale, out):
                     for c in range(3):
                         for m in range(r):
                             out[nd[a, 0], nd[a, 1], nd[a, 2], c, m] += scale[i, j, k] * table[e, 3 * a + c, m]
+
+
+@numba.njit(cache=True)
+def _scatter_compact(index, table, scale, node_map, out):
+    nx, ny, nz = index.shape
+    Nx, Ny, Nz = node_map.shape
+    r = table.shape[2]
+    nd = np.empty((8, 3), np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                e = index[i, j, k]
+                if e < 0:
+                    continue
+                _nodes(i, j, k, Nx, Ny, Nz, nd)
+                for a in range(8):
+                    n = node_map[nd[a, 0], nd[a, 1], nd[a, 2]]
+                    if n < 0:
+                        continue
+                    for c in range(3):
+                        for m in range(r):
+                            out[n, c, m] += scale[i, j, k] * table[e, 3 * a + c, m]
 
 
 @numba.njit(cache=True)
