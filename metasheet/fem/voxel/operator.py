@@ -138,9 +138,8 @@ def diagonal(op: VoxelOperator) -> np.ndarray:
 
 def scatter(index: np.ndarray, table: np.ndarray, scale: np.ndarray, periodic: bool) -> np.ndarray:
     """Assemble per-voxel nodal vectors ``scale * table[index]`` (q, 24, r) into (Nx, Ny, Nz, 3, r)."""
-    out = np.zeros(node_shape(index.shape, periodic) + (3, table.shape[2]))
-    _scatter(index, np.ascontiguousarray(table), scale, out)
-    return out
+    N = node_shape(index.shape, periodic)
+    return scatter_compact(index, table, scale, periodic, np.arange(int(np.prod(N)))).reshape(N + (3, table.shape[2]))
 
 
 def scatter_compact(index: np.ndarray, table: np.ndarray, scale: np.ndarray, periodic: bool,
@@ -264,25 +263,6 @@ def _diagonal(index, mats, scale, d):
                 for a in range(8):
                     for c in range(3):
                         d[nd[a, 0], nd[a, 1], nd[a, 2], c] += scale[i, j, k] * mats[e, 3 * a + c, 3 * a + c]
-
-
-@numba.njit(cache=True)
-def _scatter(index, table, scale, out):
-    nx, ny, nz = index.shape
-    Nx, Ny, Nz = out.shape[0], out.shape[1], out.shape[2]
-    r = table.shape[2]
-    nd = np.empty((8, 3), np.int64)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                e = index[i, j, k]
-                if e < 0:
-                    continue
-                _nodes(i, j, k, Nx, Ny, Nz, nd)
-                for a in range(8):
-                    for c in range(3):
-                        for m in range(r):
-                            out[nd[a, 0], nd[a, 1], nd[a, 2], c, m] += scale[i, j, k] * table[e, 3 * a + c, m]
 
 
 @numba.njit(cache=True)
