@@ -260,3 +260,12 @@ def test_a_manifest_states_the_stage_cpu_time_in_its_thread_and_its_workers(proj
         assert run_pipeline(pl)[0].cpu_time is None  # cached: nothing ran
     finally:
         registry._REGISTRY.pop("t_c")
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (Path(__file__).resolve().parents[1] / "pipelines")
+                                        .glob("*.toml")))
+def test_every_shipped_pipeline_validates(name):
+    """Each pipeline under pipelines/ loads: its tables, its stages' parameters and the checks
+    across stages (what ``metasheet validate`` runs), so a shipped file cannot rot unseen."""
+    pl = load_pipeline(Path(__file__).resolve().parents[1] / "pipelines" / name)
+    assert pl.order and set(pl.order) <= set(pl.params) and pl.name == name.removesuffix(".toml")
