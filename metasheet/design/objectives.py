@@ -96,11 +96,7 @@ def min_singular_weights(J, length_scale: float = LENGTH_SCALE) -> RankOne:
     J = _check_jacobian(J)
     if J.shape[1] > 6:
         raise ConfigError(f"J: shape {J.shape}: the smallest singular value needs na <= 6 motors")
-    D = _scale(length_scale)
-    U, s, Vt = np.linalg.svd(D[:, None] * J, full_matrices=False)
-    k = len(s) - 1
-    gap = float(s[k - 1] - s[k]) if k > 0 else float("inf")
-    return RankOne(float(s[k]), D * U[:, k], Vt[k].copy(), gap)
+    return singular_weights(J, min(J.shape) - 1, length_scale)
 
 
 def singular_weights(J, k: int, length_scale: float = LENGTH_SCALE) -> RankOne:
