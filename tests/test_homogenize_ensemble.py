@@ -187,6 +187,29 @@ def test_convergence_summary_schema():
     assert s["plan"]["governing"] == "E_l" and s["plan"]["cost_s"] == 12.0 * s["plan"]["k"]
 
 
+def test_trend_min_cells_leaves_the_small_sizes_out_of_the_fit():
+    # the true law a + b n^(-1/3) from 4 cells up; the 2-cell volume is off it (a stronger bias,
+    # as the Polyfoam's 2-cell cell), and precise enough to pull the fit over all sizes away
+    rng = np.random.default_rng(11)
+    a, b = 1.08, -0.3
+    n = [2, 4, 8, 27]
+    sd = {2: 0.004, 4: 0.01, 8: 0.01, 27: 0.01}
+    per_size = [ensemble_stats({"E_t": (a + b * m ** (-1 / 3) - (0.15 if m == 2 else 0.0))
+                                + sd[m] * rng.normal(size=4)}) for m in n]
+    every = convergence_summary(n, per_size)["trend"]["E_t"]
+    fit = convergence_summary(n, per_size, trend_min_cells=4)
+    tr = fit["trend"]["E_t"]
+    assert fit["trend_sizes"] == [4, 8, 27] and [z["n_cells"] for z in fit["sizes"]] == n
+    assert abs(tr["a"] - a) <= tr["halfwidth_a"]  # the true limit inside the fit's interval
+    # with the 2-cell size the model misses the data (chi-square) and the limit moves by 0.14
+    assert every["chi2_reduced"] > 5 * max(tr["chi2_reduced"], 1.0)
+    assert abs(every["a"] - a) > 5 * abs(tr["a"] - a)
+    assert convergence_summary(n, per_size, trend_min_cells=27)["trend"] == {}  # one size: no trend
+    assert convergence_summary(n, per_size, trend_min_cells=27)["trend_sizes"] == []
+    with pytest.raises(ConfigError, match="^trend_min_cells"):
+        convergence_summary(n, per_size, trend_min_cells=0)
+
+
 @pytest.mark.parametrize(
     "call, field",
     [

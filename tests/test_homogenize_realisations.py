@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from metasheet.errors import ConfigError
+from metasheet.errors import ConfigError, StageError
 from metasheet.homogenize.realisations import check_design, realisation_items
 from metasheet.material import CONSTANT_NAMES
 from metasheet.pipeline.config import load_pipeline
@@ -109,3 +109,11 @@ def test_items_override_count_and_seed_only():
     assert [it["design"]["seeds"] for it in items] == [{"sampler": "poisson", "count": 27, "seed": 5},
                                                       {"sampler": "poisson", "count": 27, "seed": 6}]
     assert design["seeds"]["count"] == 8  # the caller's design is untouched
+
+
+def test_size_max_voxels_reaches_the_study_only(tmp_path):
+    # the study's cells get the override (here a limit below their grids: refused by name);
+    # the cell stage's own cell keeps the design's limit and is built
+    with pytest.raises(StageError, match="homogenize.*max_voxels: 1000: the cell needs"):
+        _run(tmp_path, "small", "realisations = 2\nsizes = [2]\nsize_max_voxels = 1000\npicture = false")
+    assert (tmp_path / "out" / "small" / "cell" / "voxels.npz").exists()

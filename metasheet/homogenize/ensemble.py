@@ -38,6 +38,7 @@ JSON schemas (all numbers plain floats; a non-finite number is written ``null``)
      "sizes": [{"n_cells": 8, "k": 5, "seconds_per_realisation": 41.0 | null,
                 "constants": {"E_t": {"mean", "std", "halfwidth", "rel_halfwidth", "k"}, ...}},
                ...],                               # ascending n_cells
+     "trend_sizes": [4, 8, ...],                   # the sizes the trend is fitted over (>= trend_min_cells)
      "trend": {"E_t": {"a", "se_a", "halfwidth_a", "b", "se_b", "halfwidth_b",
                        "chi2_reduced" (null with 2 sizes), "significant",
                        "extrapolated" (a, or null when not significant),
@@ -364,7 +365,7 @@ def ci95_block(stats: Mapping[str, ConstantStats], n_cells: int) -> dict:
 
 def convergence_summary(n_cells: Sequence[int], per_size: Sequence[Mapping[str, ConstantStats]], *,
                         seconds_per_realisation: Sequence[float | None] | None = None,
-                        plan: RealisationPlan | None = None) -> dict:
+                        plan: RealisationPlan | None = None, trend_min_cells: int = 1) -> dict:
     """``convergence.json`` (schema in the module docstring) for a cell-size study.
 
     Parameters
@@ -372,8 +373,12 @@ def convergence_summary(n_cells: Sequence[int], per_size: Sequence[Mapping[str, 
     n_cells : (m,) cells per volume; per_size : m dicts from :func:`ensemble_stats`, one per
         size, with the same constants. seconds_per_realisation : (m,) [s] or None.
     plan : a :class:`RealisationPlan` to record (at the chosen size), or None.
-    The trend is fitted for every scalar constant (with m >= 2 sizes).
+    trend_min_cells : the smallest size the trend is fitted over (smaller volumes stay in
+        ``sizes``): below a few cells the bias is not yet ``~ n**(-1/3)`` and the smallest size,
+        the most precise, would decide the extrapolation alone.
+    The trend is fitted for every scalar constant when >= 2 sizes are >= ``trend_min_cells``.
     """
+    check_range("trend_min_cells", trend_min_cells, 1, None)
     if len(per_size) != len(n_cells) or not per_size:
         raise ConfigError(f"per_size: {len(per_size)} entries for {len(n_cells)} sizes (n_cells): expected one per size, >= 1")
     secs = list(seconds_per_realisation) if seconds_per_realisation is not None else [None] * len(n_cells)
@@ -387,13 +392,15 @@ def convergence_summary(n_cells: Sequence[int], per_size: Sequence[Mapping[str, 
     sizes = [{"n_cells": int(n_cells[i]), "k": next(iter(per_size[i].values())).k,
               "seconds_per_realisation": None if secs[i] is None else float(secs[i]),
               "constants": {n: stats_to_json(per_size[i][n]) for n in names}} for i in order]
+    fitted = [i for i in order if n_cells[i] >= trend_min_cells]
     trend = {}
-    if len(n_cells) >= 2:
+    if len(fitted) >= 2:
         for name in names:
-            ss = [per_size[i][name] for i in order]
-            t = size_trend([n_cells[i] for i in order], [s.mean for s in ss], [s.halfwidth for s in ss],
+            ss = [per_size[i][name] for i in fitted]
+            t = size_trend([n_cells[i] for i in fitted], [s.mean for s in ss], [s.halfwidth for s in ss],
                            [s.k for s in ss], confidence=ss[0].confidence)
             trend[name] = trend_to_json(t)
     return {"schema": SCHEMA, "confidence": next(iter(per_size[0].values())).confidence,
-            "trend_model": TREND_MODEL, "constants": names, "sizes": sizes, "trend": trend,
+            "trend_model": TREND_MODEL, "constants": names, "sizes": sizes,
+            "trend_sizes": [int(n_cells[i]) for i in fitted] if trend else [], "trend": trend,
             "plan": None if plan is None else plan_to_json(plan)}

@@ -47,8 +47,10 @@ def convergence_picture(summary: dict, title: str = "") -> bytes:
         if trend and trend.get("significant") and trend.get("extrapolated") is not None:
             a, b, ha = trend["a"], trend["b"], _f(trend["halfwidth_a"])
             ax.axhline(a, ls="--", color="C3", lw=1.2, label=f"n -> inf: {a:.4g} +- {ha:.2g}")
-            grid = np.geomspace(n.min(), n.max() * 4, 60)
-            ax.plot(grid, a + b * grid ** (-1.0 / 3.0), ":", color="C3", lw=1)
+            fitted = summary.get("trend_sizes") or n.tolist()  # the fit's sizes (older files: all)
+            grid = np.geomspace(min(fitted), n.max() * 4, 60)
+            ax.plot(grid, a + b * grid ** (-1.0 / 3.0), ":", color="C3", lw=1,
+                    label=f"fit over {', '.join(f'{v:g}' for v in fitted)} cells")
         elif trend:
             ax.text(0.02, 0.03, "no size trend detected", transform=ax.transAxes, fontsize=8, color="0.3")
         ax.set_xscale("log")

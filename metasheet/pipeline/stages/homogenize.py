@@ -55,6 +55,10 @@ class HomogenizeParams(Params):
                              "each realised size_realisations times -> convergence.json, convergence.png")
     size_realisations: int | None = Field(None, ge=2, le=200, description="realisations at each size of the "
                                           "study (default: realisations)")
+    trend_min_cells: int = Field(1, ge=1, le=4096, description="the smallest size the size trend is fitted "
+                                 "over (smaller ones stay in convergence.json and its picture)")
+    size_max_voxels: int | None = Field(None, ge=1000, le=100_000_000, description="largest grid of a size-study "
+                                        "realisation (voxels; default: the design's max_voxels)")
     target: float = Field(0.05, gt=0, lt=1, description="relative 95 % half-width each constant should reach "
                           "[-]; constants.json states the realisations each needs")
     fields: bool = Field(True, description="write fields.vtu (local strains)")
@@ -153,9 +157,10 @@ def _ensemble(ctx: StageContext, p: HomogenizeParams, design: dict, r, *, second
     n0, s0 = int(design["seeds"]["count"]), int(design["seeds"]["seed"])
     k_size = p.size_realisations or p.realisations
     items = realisation_items(design, n0, range(s0 + 1, s0 + p.realisations), solver=p.solver, rtol=p.tolerance)
+    study = design if p.size_max_voxels is None else {**design, "max_voxels": int(p.size_max_voxels)}
     for n in p.sizes:
         if n != n0:
-            items += realisation_items(design, n, range(s0, s0 + k_size), solver=p.solver, rtol=p.tolerance)
+            items += realisation_items(study, n, range(s0, s0 + k_size), solver=p.solver, rtol=p.tolerance)
     rows = ctx.executor.map(evaluate_realisation, items,
                             progress=lambda done, total: ctx.progress("homogenize: realisations", done, total))
     rows = [{**result_row(r, n0, s0), "seconds": seconds}, *rows]
@@ -183,7 +188,7 @@ def _ensemble(ctx: StageContext, p: HomogenizeParams, design: dict, r, *, second
         sizes = sorted(stats)
         summary = ens.convergence_summary(sizes, [stats[n] for n in sizes],
                                           plan=ens.plan_realisations(stats[n0], p.target, names=CONSTANT_NAMES)
-                                          if n0 in stats else None)
+                                          if n0 in stats else None, trend_min_cells=p.trend_min_cells)
         summary["k_required_per_size"] = {str(n): ens.plan_realisations(stats[n], p.target,
                                                                           names=CONSTANT_NAMES).k_required
                                           for n in sizes}
@@ -191,8 +196,9 @@ def _ensemble(ctx: StageContext, p: HomogenizeParams, design: dict, r, *, second
         if p.picture:
             from ...viz.convergence import convergence_picture
 
+            ks = sorted({s["k"] for s in summary["sizes"]})
             title = (f"{design.get('name', 'cell')}: constants against the number of cells "
-                     f"(mean +- 95 % interval of {k_size} realisations per size)")
+                     f"(mean +- 95 % interval of k = {' or '.join(map(str, ks))} realisations per size)")
             ctx.path("convergence.png").write_bytes(convergence_picture(summary, title))
     return out
 
