@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from metasheet.errors import ConfigError, InfeasibleError
 from metasheet.homogenize.chart import COLUMNS, lookup, parse_csv, to_csv
@@ -60,23 +61,60 @@ def test_chart_stage_small_sweep(tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     p = stage.ChartParams(density_min=0.3, density_max=0.4, density_steps=2, stretch_min=1.0, stretch_max=2.5,
-                          stretch_steps=2, resolution=16)
+                          stretch_steps=2, resolution=16, seeds=2)
     ctx = StageContext("chart", p, tmp_path, {}, root, executor=Executor(workers=1))
-    stage.run(ctx)
+    summary = stage.run(ctx)
     table = parse_csv((tmp_path / "chart.csv").read_text())
-    assert len(table["E_t"]) == 4
+    assert len(table["E_t"]) == 8 and len(set(table["seed"])) == 2
     # stretching the cells along l softens E_l: alpha grows with stretch at fixed density
     for d in (0.3, 0.4):
-        a = table["alpha"][np.isclose(table["target_density"], d)]
+        sel = np.isclose(table["target_density"], d)
+        a = [table["alpha"][sel & (table["stretch"] == s)].mean() for s in (1.0, 2.5)]
         assert a[1] > a[0] + 20
+    assert set(summary["bars"]) == {"E_t", "E_l", "nu_t", "nu_tl", "mu_l", "alpha"}
+    assert all(b["dof"] == 4 and b["seeds_per_point"] == [2] for b in summary["bars"].values())
     assert (tmp_path / "chart.png").stat().st_size > 20_000
     with pytest.raises(ValueError):
         stage.ChartParams(density_min=0.3, density_max=0.2)
 
 
-def test_chart_error_bars_are_the_95_percent_interval_of_the_mean():
-    from metasheet.viz.homogenize import ci95_halfwidth
+def _rows(values: dict, first="infill_percentage", second="kgon_x_shrink"):
+    """Chart rows of one constant "E_l": values {(first, second): [seed values]}."""
+    return [{first: a, second: b, "seed": i, "E_l": v} for (a, b), vs in values.items() for i, v in enumerate(vs)]
 
-    v = np.array([1.0, 2.0, 4.0])
-    assert ci95_halfwidth(v) == pytest.approx(4.302652729749464 * np.std(v, ddof=1) / np.sqrt(3), rel=1e-12)
-    assert ci95_halfwidth(v[:1]) == 0.0
+
+def test_chart_bars_pool_a_homogeneous_relative_scatter():
+    from metasheet.homogenize.chart_bars import chart_bars
+
+    # 8 points, 2 seeds, one coefficient of variation (5 %) at means spanning 100x: pooled
+    rng = np.random.default_rng(4)
+    means = {(a, b): 0.01 * a**2 * (1 + b) for a in (10.0, 18.0, 26.0, 34.0) for b in (0.2, 1.0)}
+    vals = {p: m * (1 + 0.05 * rng.normal(size=2)) for p, m in means.items()}
+    bars = chart_bars(_rows(vals), "E_l", "infill_percentage", "kgon_x_shrink")
+    rel = np.concatenate([v / v.mean() - 1 for v in vals.values()])
+    assert bars.pooled and bars.dof == 8
+    assert bars.rel_sd == pytest.approx(np.sqrt(rel @ rel / 8), rel=1e-12)  # the pooled formula, by hand
+    order = sorted(vals, key=lambda p: (p[1], p[0]))
+    m = np.array([vals[p].mean() for p in order])
+    assert np.allclose(bars.means, m, rtol=1e-14)
+    assert np.allclose(bars.halfwidths, stats.t.ppf(0.975, 8) * bars.rel_sd * m / np.sqrt(2), rtol=1e-12)
+    # per point (k = 2) the bars would be t_1 / t_8 = 5.5 times wider on average
+    per = np.array([stats.t.ppf(0.975, 1) * vals[p].std(ddof=1) / np.sqrt(2) for p in order])
+    assert np.median(per / bars.halfwidths) > 2
+
+
+def test_chart_bars_keep_per_point_intervals_when_the_scatter_differs():
+    from metasheet.homogenize.chart_bars import chart_bars
+
+    # three seeds per point, one point 20x noisier than the others: Bartlett refuses to pool
+    rng = np.random.default_rng(8)
+    vals = {(a, b): 1.0 + (0.2 if (a, b) == (10.0, 0.2) else 0.01) * rng.normal(size=3)
+            for a in (10.0, 18.0, 26.0) for b in (0.2, 1.0)}
+    bars = chart_bars(_rows(vals), "E_l", "infill_percentage", "kgon_x_shrink")
+    assert not bars.pooled and bars.bartlett_p < 0.05
+    v = vals[(10.0, 0.2)]
+    assert bars.halfwidths[0] == pytest.approx(4.302652729749464 * np.std(v, ddof=1) / np.sqrt(3), rel=1e-12)
+    one = chart_bars(_rows({p: v[:1] for p, v in vals.items()}), "E_l", "infill_percentage", "kgon_x_shrink")
+    assert (one.halfwidths == 0).all() and one.dof == 0 and one.to_json()["rel_sd"] is None
+    with pytest.raises(ConfigError, match="^name"):
+        chart_bars(_rows(vals), "E_x", "infill_percentage", "kgon_x_shrink")

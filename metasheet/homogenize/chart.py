@@ -44,11 +44,12 @@ COLUMNS = columns("foam")
 
 
 def chart_points(design: Mapping, first: Sequence[float], second: Sequence[float], seeds: Sequence[int], *,
-                 resolution: int | None = None, voxel_mm: float | None = None) -> list[dict]:
+                 resolution: int | None = None, voxel_mm: float | None = None, rtol: float = 1e-8) -> list[dict]:
     """Work items of the sweep: every (first, second, seed) setting pair on the base ``design``.
 
     ``first``, ``second``: values of the family's two axes (:data:`FAMILY_AXES`);
-    ``resolution`` (foam, voxels per side) or ``voxel_mm`` (polyfoam, voxel edge [mm]).
+    ``resolution`` (foam, voxels per side) or ``voxel_mm`` (polyfoam, voxel edge [mm]);
+    ``rtol``: the corrector solves' relative residual (:func:`~.voxels.homogenize_voxels`).
     """
     family = str(design.get("kind", "foam"))
     a, b = FAMILY_AXES.get(family, (None, None))
@@ -56,7 +57,7 @@ def chart_points(design: Mapping, first: Sequence[float], second: Sequence[float
         raise ConfigError(f"chart.design: kind {family!r}: a chart needs one of {', '.join(FAMILY_AXES)}")
     return [
         {"design": dict(design), "family": family, a: float(x), b: float(y), "seed": int(k),
-         "resolution": resolution, "voxel_mm": voxel_mm}
+         "resolution": resolution, "voxel_mm": voxel_mm, "rtol": float(rtol)}
         for x, y, k in itertools.product(first, second, seeds)
     ]
 
@@ -84,7 +85,8 @@ def evaluate_point(item: dict) -> dict:
     data, overrides = item_design(item)
     design = parse_design(data, overrides=overrides, source="chart.design")
     cell = design_cell(design)
-    r = homogenize_voxels(cell.phases, cell.size, cell.materials, axis=cell.axis_vector, localise=False)
+    r = homogenize_voxels(cell.phases, cell.size, cell.materials, axis=cell.axis_vector, localise=False,
+                          rtol=item.get("rtol", 1e-8))
     m = r.fit.material
     a, b = FAMILY_AXES[item["family"]]
     return {a: item[a], b: item[b], "seed": item["seed"], "relative_density": r.relative_density,

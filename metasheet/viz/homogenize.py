@@ -124,32 +124,34 @@ def chart_picture(rows, title: str = "") -> bytes:
     """PNG with one panel per constant (E_t, E_l, nu_t, nu_tl, mu_l, alpha) against the
     achieved relative density, one line per value of the family's second setting (stretch,
     or Polyfoam's kgon_x_shrink), seed-averaged; with >= 2 seeds per point the error bars are the
-    95 % Student-t interval of the mean (none with one seed)."""
+    95 % interval of the mean, the seeds' relative scatter pooled over the points where it is
+    homogeneous (:mod:`metasheet.homogenize.chart_bars`), none with one seed."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from ..homogenize.chart import FAMILY_AXES, table_family
+    from ..homogenize.chart_bars import chart_bars
 
     first, second = FAMILY_AXES[table_family(rows)]
     keys = [("E_t", "E_t [MPa]", True), ("E_l", "E_l [MPa]", True), ("mu_l", "mu_l [MPa]", True),
             ("nu_t", "nu_t [-]", False), ("nu_tl", "nu_tl [-]", False), ("alpha", "alpha = 100 - 100 E_l/E_t [%]", False)]
     stretches = sorted({float(r[second]) for r in rows})
-    dens = sorted({float(r[first]) for r in rows})
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
     cmap = plt.get_cmap("viridis")
+    rho = chart_bars(rows, "relative_density", first, second)
     for ax, (k, label, log) in zip(axes.ravel(), keys):
+        bars = chart_bars(rows, k, first, second)
         for i, s in enumerate(stretches):
-            x, y, e = [], [], []
-            for d in dens:
-                sel = [r for r in rows if float(r[second]) == s and float(r[first]) == d]
-                x.append(np.mean([float(r["relative_density"]) for r in sel]))
-                v = np.array([float(r[k]) for r in sel])
-                y.append(v.mean())
-                e.append(ci95_halfwidth(v))
-            ax.errorbar(x, y, yerr=e, marker="o", ms=4, capsize=2,
+            at = bars.points[:, 1] == s  # this line's points, ascending in the first setting
+            y, e = bars.means[at], bars.halfwidths[at]
+            if log:  # a bar reaching below zero is drawn down to a tenth of the mean
+                e = np.vstack([np.minimum(e, 0.9 * y), e])
+            ax.errorbar(rho.means[at], y, yerr=e, marker="o", ms=4, capsize=2,
                         color=cmap(i / max(1, len(stretches) - 1)), label=f"{second} {s:g}")
+        if bars.k.max() > 1:
+            ax.set_title("bars pooled" if bars.pooled else "bars per point (scatter not homogeneous)", fontsize=8)
         if log:
             ax.set_yscale("log")
         ax.set_xlabel("relative density [-]")
@@ -160,13 +162,3 @@ def chart_picture(rows, title: str = "") -> bytes:
         fig.suptitle(title, fontsize=11)
     fig.tight_layout()
     return figure_png(fig, dpi=100, tight=False)
-
-
-def ci95_halfwidth(v: np.ndarray) -> float:
-    """95 % half-width of the mean of the samples ``v`` (k,) (Student t), 0 for k < 2."""
-    k = len(v)
-    if k < 2:
-        return 0.0
-    from scipy import stats
-
-    return float(stats.t.ppf(0.975, k - 1) * np.std(v, ddof=1) / np.sqrt(k))

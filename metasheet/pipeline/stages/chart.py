@@ -6,7 +6,9 @@ Strut foams (``kind = "foam"``) sweep (relative density, stretch); IceSL Polyfoa
 from the base ``design`` with :mod:`metasheet.cells.design` and homogenises it; the points
 run through ``ctx.executor.map``. Writes ``chart.csv`` (one row per point and seed, columns
 :func:`metasheet.homogenize.chart.columns`, moduli in MPa) and ``chart.png`` (one panel per
-constant). :func:`metasheet.homogenize.chart.lookup` inverts the chart.
+constant; with ``seeds`` >= 2 the bars are 95 % intervals of each point's mean,
+:mod:`metasheet.homogenize.chart_bars`, and the manifest's summary says how each constant's
+were made). :func:`metasheet.homogenize.chart.lookup` inverts the chart.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from pydantic import Field, model_validator
 
 from ...errors import ConfigError
 from ...homogenize.chart import FAMILY_AXES, chart_points, evaluate_point, to_csv
+from ...homogenize.chart_bars import chart_bars
+from ...material import CONSTANT_NAMES
 from ..registry import Params, Stage, StageContext, register
 
 
@@ -36,6 +40,8 @@ class ChartParams(Params):
     voxel_mm: float | None = Field(None, gt=0, le=2, description="voxel edge of each cell [mm] (polyfoam; "
                                    "default: the design's)")
     seeds: int = Field(1, ge=1, le=20, description="foam realisations per point (seeds base, base + 1, ...)")
+    tolerance: float = Field(1e-5, gt=0, le=1e-4, description="relative residual of the corrector solves [-] "
+                             "(as homogenize.tolerance: C* in energy form, its error second order in it)")
     seed_count: int | None = Field(None, ge=1, le=4096, description="seed points per cell (default: the "
                                    "design's); fewer make cheaper, noisier cells")
 
@@ -89,7 +95,7 @@ def run(ctx: StageContext) -> dict:
     base_seed = int(design.get("seeds", {}).get("seed", 0))
     items = chart_points(design, first, second, [base_seed + k for k in range(p.seeds)],
                          resolution=p.resolution if family == "foam" else None,
-                         voxel_mm=p.voxel_mm if family == "polyfoam" else None)
+                         voxel_mm=p.voxel_mm if family == "polyfoam" else None, rtol=p.tolerance)
     _check_corners(items, p.design)
     rows = ctx.executor.map(evaluate_point, items,
                             progress=lambda done, total: ctx.progress("chart: cells", done, total))
@@ -100,8 +106,12 @@ def run(ctx: StageContext) -> dict:
     title = (f"design chart of {design.get('name', path.stem)} ({grid}, {design.get('seeds', {}).get('count')} "
              f"cells, {p.seeds} realisation(s) per point" + (", bars: 95 % interval of the mean)" if p.seeds > 1 else ")"))
     ctx.path("chart.png").write_bytes(chart_picture(rows, title))
-    return {"points": len(rows), "E_t_range_MPa": [min(r["E_t"] for r in rows), max(r["E_t"] for r in rows)],
-            "alpha_range_percent": [min(r["alpha"] for r in rows), max(r["alpha"] for r in rows)]}
+    out = {"points": len(rows), "E_t_range_MPa": [min(r["E_t"] for r in rows), max(r["E_t"] for r in rows)],
+           "alpha_range_percent": [min(r["alpha"] for r in rows), max(r["alpha"] for r in rows)]}
+    if p.seeds > 1:  # how the picture's bars were made, per constant
+        axes = FAMILY_AXES[family]
+        out["bars"] = {k: chart_bars(rows, k, *axes).to_json() for k in (*CONSTANT_NAMES, "alpha")}
+    return out
 
 
 def _check_corners(items: list[dict], source: str) -> None:

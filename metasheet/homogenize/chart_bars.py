@@ -1,0 +1,104 @@
+"""The design chart's error bars: the 95 % interval of each grid point's mean over its seeds.
+
+With k seeds at one point, the interval of that point's mean is ``t_{k-1} s / sqrt(k)``: at
+k = 2, ``t_1 = 12.7`` makes it nine standard deviations wide, a bar that says nothing. The
+chart's points share the family, the cell count and the voxel edge, so their scatter from seed
+to seed, relative to the mean (the coefficient of variation), can be pooled over the points:
+
+    s_rel^2 = sum_p sum_i (x_pi / m_p - 1)^2 / sum_p (k_p - 1),   dof = sum_p (k_p - 1)
+
+and each point's half-width is ``t_dof s_rel |m_p| / sqrt(k_p)`` (8 points at k = 2: dof 8,
+``t_8 = 2.31``). That assumes one coefficient of variation across the sweep. Bartlett's test
+of equal variances of the relative deviations checks it per constant; a constant that fails
+it (p < :data:`HOMOGENEITY_P`) keeps the per-point intervals, and the record says so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from ..errors import ConfigError
+
+#: Below this p-value of Bartlett's test the relative scatter is not pooled.
+HOMOGENEITY_P = 0.05
+CONFIDENCE = 0.95
+
+
+@dataclass(frozen=True)
+class ChartBars:
+    """One constant's means and 95 % half-widths at each grid point of a chart.
+
+    Attributes
+    ----------
+    name : the constant (a chart.csv column).
+    points : (p, 2) the two settings of each point (the family's axes, in chart order).
+    means, halfwidths : (p,) unit of the constant; halfwidths 0 where a point has one seed.
+    k : (p,) seeds per point.
+    pooled : whether the half-widths use the pooled relative scatter.
+    rel_sd : the pooled relative standard deviation [-] (NaN below 2 seeds everywhere).
+    dof : its degrees of freedom, sum of (k_p - 1).
+    bartlett_p : p-value of the homogeneity test (NaN where it cannot run: a point with zero
+        scatter, or fewer than 2 points with seeds to compare).
+    """
+
+    name: str
+    points: np.ndarray
+    means: np.ndarray
+    halfwidths: np.ndarray
+    k: np.ndarray
+    pooled: bool
+    rel_sd: float
+    dof: int
+    bartlett_p: float
+
+    def to_json(self) -> dict:
+        """The record beside the chart (no per-point arrays: those are chart.csv's rows)."""
+        f = (lambda v: None if not np.isfinite(v) else round(float(v), 6))
+        return {"bars": "pooled" if self.pooled else "per point", "rel_sd": f(self.rel_sd), "dof": int(self.dof),
+                "bartlett_p": f(self.bartlett_p), "seeds_per_point": sorted({int(v) for v in self.k})}
+
+
+def chart_bars(rows: Sequence[Mapping], name: str, first: str, second: str) -> ChartBars:
+    """The bars of constant ``name`` over chart rows (one per point and seed, chart.csv's).
+
+    ``first``, ``second``: the family's two axes (:data:`~.chart.FAMILY_AXES`); points are
+    listed in ascending (second, first) order, as the picture draws them.
+    """
+    if not rows:
+        raise ConfigError("rows: empty chart: nothing to put bars on")
+    if name not in rows[0]:
+        raise ConfigError(f"name: {name!r}: not a chart column ({', '.join(rows[0])})")
+    groups: dict[tuple[float, float], list[float]] = {}
+    for r in rows:
+        groups.setdefault((float(r[first]), float(r[second])), []).append(float(r[name]))
+    keys = sorted(groups, key=lambda p: (p[1], p[0]))
+    vals = [np.asarray(groups[p]) for p in keys]
+    if not all(np.isfinite(v).all() for v in vals):
+        raise ConfigError(f"rows: column {name!r} has non-finite values")
+    k = np.array([v.size for v in vals])
+    means = np.array([v.mean() for v in vals])
+    per_point = np.array([_t(v.size - 1) * v.std(ddof=1) / np.sqrt(v.size) if v.size > 1 else 0.0 for v in vals])
+    rel = [v / m - 1.0 for v, m in zip(vals, means) if v.size > 1 and m != 0.0]
+    dof = int(sum(r.size - 1 for r in rel))
+    if dof == 0:
+        return ChartBars(name, np.array(keys), means, per_point, k, False, float("nan"), 0, float("nan"))
+    rel_sd = float(np.sqrt(sum(float(r @ r) for r in rel) / dof))
+    p = _bartlett(rel)
+    pooled = not p < HOMOGENEITY_P  # NaN (untestable) pools: zero scatter everywhere is exact
+    hw = np.where(k > 1, _t(dof) * rel_sd * np.abs(means) / np.sqrt(k), 0.0) if pooled else per_point
+    return ChartBars(name, np.array(keys), means, hw, k, pooled, rel_sd, dof, p)
+
+
+def _t(dof: int) -> float:
+    return float(stats.t.ppf(0.5 + CONFIDENCE / 2, dof))
+
+
+def _bartlett(rel: list[np.ndarray]) -> float:
+    """Bartlett's p-value for equal variances of the groups, NaN where it cannot run."""
+    if len(rel) < 2 or any(np.var(r, ddof=1) == 0.0 for r in rel):
+        return float("nan")
+    return float(stats.bartlett(*rel).pvalue)
