@@ -19,7 +19,8 @@ _LABELS = {"E_t": "E_t [MPa]", "E_l": "E_l [MPa]", "mu_l": "mu_l [MPa]", "nu_t":
 def convergence_picture(summary: dict, title: str = "") -> bytes:
     """PNG with one panel per scalar constant: mean +- 95 % half-width against n_cells.
 
-    Where the size trend is significant the extrapolated value (n -> inf) is a dashed line,
+    A constant whose means span more than a factor 3 gets a log axis (its bars clipped at a
+    tenth of the mean). Where the size trend is significant the extrapolated value (n -> inf) is a dashed line,
     with the fitted ``a + b * n**(-1/3)`` dotted; otherwise the panel says "no size trend
     detected". ``summary`` is the ``convergence.json`` dict (schema in
     :mod:`metasheet.homogenize.ensemble`).
@@ -39,8 +40,11 @@ def convergence_picture(summary: dict, title: str = "") -> bytes:
     for ax, name in zip(axes.ravel(), names):
         y = np.array([_f(s["constants"][name]["mean"]) for s in sizes])
         e = np.array([_f(s["constants"][name]["halfwidth"]) for s in sizes])
-        ax.errorbar(n, y, yerr=e, marker="o", ms=4, capsize=3, color="C0",
-                    label=f"mean, {conf:.0%} CI")
+        log = bool(np.all(y > 0) and np.nanmax(y) > 3 * np.nanmin(y))  # means a decade apart: log axis
+        ax.errorbar(n, y, yerr=np.vstack([np.minimum(e, 0.9 * y), e]) if log else e, marker="o", ms=4, capsize=3,
+                    color="C0", label=f"mean, {conf:.0%} CI" + (" (clipped at 0.1 x mean)" if log else ""))
+        if log:
+            ax.set_yscale("log")
         for ni, yi, s in zip(n, y, sizes):
             ax.annotate(f"k={s['k']}", (ni, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
         trend = summary.get("trend", {}).get(name)
