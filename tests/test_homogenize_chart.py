@@ -92,7 +92,7 @@ def test_chart_bars_pool_a_homogeneous_relative_scatter():
     vals = {p: m * (1 + 0.05 * rng.normal(size=2)) for p, m in means.items()}
     bars = chart_bars(_rows(vals), "E_l", "infill_percentage", "kgon_x_shrink")
     rel = np.concatenate([v / v.mean() - 1 for v in vals.values()])
-    assert bars.pooled and bars.dof == 8
+    assert bars.pooled == "chart" and bars.dof == 8
     assert bars.rel_sd == pytest.approx(np.sqrt(rel @ rel / 8), rel=1e-12)  # the pooled formula, by hand
     order = sorted(vals, key=lambda p: (p[1], p[0]))
     m = np.array([vals[p].mean() for p in order])
@@ -103,17 +103,26 @@ def test_chart_bars_pool_a_homogeneous_relative_scatter():
     assert np.median(per / bars.halfwidths) > 2
 
 
-def test_chart_bars_keep_per_point_intervals_when_the_scatter_differs():
+def test_chart_bars_pool_along_lines_or_keep_per_point_intervals():
     from metasheet.homogenize.chart_bars import chart_bars
 
-    # three seeds per point, one point 20x noisier than the others: Bartlett refuses to pool
+    # three seeds per point; the shrink-0.2 line scatters 10 % and the shrink-1 line 1 %, except
+    # one shrink-1 point 20x noisier: the chart fails Bartlett, the 0.2 line pools, the 1 line not
     rng = np.random.default_rng(8)
-    vals = {(a, b): 1.0 + (0.2 if (a, b) == (10.0, 0.2) else 0.01) * rng.normal(size=3)
+    sd = {0.2: 0.1, 1.0: 0.01}
+    vals = {(a, b): 1.0 + (0.2 if (a, b) == (10.0, 1.0) else sd[b]) * rng.normal(size=3)
             for a in (10.0, 18.0, 26.0) for b in (0.2, 1.0)}
     bars = chart_bars(_rows(vals), "E_l", "infill_percentage", "kgon_x_shrink")
-    assert not bars.pooled and bars.bartlett_p < 0.05
-    v = vals[(10.0, 0.2)]
-    assert bars.halfwidths[0] == pytest.approx(4.302652729749464 * np.std(v, ddof=1) / np.sqrt(3), rel=1e-12)
+    assert bars.pooled == "lines" and bars.bartlett_p < 0.05
+    assert bars.lines[0.2][0] and not bars.lines[1.0][0] and bars.lines[0.2][2] == 6
+    line = [vals[(a, 0.2)] for a in (10.0, 18.0, 26.0)]
+    rel = np.concatenate([v / v.mean() - 1 for v in line])
+    assert bars.lines[0.2][1] == pytest.approx(np.sqrt(rel @ rel / 6), rel=1e-12)
+    assert np.allclose(bars.halfwidths[:3], stats.t.ppf(0.975, 6) * bars.lines[0.2][1]
+                       * np.array([v.mean() for v in line]) / np.sqrt(3), rtol=1e-12)
+    v = vals[(10.0, 1.0)]  # the first point of the shrink-1 line: its own interval
+    assert bars.halfwidths[3] == pytest.approx(4.302652729749464 * np.std(v, ddof=1) / np.sqrt(3), rel=1e-12)
+    assert bars.to_json()["lines"]["0.2"]["pooled"] is True
     one = chart_bars(_rows({p: v[:1] for p, v in vals.items()}), "E_l", "infill_percentage", "kgon_x_shrink")
     assert (one.halfwidths == 0).all() and one.dof == 0 and one.to_json()["rel_sd"] is None
     with pytest.raises(ConfigError, match="^name"):

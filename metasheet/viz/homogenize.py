@@ -119,13 +119,19 @@ def summary_picture(result: HomogenizationResult, title: str = "") -> bytes:
     return figure_png(fig, dpi=110, tight=False)
 
 
+#: each panel's note on its bars (:attr:`~metasheet.homogenize.chart_bars.ChartBars.pooled`)
+BARS_TITLE = {"chart": "bars: relative scatter pooled over the chart",
+              "lines": "bars: pooled along each line where homogeneous, else per point",
+              "points": "bars: per point"}
+
+
 @one_at_a_time
 def chart_picture(rows, title: str = "") -> bytes:
     """PNG with one panel per constant (E_t, E_l, nu_t, nu_tl, mu_l, alpha) against the
     achieved relative density, one line per value of the family's second setting (stretch,
     or Polyfoam's kgon_x_shrink), seed-averaged; with >= 2 seeds per point the error bars are the
-    95 % interval of the mean, the seeds' relative scatter pooled over the points where it is
-    homogeneous (:mod:`metasheet.homogenize.chart_bars`), none with one seed."""
+    95 % interval of the mean, the seeds' relative scatter pooled over the points or along each
+    line where it is homogeneous (:mod:`metasheet.homogenize.chart_bars`), none with one seed."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -151,7 +157,7 @@ def chart_picture(rows, title: str = "") -> bytes:
             ax.errorbar(rho.means[at], y, yerr=e, marker="o", ms=4, capsize=2,
                         color=cmap(i / max(1, len(stretches) - 1)), label=f"{second} {s:g}")
         if bars.k.max() > 1:
-            ax.set_title("bars pooled" if bars.pooled else "bars per point (scatter not homogeneous)", fontsize=8)
+            ax.set_title(BARS_TITLE[bars.pooled], fontsize=8)
         if log:
             ax.set_yscale("log")
         ax.set_xlabel("relative density [-]")
