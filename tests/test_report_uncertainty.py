@@ -49,6 +49,8 @@ def test_size_study_table_and_verdicts():
     assert "![cell-size study](c.png)" in lines
     assert any(ln.startswith("| 2 | 3 | 1.3 +- 0.1 (8 %)") for ln in lines)
     assert "E_t: size trend detected, extrapolated to an unbounded foam 0.9 +- 0.1" in lines[-2]
+    assert "fitted over 2, 8 cells" in lines[-2]  # a file without trend_sizes: every size
+    assert "fitted over 8, 27 cells" in size_study_rows({**conv, "trend_sizes": [8, 27]}, None)[-2]
     conv["k_required_per_size"] = {"2": {"E_t": 30, "nu_t": 3}, "8": {"E_t": 8, "nu_t": 2}}
     lines = size_study_rows(conv, None, {"realisation_s.2": 360.0})
     assert lines[-2].startswith("Every constant within the target would need, per size: 2 cells: 30 "

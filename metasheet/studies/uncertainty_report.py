@@ -101,7 +101,9 @@ def size_study_rows(conv: Mapping | None, picture: str | None, timings: Mapping 
             v += f" (the n^(-1/3) model misses the data: reduced chi-square {t['chi2_reduced']:.1f})"
         verdicts.append(f"{n}: {v}")
     if verdicts:
-        lines += [f"Trend model {conv['trend_model']}: " + "; ".join(verdicts) + ".", ""]
+        fitted = conv.get("trend_sizes") or [z["n_cells"] for z in conv["sizes"]]  # older files: every size
+        lines += [f"Trend model {conv['trend_model']}, fitted over {', '.join(map(str, fitted))} cells: "
+                  + "; ".join(verdicts) + ".", ""]
     need = conv.get("k_required_per_size") or {}
     costs = []
     for n, req in need.items():
