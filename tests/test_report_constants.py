@@ -61,3 +61,23 @@ def test_scale_separation_is_measured_against_the_sheet():
     _, fine = constants_section({"relative_density": 0.15, **PAPER_FOAM.to_dict()}, None, None, None, None,
                                 cell={**cell, "mean_void_chord_mm": [0.5, 0.5, 0.5]}, thickness=5.0)
     assert not any("Scale separation" in d for d in fine)
+
+
+def test_sweep_table_carries_the_charts_intervals():
+    from metasheet.homogenize.chart_bars import chart_bars
+
+    # two seeds per point, 3 % apart: the table shows each mean with the chart's half-width
+    rows = []
+    for r in _rows_from_the_authors():
+        for seed, f in ((1, 0.97), (2, 1.03)):
+            rows.append({**r, "seed": seed, **{k: f * r[k] for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")}})
+    lines, _ = constants_section({"relative_density": 0.15, **PAPER_FOAM.to_dict()}, rows, None, None, None, 0.2)
+    b = chart_bars(rows, "E_t", "infill_percentage", "kgon_x_shrink")
+    p0 = min(float(r["infill_percentage"]) for r in rows)
+    h = b.halfwidths[(b.points[:, 0] == p0) & (b.points[:, 1] == 0.2)][0]
+    row = next(ln for ln in lines if ln.startswith(f"| {p0:g} |"))
+    assert f" +- {h / E_S:.2g} |" in row.split("|", 3)[3] and b.pooled == "chart"
+    assert any(ln.startswith("+- : the 95 % interval of the mean over the chart's seeds (2 per point") for ln in lines)
+    one, _ = constants_section({"relative_density": 0.15, **PAPER_FOAM.to_dict()}, _rows_from_the_authors(),
+                               None, None, None, 0.2)
+    assert not any(" +- " in ln for ln in one if ln.startswith("| 1"))  # one seed: no intervals

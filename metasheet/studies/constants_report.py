@@ -53,11 +53,33 @@ def _pick(rows, column: str, target: float):
     return min(vals, key=lambda v: abs(v - target)) if vals else None
 
 
+def _halfwidths(chart_rows: list[Mapping]) -> dict:
+    """(constant, infill, shrink) -> the chart's 95 % half-width there; empty with one seed per point."""
+    from ..homogenize.chart_bars import chart_bars
+
+    out = {}
+    for k in CONSTANT_NAMES:
+        b = chart_bars(chart_rows, k, "infill_percentage", "kgon_x_shrink")
+        if b.k.max() < 2:
+            return {}
+        out.update({(k, float(p), float(q)): float(h) for (p, q), h in zip(b.points, b.halfwidths)})
+    return out
+
+
+def _seeds(chart_rows: list[Mapping]) -> str:
+    counts: dict = {}
+    for r in chart_rows:
+        key = (float(r["infill_percentage"]), float(r["kgon_x_shrink"]))
+        counts[key] = counts.get(key, 0) + 1
+    return " or ".join(str(v) for v in sorted(set(counts.values())))
+
+
 def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[str], list[str]]:
     """Density sweep of the chart (Polyfoam) next to the authors' table; fitted power laws."""
     if not chart_rows or "infill_percentage" not in chart_rows[0]:
         return [], []
     lines, diffs = [], []
+    hw = _halfwidths(chart_rows)
     cases = [("transverse", _pick(chart_rows, "kgon_x_shrink", shrink if shrink is not None else 0.2)),
              ("isotropic", _pick(chart_rows, "kgon_x_shrink", 1.0))]
     for kind, s in cases:
@@ -75,14 +97,19 @@ def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[st
             m = {k: float(np.mean([float(r[k]) for r in rs])) for k in ("relative_density", *CONSTANT_NAMES)}
             a = authors_constants(m["relative_density"], kind) if _in_table(m["relative_density"], kind) else None
 
-            def cell(v, ref, scale=1.0):
-                return f"{v / scale:.4g} | " + (f"{float(ref) / scale:.4g}" if ref is not None else "-")
-            lines.append(f"| {p:g} | {m['relative_density']:.3f} | {cell(m['E_t'], a and a['E_t'], E_S)} | "
-                         f"{cell(m['E_l'], a and a['E_l'], E_S)} | {cell(m['nu_t'], a and a['nu_t'])} | "
-                         f"{cell(m['nu_tl'], a and a['nu_tl'])} | {cell(m['mu_l'], a and a['mu_l'], G_S)} |")
+            def cell(k, ref, scale=1.0):
+                h = hw.get((k, p, s))
+                return (f"{m[k] / scale:.4g}" + (f" +- {h / scale:.2g}" if h else "") + " | "
+                        + (f"{float(ref) / scale:.4g}" if ref is not None else "-"))
+            lines.append(f"| {p:g} | {m['relative_density']:.3f} | {cell('E_t', a and a['E_t'], E_S)} | "
+                         f"{cell('E_l', a and a['E_l'], E_S)} | {cell('nu_t', a and a['nu_t'])} | "
+                         f"{cell('nu_tl', a and a['nu_tl'])} | {cell('mu_l', a and a['mu_l'], G_S)} |")
             rho.append(m["relative_density"])
             e_t.append(m["E_t"])
             e_l.append(m["E_l"])
+        if hw:
+            lines.append(f"+- : the 95 % interval of the mean over the chart's seeds ({_seeds(chart_rows)} per point; "
+                         "bars as in chart.png, metasheet.homogenize.chart_bars).")
         lines.append("")
         if len(rho) >= 2:
             t = authors_table(kind)
