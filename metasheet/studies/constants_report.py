@@ -53,25 +53,19 @@ def _pick(rows, column: str, target: float):
     return min(vals, key=lambda v: abs(v - target)) if vals else None
 
 
-def _halfwidths(chart_rows: list[Mapping]) -> dict:
-    """(constant, infill, shrink) -> the chart's 95 % half-width there; empty with one seed per point."""
+def _halfwidths(chart_rows: list[Mapping]) -> tuple[dict, str]:
+    """((constant, infill, shrink) -> the chart's 95 % half-width there, the seeds per point as
+    text); empty with one seed per point."""
     from ..homogenize.chart_bars import chart_bars
 
-    out = {}
+    out, seeds = {}, ""
     for k in CONSTANT_NAMES:
         b = chart_bars(chart_rows, k, "infill_percentage", "kgon_x_shrink")
         if b.k.max() < 2:
-            return {}
+            return {}, ""
         out.update({(k, float(p), float(q)): float(h) for (p, q), h in zip(b.points, b.halfwidths)})
-    return out
-
-
-def _seeds(chart_rows: list[Mapping]) -> str:
-    counts: dict = {}
-    for r in chart_rows:
-        key = (float(r["infill_percentage"]), float(r["kgon_x_shrink"]))
-        counts[key] = counts.get(key, 0) + 1
-    return " or ".join(str(v) for v in sorted(set(counts.values())))
+        seeds = " or ".join(str(v) for v in sorted(set(b.k.tolist())))
+    return out, seeds
 
 
 def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[str], list[str]]:
@@ -79,7 +73,7 @@ def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[st
     if not chart_rows or "infill_percentage" not in chart_rows[0]:
         return [], []
     lines, diffs = [], []
-    hw = _halfwidths(chart_rows)
+    hw, seeds = _halfwidths(chart_rows)
     cases = [("transverse", _pick(chart_rows, "kgon_x_shrink", shrink if shrink is not None else 0.2)),
              ("isotropic", _pick(chart_rows, "kgon_x_shrink", 1.0))]
     for kind, s in cases:
@@ -108,7 +102,7 @@ def sweep_rows(chart_rows: list[Mapping], shrink: float | None) -> tuple[list[st
             e_t.append(m["E_t"])
             e_l.append(m["E_l"])
         if hw:
-            lines.append(f"+- : the 95 % interval of the mean over the chart's seeds ({_seeds(chart_rows)} per point; "
+            lines.append(f"+- : the 95 % interval of the mean over the chart's seeds ({seeds} per point; "
                          "bars as in chart.png, metasheet.homogenize.chart_bars).")
         lines.append("")
         if len(rho) >= 2:
