@@ -397,3 +397,37 @@ def test_resumable_map_stores_each_unit_as_it_arrives_on_a_pool(tmp_path):
     assert not cache.load(unit_key(0))[0]
     assert cache.map(Executor(workers=2), _square_slow_first, items) == [x * x for x in items]
     assert len(list((tmp_path / "u").glob("*.pkl"))) == len(items)
+
+
+def test_rotation_tries_stop_after_points_without_an_axis():
+    """rot_stop_after: after that many rotation-tested points in a row pass no axis, the ray's
+    outer points are still reached (the same continuation, bit for bit) but not rotation-tested."""
+    from dataclasses import replace
+
+    from metasheet.studies.workspace import RayTask, explore_ray
+
+    grid = star_grid(**{**SMALL, "n_steps": 16})
+    base = WorkspaceSettings(rot_deg=30.0, continuity=False)  # wide rotations: rays end with failing points
+    skipped = 0
+    for ray in range(len(grid.directions)):
+        goals = grid.points[grid.ray_points(ray)]
+        full = explore_ray(RayTask(StandInSpec(), base, goals))
+        cut = explore_ray(RayTask(StandInSpec(), replace(base, rot_stop_after=2), goals))
+        for f in ("tried", "reached", "error_mm", "motors_deg", "strain", "sigma_min"):
+            np.testing.assert_array_equal(getattr(cut, f), getattr(full, f), err_msg=f)
+        assert np.array_equal(full.rot_tried, full.reached)  # 0: every reached point tried
+        tested = np.flatnonzero(full.rot_tried)
+        none = ~full.rot_ok[tested].any(axis=1)
+        pairs = np.flatnonzero(none[:-1] & none[1:])  # two tested points in a row without an axis
+        stop = tested[pairs[0] + 1] + 1 if len(pairs) else len(goals)
+        assert np.array_equal(cut.rot_tried[:stop], full.rot_tried[:stop])
+        np.testing.assert_array_equal(cut.rot_error_deg[:stop], full.rot_error_deg[:stop])
+        assert not cut.rot_tried[stop:].any() and np.isnan(cut.rot_error_deg[stop:]).all()
+        assert not cut.rot_ok[stop:].any()
+        skipped += int(full.reached[stop:].sum())
+    assert skipped > 0  # the rule left some reached points untried on this grid
+
+
+def test_rot_stop_after_is_checked():
+    with pytest.raises(ConfigError, match="rot_stop_after"):
+        WorkspaceSettings(rot_stop_after=-1)

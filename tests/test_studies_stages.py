@@ -270,3 +270,42 @@ strain_limit = 0.04
     text = (out / "report" / "report.md").read_text()
     assert f"| rotation tries failed beyond the strain limit | {beyond} |" in text
     assert "a rotation try counts only within it" in text
+
+
+def test_maze_without_silicone_writes_the_foam_only(tmp_path):
+    """[maze] silicone = false: the foam's series as with it, no silicone file, its entries null,
+    and the report says the comparison did not run."""
+    text = STANDIN.replace('stages = ["workspace", "ranges", "anisotropy", "maze", "report"]',
+                           'stages = ["maze", "report"]')
+    for d in ("with", "without"):
+        (tmp_path / d).mkdir()
+    run_pipeline(load_pipeline(project(tmp_path / "with", text, "m")))
+    run_pipeline(load_pipeline(project(tmp_path / "without", text + "silicone = false\n", "m")))
+    with_, without = (tmp_path / d / "outputs" / "st" / "maze" for d in ("with", "without"))
+    assert (with_ / "maze.csv").read_bytes() == (without / "maze.csv").read_bytes()
+    assert (with_ / "maze_silicone.csv").is_file() and not (without / "maze_silicone.csv").exists()
+    z = json.loads((without / "maze.json").read_text())
+    assert z["silicone_segments_ok"] is None and z["silicone_impossible_segments"] is None
+    assert json.loads((with_ / "maze.json").read_text())["silicone_impossible_segments"]  # a list: it ran
+    non_blank_png(without / "maze.png")
+    report = (tmp_path / "without" / "outputs" / "st" / "report" / "report.md").read_text()
+    assert "not run in this column (silicone = false)" in report
+
+
+def test_workspace_rotation_stop_is_counted_in_the_csv_and_json(tmp_path):
+    text = f"""[pipeline]
+name = "ws"
+stages = ["workspace"]
+[workspace]
+model = "standin"
+continuity = false
+rot_deg = 30
+rot_stop_after = 2
+{GRID.replace("n_steps = 6", "n_steps = 16")}"""
+    run_pipeline(load_pipeline(project(tmp_path, text, "ws")))
+    out = tmp_path / "outputs" / "ws" / "workspace"
+    rows = read_csv(out / "workspace.csv")
+    left = sum(r["reached"] == "1" and r["rot_tried"] == "0" for r in rows)
+    z = json.loads((out / "workspace.json").read_text())
+    assert z["rot_stop_after"] == 2 and z["rotations_left_out"] == left > 0
+    assert all(r["class"] == "0" for r in rows if r["reached"] == "1" and r["rot_tried"] == "0")

@@ -65,9 +65,10 @@ def _anisotropy(a: Mapping) -> tuple[str, bool]:
 
 def _maze(z: Mapping) -> tuple[str, bool]:
     foam, sil = z["foam_impossible_segments"], z["silicone_impossible_segments"]
-    text = (f"foam: {len(foam)} of {z['segments']} segments impossible; silicone: {len(sil)} impossible "
+    sil_text = "not run (silicone = false)" if sil is None else f"{len(sil)} impossible"
+    text = (f"foam: {len(foam)} of {z['segments']} segments impossible; silicone: {sil_text} "
             f"(tilt {z.get('tilt_deg', 'n/a')} deg)")
-    return text, not foam and bool(sil)
+    return text, not foam and (sil is None or bool(sil))
 
 
 def _deg(v) -> str:

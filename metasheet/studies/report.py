@@ -28,6 +28,13 @@ def _maze_strain_rows(z: dict) -> list:
             (f"foam: samples beyond the strain limit {z['strain_limit']:g}", z["samples_beyond_strain"])]
 
 
+def _silicone_cell(segments) -> str | list:
+    """The maze table's silicone cell: the impossible segments, "none", or not run."""
+    if segments is None:
+        return "not run in this column (silicone = false)"
+    return segments or "none"
+
+
 def _table(rows: list[tuple[str, object]]) -> str:
     out = ["| quantity | value |", "|---|---|"]
     for k, v in rows:
@@ -46,11 +53,16 @@ def _fmt(v) -> str:
 
 
 def _domain_rows(w: dict) -> list:
-    """The workspace table's rows on the strain limit's domain (only when the study stops there)."""
+    """The workspace table's rows on the strain limit's domain (only when the study stops there)
+    and on the rotation tries left out (only when ``rot_stop_after`` is set)."""
+    rows = []
+    if w.get("rot_stop_after"):
+        rows.append((f"reached points not rotation-tested ({w['rot_stop_after']} tested in a row passed no axis "
+                     "before them on their ray; counted as reachable only)", w.get("rotations_left_out", 0)))
     if not w.get("stop_beyond_strain"):
-        return []
+        return rows
     return [("reaches stopped where the material left the strain limit", w.get("left_domain", 0)),
-            ("rotation tries failed beyond the strain limit", w.get("rotations_beyond_strain", 0))]
+            ("rotation tries failed beyond the strain limit", w.get("rotations_beyond_strain", 0)), *rows]
 
 
 def _rotation_test(t: Mapping | None) -> str:
@@ -247,7 +259,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         lines += ["## Maze (paper Section V-B3)", "", f"![maze]({pictures.get('maze', 'maze.png')})", "",
                   _table([("segments", z["segments"]), ("samples", z["samples"]), ("duration [s]", z["duration_s"]),
                           ("foam: impossible segments", z["foam_impossible_segments"] or "none"),
-                          ("silicone: impossible segments", z["silicone_impossible_segments"] or "none"),
+                          ("silicone: impossible segments", _silicone_cell(z["silicone_impossible_segments"])),
                           ("motor angles [deg]", f"{z['motor_min_deg']:.3g} to {z['motor_max_deg']:.3g}"),
                           ("within motor limits", z["within_motor_limits"]),
                           ("replay tracking error, max [mm]", z["max_track_mm"]),
@@ -262,7 +274,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         if z.get("samples_beyond_strain"):
             diffs.append(f"Maze: {z['samples_beyond_strain']} of {z['samples']} foam samples strain the sheets beyond "
                          f"{z['strain_limit']:g}, where the homogenised constants no longer hold.")
-        if not z["silicone_impossible_segments"]:
+        if z["silicone_impossible_segments"] == []:
             diffs.append("Maze: silicone sheets solved every segment; the paper could not solve its maze with them.")
     standin = [k for k in ("workspace", "ranges", "anisotropy", "maze") if k in s and s[k].get("model") == "standin"]
     if standin:

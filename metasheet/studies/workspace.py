@@ -6,6 +6,10 @@ within ``tol_mm`` (position only, as in the paper, unless ``hold_orientation``);
 reached point the six rotations +-``rot_deg`` about x, y and z of the orientation reached
 there are tried from that point's state, each within ``tol_rot_deg`` (and ``tol_mm``). An axis
 counts when both signs succeed (the second sign is skipped, NaN, when the first fails). Classes: 3, 2, 1 axes, 0 = reachable only, -1 = unreachable.
+With ``rot_stop_after`` = n, once n rotation-tested points in a row on a ray pass no axis, the
+ray's outer points are still reached (the continuation is the same) but not rotation-tested:
+they count as reachable only (:attr:`PointRecords.rot_tried` False), as the reach's own
+``stop_after`` leaves a ray's outer points untried.
 
 Two rotation tests (:data:`ROTATION_TESTS`, ``WorkspaceSettings.test``): ``"paper"`` (the
 default) as the paper describes it, +-10 deg about x, y and z, each within 2 deg, each tried
@@ -75,6 +79,9 @@ class WorkspaceSettings:
     max_steps: int = 60
     rotations: bool = True
     stop_after: int = 2  # consecutive failures on a ray before its outer points are left untried (0: try all)
+    # consecutive rotation-tested points on a ray that pass no axis before the outer points' rotation
+    # tries are left out (0: try every reached point)
+    rot_stop_after: int = 0
     strain_limit: float = 0.3
     stop_beyond_strain: bool = False  # a ray ends at its first reached point beyond strain_limit
     continuity: bool = True
@@ -92,6 +99,7 @@ class WorkspaceSettings:
         check_range("tol_rot_deg", self.tol_rot_deg, 0.0, 90.0, lo_open=True)
         check_range("max_steps", self.max_steps, 1, 100000)
         check_range("stop_after", self.stop_after, 0, 100000)
+        check_range("rot_stop_after", self.rot_stop_after, 0, 100000)
         check_range("strain_limit", self.strain_limit, 0.0, None, lo_open=True)
         check_range("substeps", self.substeps, 1, 1000)
         if self.test not in ROTATION_TESTS:
@@ -139,7 +147,9 @@ class PointRecords:
     left_domain (k,) bool: the reach left the model's domain (:attr:`~.model.ReachResult.left_domain`),
     its strain is the one at the domain's edge and the point counts as not reached;
     rot_beyond (k, 6) bool: with ``stop_beyond_strain``, the rotation try left the model's domain
-    or met its tolerances beyond the strain limit: it fails (outside the material model).
+    or met its tolerances beyond the strain limit: it fails (outside the material model);
+    rot_tried (k,) bool: the point's rotations were tried (False where it was not reached, lies
+    beyond the strain limit, or follows ``rot_stop_after`` points without an axis on its ray).
     """
 
     tried: np.ndarray
@@ -158,6 +168,7 @@ class PointRecords:
     rot_jump_mm: np.ndarray
     left_domain: np.ndarray
     rot_beyond: np.ndarray
+    rot_tried: np.ndarray
 
 
 def rotation_goals(point: np.ndarray, rest_rot: np.ndarray, rot_deg: float) -> np.ndarray:
@@ -191,8 +202,8 @@ def explore_ray(task: RayTask) -> PointRecords:
                rot_error_mm=np.full((k, 6), np.nan), rot_error_deg=np.full((k, 6), np.nan),
                rot_ok=np.zeros((k, 3), bool), strain=nan.copy(), sigma_min=nan.copy(), parent=np.full(k, -1),
                converged=np.ones(k, bool), rot_jump_mm=nan.copy(), left_domain=np.zeros(k, bool),
-               rot_beyond=np.zeros((k, 6), bool))
-    state, parent, fails = start_state(model), -1, 0
+               rot_beyond=np.zeros((k, 6), bool), rot_tried=np.zeros(k, bool))
+    state, parent, fails, no_axis = start_state(model), -1, 0, 0
     for i, p in enumerate(task.goals):
         if s.stop_after and fails >= s.stop_after:
             break
@@ -219,8 +230,12 @@ def explore_ray(task: RayTask) -> PointRecords:
         rec["strain"][i] = model.max_principal_strain(res.state)
         rec["sigma_min"][i] = model.min_singular_value(res.state)
         beyond = s.stop_beyond_strain and not rec["strain"][i] <= s.strain_limit
-        if s.rotations and not beyond:  # beyond: outside the material model, not rotation-tested
+        # beyond: outside the material model, not rotation-tested; after rot_stop_after points
+        # without an axis the ray's outer points are reached but not rotation-tested
+        if s.rotations and not beyond and not (s.rot_stop_after and no_axis >= s.rot_stop_after):
             _rotation_test(model, s, rec, i, p, rest[3:] if s.hold_orientation else res.pose[3:], res)
+            rec["rot_tried"][i] = True
+            no_axis = 0 if rec["rot_ok"][i].any() else no_axis + 1
         if beyond:
             break  # outside the material model's domain: the outer points are not tried
         state, parent = res.state, i

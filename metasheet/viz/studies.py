@@ -145,7 +145,8 @@ def anisotropy_picture(alpha, rod_rotation_deg, lateral_mm, *, pull_deg: float, 
 @one_at_a_time
 def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segment_ok_silicone,
                  motor_range, *, title: str = "", strain=None, strain_limit: float | None = None) -> bytes:
-    """Maze path with feasible / impossible segments (foam vs silicone), the motor series and
+    """Maze path with feasible / impossible segments (foam vs silicone; ``segment_ok_silicone``
+    None: foam only), the motor series and
     the replay's tracking error (and the strain along the path, against its limit, when given).
     path (m, 2) [mm]; time (T,); motors_deg (T, 6); strain (T,) [-]."""
     plt = _plt()
@@ -156,6 +157,8 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
         d = P[i + 1] - P[i]
         normal = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)  # silicone beside the foam, whatever the heading
         for ok_arr, off, name in ((segment_ok, 0.0, "foam"), (segment_ok_silicone, 1.2, "silicone")):
+            if ok_arr is None:  # the silicone sheets were not run (the stage's ``silicone``)
+                continue
             ok = bool(ok_arr[i])
             seg = P[i:i + 2] + off * normal
             ax.plot(seg[:, 0], seg[:, 1], "-" if ok else ":", lw=3 if name == "foam" else 1.5,
@@ -164,7 +167,8 @@ def maze_picture(path, time, motors_deg, track_mm, track_deg, segment_ok, segmen
         ax.annotate(str(i), mid, fontsize=8, xytext=(3, 3), textcoords="offset points")
     ax.plot(*P[0], "ko")
     ax.plot([], [], "-", color="#1f77b4", lw=3, label="foam: feasible")
-    ax.plot([], [], "-", color="#9467bd", lw=1.5, label="silicone: feasible (offset)")
+    if segment_ok_silicone is not None:
+        ax.plot([], [], "-", color="#9467bd", lw=1.5, label="silicone: feasible (offset)")
     ax.plot([], [], ":", color="#d62728", lw=2, label="impossible")
     ax.set_aspect("equal")
     ax.set_xlabel("maze u = rod axis [mm]")

@@ -2,7 +2,8 @@
 with the paper's foam and again with silicone sheets (which segments become impossible).
 
 Writes ``maze.csv`` (time [s], six motor angles [deg], then segment, command and errors),
-``maze_silicone.csv`` (the same with silicone sheets), ``maze.png`` and ``maze.json`` (with
+``maze_silicone.csv`` (the same with silicone sheets; not with ``silicone = false``, where
+``maze.json``'s silicone entries are null), ``maze.png`` and ``maze.json`` (with
 which model ran: ``model_info``). On the reduced model (``model = "reduced"``) the foam run
 is reduced and its reached samples (``certify`` of them, 0: all) are re-solved by the full
 model at their motor angles within ``tol_mm`` and ``tol_deg`` (``certification``); the
@@ -37,6 +38,7 @@ class MazeParams(CertifyParams):
     tol_mm: float = Field(1.0, gt=0, description="position tolerance of each command [mm]")
     tol_deg: float = Field(1.0, gt=0, description="orientation tolerance of each command [deg]")
     max_steps: int = Field(60, ge=1, description="inverse control steps per command [-]")
+    silicone: bool = Field(True, description="solve the maze with silicone sheets too (the paper's comparison)")
     silicone_E: float = Field(0.25, gt=0, description="silicone Young's modulus [MPa]")
     silicone_nu: float = Field(0.45, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
     silicone_density: float = Field(1.07e-9, gt=0, le=1e-7, description="silicone density [t/mm^3]")
@@ -69,28 +71,34 @@ def _run_one(ctx: StageContext) -> dict:
     spec = build_spec(ctx)
     s = MazeSettings(tilt_deg=p.tilt_deg, speed=p.speed, dt=p.dt, ramp_s=p.ramp_s, tol_mm=p.tol_mm,
                      tol_deg=p.tol_deg, max_steps=p.max_steps)
-    # a scene with a sheet mass (the authors': 32 g) keeps it for the silicone sheets too
-    sil_density = None if getattr(scene_of(ctx), "sheet_mass_g", None) else p.silicone_density
-    sil_spec = spec.with_material(Isotropic(p.silicone_E, p.silicone_nu), density=sil_density)
-    # one map, silicone first: its impossible segments are the longest units
-    sil, foam = solve_mazes([sil_spec, spec], p.path, s, executor=ctx.executor, progress=progress(ctx),
-                            cache=unit_cache(ctx))
+    specs = [spec]
+    if p.silicone:
+        # a scene with a sheet mass (the authors': 32 g) keeps it for the silicone sheets too
+        sil_density = None if getattr(scene_of(ctx), "sheet_mass_g", None) else p.silicone_density
+        sil_spec = spec.with_material(Isotropic(p.silicone_E, p.silicone_nu), density=sil_density)
+        specs = [sil_spec, spec]  # one map, silicone first: its impossible segments are the longest units
+    *others, foam = solve_mazes(specs, p.path, s, executor=ctx.executor, progress=progress(ctx),
+                                cache=unit_cache(ctx))
+    sil = others[0] if others else None
     write_csv(ctx.path("maze.csv"), list(HEADER), _rows(foam))
-    write_csv(ctx.path("maze_silicone.csv"), list(HEADER), _rows(sil))
+    if sil is not None:
+        write_csv(ctx.path("maze_silicone.csv"), list(HEADER), _rows(sil))
     from ...viz.studies import maze_picture
 
     ctx.path("maze.png").write_bytes(maze_picture(
         np.asarray(p.path), foam.commands.time, foam.motors_deg, foam.track_mm, foam.track_deg, foam.segment_ok,
-        sil.segment_ok, foam.motor_range,
-        title=f"Maze: tilt {p.tilt_deg:g} deg, foam vs silicone sheets [{ctx.column}, {p.model}]", strain=foam.strain,
+        None if sil is None else sil.segment_ok, foam.motor_range,
+        title=f"Maze: tilt {p.tilt_deg:g} deg, foam{' vs silicone' if sil is not None else ''} sheets "
+              f"[{ctx.column}, {p.model}]", strain=foam.strain,
         strain_limit=p.strain_limit))
     lo, hi = foam.motor_range
     summary = {
         "column": ctx.column, "tilt_deg": p.tilt_deg,
         "segments": int(len(foam.segment_ok)), "samples": int(len(foam.commands.time)),
         "duration_s": float(foam.commands.time[-1]),
-        "foam_segments_ok": foam.segment_ok.tolist(), "silicone_segments_ok": sil.segment_ok.tolist(),
-        "silicone_impossible_segments": np.flatnonzero(~sil.segment_ok).tolist(),
+        "foam_segments_ok": foam.segment_ok.tolist(),
+        "silicone_segments_ok": None if sil is None else sil.segment_ok.tolist(),
+        "silicone_impossible_segments": None if sil is None else np.flatnonzero(~sil.segment_ok).tolist(),
         "foam_impossible_segments": np.flatnonzero(~foam.segment_ok).tolist(),
         "motor_min_deg": float(foam.motors_deg.min()), "motor_max_deg": float(foam.motors_deg.max()),
         "within_motor_limits": bool(foam.motors_deg.min() >= lo - 1e-9 and foam.motors_deg.max() <= hi + 1e-9),
@@ -98,8 +106,8 @@ def _run_one(ctx: StageContext) -> dict:
         "max_inverse_error_deg": float(np.nanmax(foam.error_deg)),
         "max_strain": _finite_max(foam.strain), "strain_limit": p.strain_limit,
         "samples_beyond_strain": int(np.sum(foam.strain > p.strain_limit)),  # NaN: not solved, not counted
-        "silicone_max_strain": _finite_max(sil.strain), "model": p.model,
-        "model_info": model_record(spec), "silicone_model": model_record(sil_spec)["model"],
+        "silicone_max_strain": None if sil is None else _finite_max(sil.strain), "model": p.model,
+        "model_info": model_record(spec), "silicone_model": None if sil is None else model_record(specs[0])["model"],
     }
     ids = np.flatnonzero(foam.reached)
     cert = certification(ctx, spec, foam.commands.poses[ids], foam.motors_deg[ids], tol_mm=p.tol_mm,
@@ -114,6 +122,6 @@ def _run_one(ctx: StageContext) -> dict:
 register(Stage(
     name="maze", params=MazeParams, run=run, optional=("orient", "material", "robot", "reduce"),
     reads=study_reads,
-    outputs=("maze.csv", "maze_silicone.csv", "maze.png", "maze.json"),
+    outputs=("maze.csv", "maze.png", "maze.json"),  # maze_silicone.csv with ``silicone``
     doc="maze path solved open loop into motor angles, replayed; foam vs silicone",
 ))

@@ -40,6 +40,9 @@ class WorkspaceParams(GridParams):
     near_rest_mm: float = Field(3.0, gt=0, le=100, description="radius of the area around rest whose reachable "
                                 "points' share of full control (three rotations) the report states [mm]")
     rotations: bool = Field(True, description="try the test's +-rot_deg rotations")
+    rot_stop_after: int = Field(0, ge=0, le=100000, description="rotation-tested points in a row on a ray that "
+                                "pass no axis before the ray's outer points are reached without rotation tries "
+                                "(0: try every reached point) [-]")
     continuity: bool = Field(True, description="test paths between neighbouring reached points")
     substeps: int = Field(3, ge=1, le=1000, description="intermediate goals on a continuity path [-]")
     hold_orientation: bool = Field(False, description="point goals also ask for the rest orientation (paper: position only)")
@@ -48,7 +51,7 @@ class WorkspaceParams(GridParams):
 def settings_from(p) -> WorkspaceSettings:
     return WorkspaceSettings.for_test(
         p.test, tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_rot_deg, max_steps=p.max_steps,
-        rotations=p.rotations, stop_after=p.stop_after, strain_limit=p.strain_limit,
+        rotations=p.rotations, rot_stop_after=p.rot_stop_after, stop_after=p.stop_after, strain_limit=p.strain_limit,
         stop_beyond_strain=p.stop_beyond_strain, continuity=p.continuity,
         substeps=p.substeps, hold_orientation=p.hold_orientation)
 
@@ -65,6 +68,13 @@ def near_rest_control(goals, cls, reached, rest_p, radius_mm: float) -> dict:
     n = int(near.sum())
     return {"radius_mm": float(radius_mm), "reachable": n, "full_control": int(full.sum()),
             "share": round(int(full.sum()) / n, 4) if n else None}
+
+
+def rotations_left_out(r, s: WorkspaceSettings) -> int:
+    """Reached points of records ``r`` whose rotations ``rot_stop_after`` left untried (not those
+    beyond the strain limit, which a study within it never rotation-tests)."""
+    beyond = s.stop_beyond_strain & ~(r.strain <= s.strain_limit)
+    return int((r.reached & ~r.rot_tried & ~beyond).sum()) if s.rotations else 0
 
 
 def write_vtp(path, points, fields: dict) -> None:
@@ -103,11 +113,11 @@ def _run_one(ctx: StageContext) -> dict:
                "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
               + [f"rot{c}_error_deg" for c in ROT_COLS] + [f"rot{c}_error_mm" for c in ROT_COLS]
               + ["rot_x_ok", "rot_y_ok", "rot_z_ok", "rot_jump_mm", "max_principal_strain", "valid",
-                 "min_singular_value", "component", "converged", "left_domain", "rot_beyond_strain"])
+                 "min_singular_value", "component", "converged", "left_domain", "rot_beyond_strain", "rot_tried"])
     rows = ([i, grid.ray[i], grid.index[i], *res.goals[i], res.cls[i], CLASS_NAMES[res.cls[i]], r.tried[i],
              r.reached[i], r.error_mm[i], r.error_deg[i], r.steps[i], *r.motors_deg[i], *r.rot_error_deg[i],
              *r.rot_error_mm[i], *r.rot_ok[i], r.rot_jump_mm[i], r.strain[i], res.valid[i], r.sigma_min[i],
-             res.component[i], r.converged[i], r.left_domain[i], int(r.rot_beyond[i].sum())]
+             res.component[i], r.converged[i], r.left_domain[i], int(r.rot_beyond[i].sum()), r.rot_tried[i]]
             for i in range(len(grid)))
     write_csv(ctx.path("workspace.csv"), header, rows)
     write_vtp(ctx.path("workspace.vtp"), res.goals, {
@@ -118,7 +128,9 @@ def _run_one(ctx: StageContext) -> dict:
     counts = res.counts()
     title = (f"Workspace (paper Fig. 5): {len(grid)} goals, {int(r.reached.sum())} reachable, "
              f"{res.n_components} connected component(s) [{ctx.column}, {p.model}, {settings.test} rotation test"
-             + (f", within the strain limit {p.strain_limit:g}]" if p.stop_beyond_strain else "]"))
+             + (f", within the strain limit {p.strain_limit:g}" if p.stop_beyond_strain else "")
+             + (f", rotations tried until {settings.rot_stop_after} points in a row pass none]"
+                if settings.rotations and settings.rot_stop_after else "]"))
     ctx.path("workspace.png").write_bytes(workspace_picture(
         res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title, tried=r.tried))
     reached = r.reached
@@ -130,6 +142,8 @@ def _run_one(ctx: StageContext) -> dict:
         "invalid_strain": int((reached & ~res.valid).sum()), "strain_limit": p.strain_limit,
         "left_domain": int(r.left_domain.sum()),
         "rotations_beyond_strain": int(r.rot_beyond.sum()),
+        "rot_stop_after": settings.rot_stop_after,
+        "rotations_left_out": int(rotations_left_out(r, settings)),
         "stop_beyond_strain": p.stop_beyond_strain, "strain_band_mm": getattr(spec, "strain_band_mm", None),
         "max_strain": float(np.nanmax(r.strain[reached])) if reached.any() else None,
         "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
