@@ -143,7 +143,7 @@ def _run_one(ctx: StageContext) -> dict:
         "left_domain": int(r.left_domain.sum()),
         "rotations_beyond_strain": int(r.rot_beyond.sum()),
         "rot_stop_after": settings.rot_stop_after,
-        "rotations_left_out": int(rotations_left_out(r, settings)),
+        "rotations_left_out": rotations_left_out(r, settings),
         "stop_beyond_strain": p.stop_beyond_strain, "strain_band_mm": getattr(spec, "strain_band_mm", None),
         "max_strain": float(np.nanmax(r.strain[reached])) if reached.any() else None,
         "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
