@@ -34,19 +34,21 @@ def _depth_order(points: np.ndarray, h: int, v: int) -> np.ndarray:
 
 @one_at_a_time
 def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: float, title: str = "",
-                      tried=None) -> bytes:
+                      tried=None, rot_untested=None) -> bytes:
     """Three rows (class, max principal strain, smallest singular value) x three views.
 
     points : (n, 3) [mm]; cls : (n,) int class (-1 unreachable); strain, sigma_min : (n,)
     (NaN where unreachable); valid : (n,) bool, strain within ``strain_limit``; tried : (n,)
     bool or None: the unreachable points never tried (their ray ended before them) are drawn
-    apart, as "not tried".
+    apart, as "not tried"; rot_untested : (n,) bool or None: reachable points whose rotations
+    were not tried (the workspace's ``rot_stop_after``), drawn apart from "reachable only".
     """
     plt = _plt()
     P = np.asarray(points, float)
     cls = np.asarray(cls, int)
     ok = cls >= 0
     untried = np.zeros(len(cls), bool) if tried is None else (~np.asarray(tried, bool) & ~ok)
+    no_rot = np.zeros(len(cls), bool) if rot_untested is None else (np.asarray(rot_untested, bool) & ok)
     fig, axes = plt.subplots(3, 3, figsize=(15, 14.5), squeeze=False)
     for j, (name, h, v) in enumerate(VIEWS):
         order = _depth_order(P, h, v)
@@ -55,8 +57,12 @@ def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: fl
         if len(far):
             ax.scatter(P[far, h], P[far, v], s=4, c="#c8c8c8", lw=0, alpha=0.5,
                        label=f"not tried: the ray ended before ({len(far)})")
+        bare = order[no_rot[order]]
+        if len(bare):
+            ax.scatter(P[bare, h], P[bare, v], s=10, facecolors="none", edgecolors=CLASS_COLOURS[0], lw=0.6,
+                       label=f"reachable, rotations not tried ({len(bare)})")
         for c in (-1, 0, 1, 2, 3):
-            sel = order[(cls[order] == c) & ~untried[order]]
+            sel = order[(cls[order] == c) & ~untried[order] & ~no_rot[order]]
             if len(sel):
                 if c >= 0:
                     ax.scatter(P[sel, h], P[sel, v], s=10, c=CLASS_COLOURS[c], label=f"{CLASS_LABELS[c]} ({len(sel)})",

@@ -70,11 +70,11 @@ def near_rest_control(goals, cls, reached, rest_p, radius_mm: float) -> dict:
             "share": round(int(full.sum()) / n, 4) if n else None}
 
 
-def rotations_left_out(r, s: WorkspaceSettings) -> int:
-    """Reached points of records ``r`` whose rotations ``rot_stop_after`` left untried (not those
-    beyond the strain limit, which a study within it never rotation-tests)."""
+def left_out_mask(r, s: WorkspaceSettings) -> np.ndarray:
+    """(n,) bool: the reached points of records ``r`` whose rotations ``rot_stop_after`` left
+    untried (not those beyond the strain limit, which a study within it never rotation-tests)."""
     beyond = s.stop_beyond_strain & ~(r.strain <= s.strain_limit)
-    return int((r.reached & ~r.rot_tried & ~beyond).sum()) if s.rotations else 0
+    return r.reached & ~r.rot_tried & ~beyond & s.rotations
 
 
 def write_vtp(path, points, fields: dict) -> None:
@@ -132,7 +132,8 @@ def _run_one(ctx: StageContext) -> dict:
              + (f", rotations tried until {settings.rot_stop_after} points in a row pass none]"
                 if settings.rotations and settings.rot_stop_after else "]"))
     ctx.path("workspace.png").write_bytes(workspace_picture(
-        res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title, tried=r.tried))
+        res.goals, res.cls, r.strain, r.sigma_min, res.valid, strain_limit=p.strain_limit, title=title, tried=r.tried,
+        rot_untested=left_out_mask(r, settings)))
     reached = r.reached
     summary = {
         "column": ctx.column,
@@ -143,7 +144,7 @@ def _run_one(ctx: StageContext) -> dict:
         "left_domain": int(r.left_domain.sum()),
         "rotations_beyond_strain": int(r.rot_beyond.sum()),
         "rot_stop_after": settings.rot_stop_after,
-        "rotations_left_out": rotations_left_out(r, settings),
+        "rotations_left_out": int(left_out_mask(r, settings).sum()),
         "stop_beyond_strain": p.stop_beyond_strain, "strain_band_mm": getattr(spec, "strain_band_mm", None),
         "max_strain": float(np.nanmax(r.strain[reached])) if reached.any() else None,
         "min_singular_value": float(np.nanmin(r.sigma_min)) if reached.any() else None,
