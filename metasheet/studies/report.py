@@ -52,9 +52,10 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def _domain_rows(w: dict) -> list:
-    """The workspace table's rows on the strain limit's domain (only when the study stops there)
-    and on the rotation tries left out (only when ``rot_stop_after`` is set)."""
+def _untested_rows(w: dict) -> list:
+    """The workspace table's rows on what was left untested: the reaches and rotation tries the
+    strain limit stopped (only when the study stops there) and the points whose rotation tries
+    ``rot_stop_after`` left out (only when it is set)."""
     rows = []
     if w.get("rot_stop_after"):
         rows.append((f"reached points not rotation-tested ({w['rot_stop_after']} tested in a row passed no axis "
@@ -176,7 +177,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                           ("equilibrium failures (counted unreachable)", w.get("solver_failures", 0)), *[(f"class: {k}", v) for k, v in w["counts"].items()],
                           ("max principal strain", w["max_strain"]),
                           (f"points beyond the strain limit {w['strain_limit']}", w["invalid_strain"]),
-                          *_domain_rows(w),
+                          *_untested_rows(w),
                           ("smallest Jacobian singular value", w["min_singular_value"]),
                           ("connected components", w["components"]),
                           ("continuity paths passed / tested", f"{w['edges_passed']} / {w['edges_tested']}"),

@@ -71,7 +71,7 @@ def _run_one(ctx: StageContext) -> dict:
     spec = build_spec(ctx)
     s = MazeSettings(tilt_deg=p.tilt_deg, speed=p.speed, dt=p.dt, ramp_s=p.ramp_s, tol_mm=p.tol_mm,
                      tol_deg=p.tol_deg, max_steps=p.max_steps)
-    specs = [spec]
+    specs, sil_spec = [spec], None
     if p.silicone:
         # a scene with a sheet mass (the authors': 32 g) keeps it for the silicone sheets too
         sil_density = None if getattr(scene_of(ctx), "sheet_mass_g", None) else p.silicone_density
@@ -107,7 +107,7 @@ def _run_one(ctx: StageContext) -> dict:
         "max_strain": _finite_max(foam.strain), "strain_limit": p.strain_limit,
         "samples_beyond_strain": int(np.sum(foam.strain > p.strain_limit)),  # NaN: not solved, not counted
         "silicone_max_strain": None if sil is None else _finite_max(sil.strain), "model": p.model,
-        "model_info": model_record(spec), "silicone_model": None if sil is None else model_record(specs[0])["model"],
+        "model_info": model_record(spec), "silicone_model": None if sil_spec is None else model_record(sil_spec)["model"],
     }
     ids = np.flatnonzero(foam.reached)
     cert = certification(ctx, spec, foam.commands.poses[ids], foam.motors_deg[ids], tol_mm=p.tol_mm,
