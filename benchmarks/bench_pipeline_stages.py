@@ -5,7 +5,8 @@ both columns on 2 cores).
 
 Reads each stage's ``manifest.json`` (``wall_time_s``, ``cpu_s``, ``timings_s``: what the
 runner measured while the stage ran, nothing is rerun here) and prints one row per stage:
-its wall and CPU seconds, and for a two-column study each column's wall seconds. Below the
+its wall and CPU seconds, and for a two-column study each column's wall and CPU seconds (the
+CPU from the manifest's ``<column>.cpu``; "-" in older runs). Below the
 table, two figures that do not depend on how the stages overlapped: the total CPU over the
 cores, a lower bound of a run on that many cores, and the critical path (the longest chain of
 stage walls through the dependency graph). A stage's wall includes its waits for workers that
@@ -28,7 +29,8 @@ from metasheet.studies.columns import COLUMNS
 
 
 def stage_rows(pipeline, base: Path) -> list[dict]:
-    """Per stage in run order: name, wall [s], cpu [s], columns {column: wall [s]}, started."""
+    """Per stage in run order: name, wall [s], cpu [s], columns {column: (wall [s], cpu [s] or
+    None)}, started."""
     rows = []
     for name in pipeline.order:
         path = base / name / "manifest.json"
@@ -37,7 +39,8 @@ def stage_rows(pipeline, base: Path) -> list[dict]:
         m = json.loads(path.read_text())
         t = m.get("timings_s") or {}
         rows.append({"name": name, "wall": float(m["wall_time_s"]), "cpu": float(m["cpu_s"]["total"]),
-                     "columns": {c: float(t[c]) for c in COLUMNS if c in t}, "started": m.get("started", "")})
+                     "columns": {c: (float(t[c]), t.get(f"{c}.cpu")) for c in COLUMNS if c in t},
+                     "started": m.get("started", "")})
     return rows
 
 
@@ -65,10 +68,11 @@ def main() -> None:
     cpu = sum(r["cpu"] for r in rows)
     with saved_output(__file__, a.save):
         print(f"Stages of `{a.pipeline}` ({base}), from their manifests:\n")
-        print("| stage | started | wall [s] | CPU [s] | columns: wall [s] |")
+        print("| stage | started | wall [s] | CPU [s] | columns: wall / CPU [s] |")
         print("|---|---|---:|---:|---|")
         for r in rows:
-            cols = ", ".join(f"{c} {v:.0f}" for c, v in r["columns"].items()) or "-"
+            cols = ", ".join(f"{c} {w:.0f} / {'-' if u is None else f'{u:.0f}'}" for c, (w, u) in r["columns"].items())
+            cols = cols or "-"
             print(f"| {r['name']} | {r['started']} | {r['wall']:.0f} | {r['cpu']:.0f} | {cols} |")
         print(f"\nCPU {cpu:.0f} s in all, {cpu / a.cores:.0f} s over {a.cores} cores: at least "
               f"{cpu / a.cores / 60:.1f} min on {a.cores} cores. Critical path {path_s:.0f} s "

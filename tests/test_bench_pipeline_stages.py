@@ -1,5 +1,5 @@
 """benchmarks/bench_pipeline_stages.py reads a run's manifests: each stage's wall and CPU, each
-column's wall, and the critical path through the dependency graph (a longest path: checked
+column's wall and CPU, and the critical path through the dependency graph (a longest path: checked
 against every chain by brute force on a small pipeline)."""
 
 import itertools
@@ -29,7 +29,11 @@ def test_stage_rows_and_the_critical_path_of_a_two_column_run(tmp_path):
     ws = json.loads((base / "workspace" / "manifest.json").read_text())
     assert rows["workspace"]["wall"] == pytest.approx(ws["wall_time_s"])
     assert set(rows["workspace"]["columns"]) == {"prediction", "reproduction"}
-    assert sum(rows["workspace"]["columns"].values()) <= rows["workspace"]["wall"]
+    cols = rows["workspace"]["columns"]
+    assert sum(w for w, _ in cols.values()) <= rows["workspace"]["wall"]
+    # each column's CPU: the stage thread's and its units' while it ran, within the stage's total
+    assert all(cpu > 0 for _, cpu in cols.values())
+    assert sum(cpu for _, cpu in cols.values()) <= ws["cpu_s"]["total"] + 0.01
     assert rows["ranges"]["columns"] == {}  # one column: no split
     # made-up walls, so that the longest chain is not the run order's
     walls = {n: float(i + 1) for i, n in enumerate(reversed(pipeline.order))}

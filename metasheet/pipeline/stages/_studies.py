@@ -192,19 +192,24 @@ def run_columns(ctx: StageContext, run_one) -> dict:
     writes into the stage's folder, the next into ``<column>/``, each with its parameters
     (:meth:`StudyRobotParams.for_column`). Returns the first column's summary, with
     ``"columns"``: {column: its summary} when there are two. With two, the manifest's timings
-    are each column's, prefixed ``<column>.``, and its wall time ``<column>``."""
+    are each column's, prefixed ``<column>.``, its wall time ``<column>`` and its CPU time
+    ``<column>.cpu`` [s]: the stage thread's and its units' in local worker processes (the
+    columns run one after the other; on a dask cluster the stage thread's only)."""
     p = ctx.params
     if len(p.columns) == 1:
         return run_one(replace(ctx, params=p.for_column(p.columns[0]), column=p.columns[0]))
     out = {}
+    meter = ctx.executor.meter
     for i, col in enumerate(p.columns):
         say = lambda d, k, n, col=col: ctx.progress(f"{col}: {d}", k, n)  # noqa: E731
         sub = replace(ctx, params=p.for_column(col), column=col, subdir="" if i == 0 else col, progress=say,
                       timings={})
-        t0 = time.perf_counter()
+        t0, cpu0, units0 = time.perf_counter(), time.thread_time(), meter.seconds if meter is not None else 0.0
         out[col] = run_one(sub)
         ctx.timings.update({f"{col}.{k}": v for k, v in sub.timings.items()})
         ctx.timings[col] = time.perf_counter() - t0
+        units = meter.seconds - units0 if meter is not None else 0.0
+        ctx.timings[f"{col}.cpu"] = time.thread_time() - cpu0 + units
     return {**out[p.columns[0]], "columns": out}
 
 
