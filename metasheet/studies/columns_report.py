@@ -42,8 +42,13 @@ def _workspace(w: Mapping) -> tuple[str, bool]:
 
 
 def _ranges(r: Mapping) -> tuple[str, bool]:
-    counts = ", ".join(f"{k}: {v}" for k, v in r["reachable"].items())
-    shrinking = list(r["reachable"].values()) == sorted(r["reachable"].values(), reverse=True)
+    via = r.get("via_narrower", {})
+    counts = ", ".join(f"{k}: {v}" + (f" ({via[k]} by a narrower range's path)" if via.get(k) else "")
+                       for k, v in r["reachable"].items())
+    n = list(r["reachable"].values())
+    lims = r.get("ranges_deg") or [[-i, i] for i in range(len(n), 0, -1)]  # without them: widest first
+    shrinking = all(n[a] > n[b] for a in range(len(n)) for b in range(len(n))  # each strictly smaller than
+                    if a != b and lims[a][0] <= lims[b][0] and lims[b][1] <= lims[a][1])  # those containing it
     return f"reachable {counts}; nested: {r['nested']}", bool(r["nested"] and shrinking)
 
 

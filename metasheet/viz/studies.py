@@ -98,11 +98,13 @@ def workspace_picture(points, cls, strain, sigma_min, valid, *, strain_limit: fl
 
 
 @one_at_a_time
-def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
-    """Nested reachable sets for each motor range (Fig. 6): points (n, 3), reached (r, n), ranges (r, 2)."""
+def ranges_picture(points, reached, ranges, *, found=None, title: str = "") -> bytes:
+    """Nested reachable sets for each motor range (Fig. 6): points (n, 3), reached (r, n), ranges (r, 2);
+    found (r, n): the points each range's own search reached (the legend counts the others)."""
     plt = _plt()
     P = np.asarray(points, float)
     R = np.asarray(reached, bool)
+    F = R if found is None else np.asarray(found, bool)
     widths = np.asarray(ranges, float)[:, 1] - np.asarray(ranges, float)[:, 0]
     order_r = np.argsort(-widths, kind="stable")  # widest first, narrower drawn on top
     colours = plt.get_cmap("plasma")(np.linspace(0.1, 0.85, len(order_r)))
@@ -114,8 +116,10 @@ def ranges_picture(points, reached, ranges, *, title: str = "") -> bytes:
             sel = np.flatnonzero(R[r])
             sel = sel[_depth_order(P[sel], h, v)] if len(sel) else sel
             lo, hi = ranges[r]
+            extra = int((R[r] & ~F[r]).sum())
             ax.scatter(P[sel, h], P[sel, v], s=12 - 3 * k, color=colours[k], lw=0,
-                       label=f"{lo:g}-{hi:g} deg ({len(sel)} points)")
+                       label=f"{lo:g}-{hi:g} deg ({len(sel)} points"
+                             + (f", {extra} by a narrower range's path)" if extra else ")"))
         ax.set_title(name)
         ax.set_xlabel(AXIS[h])
         ax.set_ylabel(AXIS[v])

@@ -1,7 +1,10 @@
 """Stage ``ranges``: the reach test repeated for several motor ranges (paper Fig. 6).
 
-Writes ``ranges.csv`` (one row per goal point, one reached column per range), ``ranges.png``
-and ``ranges.json`` (counts per range and the nesting check, which model ran: ``model_info``).
+Writes ``ranges.csv`` (one row per goal point; per range: reachable, found by the range's own
+search, and the pose error of the path that reached it), ``ranges.png`` and ``ranges.json``
+(counts per range, those found by each range's own search and those reached by a narrower
+range's path (:func:`~metasheet.studies.ranges.adopt_narrower`), the nesting check, which
+model ran: ``model_info``).
 On the reduced model (``model = "reduced"``) the points reached in any range (``certify`` of
 them over all ranges, 0: all) are re-solved by the full model at their motor angles
 (``certification``; a point is labelled "<range>:<point>").
@@ -37,17 +40,19 @@ def _run_one(ctx: StageContext) -> dict:
                             cache=unit_cache(ctx))
     names = [f"{lo:g}-{hi:g}" for lo, hi in res.ranges]
     header = ["point", "ray", "step", "x_mm", "y_mm", "z_mm"] + [f"reached_{n}" for n in names] + [
-        f"error_mm_{n}" for n in names]
+        f"error_mm_{n}" for n in names] + [f"found_{n}" for n in names]
     write_csv(ctx.path("ranges.csv"), header,
-              ([i, grid.ray[i], grid.index[i], *res.goals[i], *res.reached[:, i], *res.error_mm[:, i]]
-               for i in range(len(grid))))
+              ([i, grid.ray[i], grid.index[i], *res.goals[i], *res.reached[:, i], *res.error_mm[:, i],
+                *res.found[:, i]] for i in range(len(grid))))
     from ...viz.studies import ranges_picture
 
     ctx.path("ranges.png").write_bytes(ranges_picture(
-        res.goals, res.reached, res.ranges,
+        res.goals, res.reached, res.ranges, found=res.found,
         title=(f"Reachable workspace per motor range (paper Fig. 6), nested: {res.nested} [{ctx.column}, {p.model}"
                + (f"; within the strain limit {p.strain_limit:g}]" if p.stop_beyond_strain else "]"))))
     summary = {"column": ctx.column, "ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
+               "found": dict(zip(names, res.found_counts())),
+               "via_narrower": {n: int((res.reached[a] & ~res.found[a]).sum()) for a, n in enumerate(names)},
                "points": len(grid), "nested": res.nested,
                "violations": [{"wide": names[a], "narrow": names[b], "points": len(pts)} for a, b, pts in res.violations],
                "strain_limit": p.strain_limit, "stop_beyond_strain": p.stop_beyond_strain,
