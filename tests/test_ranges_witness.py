@@ -65,3 +65,22 @@ def test_report_says_which_points_came_from_a_narrower_path():
     assert "of which by a narrower range's path, 20-70" not in text
     diffs = text.split("## Differences from the paper")[1]
     assert "0-90 deg: 4, 10-80 deg: 14" in diffs and "do not nest" not in diffs
+
+
+def test_report_says_when_the_stroke_does_not_bound_the_workspace():
+    from metasheet.studies.report import build_report
+
+    base = {"ranges_deg": [[0, 90], [10, 80], [20, 70]], "nested": True, "violations": [], "model": "robot",
+            "strain_limit": 0.3, "stop_beyond_strain": True}
+    same = dict(base, reachable={"0-90": 63, "10-80": 63, "20-70": 13},
+                motor_span_deg={"0-90": [67.1, 79.4], "10-80": [67.1, 79.4], "20-70": [52.0, 70.0]})
+    text = build_report({"ranges": same}, {})
+    assert "| motors of the reached goals, 0-90 deg | 67.1 to 79.4 |" in text
+    diffs = text.split("## Differences from the paper")[1]
+    assert ("the 0-90 and 10-80 deg ranges reach the same 63 goals (motors 67.1 to 79.4 deg): within the strain "
+            "limit 0.3, the narrower stroke costs no goal") in diffs
+    # a motor beyond the narrower range, or a different count: nothing to say
+    wider = dict(same, motor_span_deg={**same["motor_span_deg"], "0-90": [67.1, 84.0]})
+    fewer = dict(same, reachable={"0-90": 70, "10-80": 63, "20-70": 13})
+    for r in (wider, fewer):
+        assert "reach the same" not in build_report({"ranges": r}, {})

@@ -76,6 +76,22 @@ def _rotation_test(t: Mapping | None) -> str:
             f"{t['tol_rot_deg']:g} deg and {t['tol_mm']:g} mm{jump})")
 
 
+def _stroke_unused(r: Mapping) -> list[str]:
+    """Differences: a wider motor range that reaches the same goals as a narrower one inside it,
+    with every reached goal's motors inside the narrower range (the stroke does not bound it)."""
+    lims, counts, span = r.get("ranges_deg") or [], list(r["reachable"].items()), r.get("motor_span_deg") or {}
+    out = []
+    for (wide, n_w), (lo_w, hi_w) in zip(counts, lims):
+        for (narrow, n_n), (lo_n, hi_n) in zip(counts, lims):
+            s = span.get(wide)
+            if (wide != narrow and lo_w <= lo_n and hi_n <= hi_w and n_w == n_n and s
+                    and lo_n <= s[0] and s[1] <= hi_n):
+                within = f"within the strain limit {r['strain_limit']:g}, " if r.get("stop_beyond_strain") else ""
+                out.append(f"Fig. 6: the {wide} and {narrow} deg ranges reach the same {n_w} goals (motors "
+                           f"{s[0]:.1f} to {s[1]:.1f} deg): {within}the narrower stroke costs no goal.")
+    return out
+
+
 def _reduced(name: str, summary: Mapping) -> tuple[list[str], list[str]]:
     """Lines on the model a study ran on (``model_info``) and the full model's certification of
     its reduced results (``certification``), and the differences they show."""
@@ -215,6 +231,8 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                   _table([*[(f"reachable, {k} deg", v) for k, v in r["reachable"].items()],
                           *[(f"of which by a narrower range's path, {k} deg", v)
                             for k, v in r.get("via_narrower", {}).items() if v],
+                          *[(f"motors of the reached goals, {k} deg", f"{v[0]:.1f} to {v[1]:.1f}")
+                            for k, v in r.get("motor_span_deg", {}).items() if v],
                           ("workspaces nest", r["nested"])]), ""]
         section, found = _reduced("ranges", r)
         lines += section
@@ -224,6 +242,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
             diffs.append(f"Fig. 6 (method): the continuation of a range missed points a narrower range's path reached "
                          f"({', '.join(f'{k} deg: {v}' for k, v in via.items())}); that path is a motor path inside "
                          "the wider range from rest, so they are counted reachable there.")
+        diffs += _stroke_unused(r)
         if not r["nested"]:
             diffs.append(f"Fig. 6: the workspaces do not nest exactly: {r['violations']} (continuation paths "
                          "differ between ranges).")

@@ -53,6 +53,7 @@ def _run_one(ctx: StageContext) -> dict:
     summary = {"column": ctx.column, "ranges_deg": res.ranges.tolist(), "reachable": dict(zip(names, res.counts())),
                "found": dict(zip(names, res.found_counts())),
                "via_narrower": {n: int((res.reached[a] & ~res.found[a]).sum()) for a, n in enumerate(names)},
+               "motor_span_deg": {n: _span(res.motors_deg[a][res.reached[a]]) for a, n in enumerate(names)},
                "points": len(grid), "nested": res.nested,
                "violations": [{"wide": names[a], "narrow": names[b], "points": len(pts)} for a, b, pts in res.violations],
                "strain_limit": p.strain_limit, "stop_beyond_strain": p.stop_beyond_strain,
@@ -66,6 +67,11 @@ def _run_one(ctx: StageContext) -> dict:
     write_json_atomic(ctx.path("ranges.json"), summary)
     drop_cache(ctx)
     return summary
+
+def _span(motors_deg: np.ndarray) -> list[float] | None:
+    """[min, max] [deg] of the motor angles (k, na) of a range's reached goals, None if none."""
+    return [round(float(motors_deg.min()), 4), round(float(motors_deg.max()), 4)] if motors_deg.size else None
+
 
 register(Stage(
     name="ranges", params=RangesParams, run=run, optional=("orient", "material", "robot", "reduce"),
