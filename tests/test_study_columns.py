@@ -45,7 +45,8 @@ def test_each_column_writes_its_folder_and_names_itself(tmp_path):
         assert (out / "workspace" / "reproduction" / f).stat().st_size > 0
     # a study run for the reproduction alone writes it into the stage's own folder
     assert json.loads((out / "ranges" / "ranges.json").read_text())["column"] == "reproduction"
-    assert not list(out.glob(".*.units"))
+    # only the reproduction's units stay (a rerun after another cell reuses them)
+    assert sorted(d.name for d in out.glob(".*.units")) == [".ranges.units", ".workspace-reproduction.units"]
     report = (out / "report" / "report.md").read_text()
     section = report.split("## The paper, reproduced and predicted")[1].split("\n## ")[0]
     row = next(line for line in section.splitlines() if line.startswith("| workspace |"))

@@ -2,7 +2,8 @@
 
 A stage writes into ``.<stage>.tmp-<pid>`` and swaps it into place through
 ``.<stage>.old-<pid>`` (:mod:`.runner`); a resumable study keeps its finished units in
-``.<stage>.units``. A SIGKILLed run leaves them; a run (or ``metasheet clean``) removes the
+``.<stage>.units`` (a reproduction column's stay after success, pruned to the run's units:
+:func:`metasheet.pipeline.stages._studies.drop_cache`). A SIGKILLed run leaves them; a run (or ``metasheet clean``) removes the
 temporary folders of processes that are gone, and an interrupted run removes its own. Nothing
 outside :func:`output_folder` is ever removed.
 """
@@ -77,6 +78,14 @@ def output_folder(out_root: Path, name: str) -> Path:
     if base.is_symlink() or (base.exists() and not base.is_dir()):
         raise OutputError(f"{base}: not a folder of this output root (a link or a file): not touching it")
     return base
+
+
+def remove_unit_caches(base: Path, stage: str) -> None:
+    """Remove a stage's resume caches under ``base`` (``.<stage>.units`` and its columns'
+    ``.<stage>-<column>.units``): a forced run recomputes every unit."""
+    for cache in [base / f".{stage}.units", *base.glob(f".{stage}-*.units")]:
+        if cache.is_dir():
+            shutil.rmtree(cache, ignore_errors=True)
 
 
 def remove_own_debris(base: Path) -> list[Path]:

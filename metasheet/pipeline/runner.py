@@ -42,7 +42,7 @@ from ..cpu import code_paths
 from ..executor import CpuMeter, Executor, own_threads
 from . import manifest as mf
 from .config import Pipeline, upstream
-from .debris import output_folder, remove_path, remove_debris, remove_own_debris
+from .debris import output_folder, remove_debris, remove_own_debris, remove_path, remove_unit_caches
 from .lock import Reporter, _quiet, output_lock, pid_alive  # noqa: F401 - pid_alive: the runner's API
 from .registry import StageContext, stages
 from .schedule import run_graph
@@ -189,6 +189,8 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
         report(name, "up to date, skipped")
         return StageOutcome(name, "cached", final, 0.0, mf.read_manifest(final).get("summary", {}))
     report(name, "running")
+    if forced:
+        remove_unit_caches(base, name)
     progress = _cancellable(progress_factory(name) if progress_factory else (lambda d, i, n: None), cancel)
     t0, cpu0, meter = time.perf_counter(), time.thread_time(), CpuMeter()
     executor = replace(executor, meter=meter)

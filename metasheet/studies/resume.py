@@ -1,27 +1,61 @@
 """Resumable maps: results of finished work units are kept on disk, so an interrupted study
 picks up where it stopped.
 
-The stage layer owns the directory (it lives next to the stage's outputs and is removed once
-the stage succeeds); this module only stores one pickle per unit, named by a hash of the
-unit itself, so a changed unit (another robot, other tolerances) never reuses a stale result.
-Files are written to a temporary name and renamed: a killed run leaves no half-written unit.
+The stage layer owns the directory (it lives next to the stage's outputs; once the stage
+succeeds it is removed, or pruned to the units the run used, :func:`keep_only_used`); this
+module only stores one pickle per unit, named by a hash of the unit itself and of metasheet's
+code (:func:`code_digest`), so a changed unit (another robot, other tolerances) or changed
+code never reuses a stale result. Files are written to a temporary name and renamed: a killed
+run leaves no half-written unit.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import pickle
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from ..executor import Executor
 
+#: The keys each cache directory was asked for in this process (stages run in threads).
+_USED: dict[Path, set[str]] = {}
+_USED_LOCK = threading.Lock()
+
+
+@functools.cache
+def code_digest() -> str:
+    """sha256 of metasheet's Python sources (each ``.py`` file's path in the package and bytes),
+    once per process: a unit result kept on disk is reused by the same code only."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
 
 def unit_key(item: Any) -> str:
-    """Content hash of a work unit (its pickle; numpy arrays and frozen dataclasses pickle stably)."""
-    return hashlib.sha256(pickle.dumps(item, protocol=4)).hexdigest()[:32]
+    """Content hash of a work unit (its pickle; numpy arrays and frozen dataclasses pickle stably)
+    and of the code that computes it (:func:`code_digest`)."""
+    return hashlib.sha256(code_digest().encode() + pickle.dumps(item, protocol=4)).hexdigest()[:32]
+
+
+def keep_only_used(directory: Path | str) -> int:
+    """Remove the unit files (and temporary files) in ``directory`` that no :class:`UnitCache`
+    of this process asked for; returns the number of units kept."""
+    d = Path(directory).resolve()
+    with _USED_LOCK:
+        used = _USED.pop(d, set())
+    if not d.is_dir():
+        return 0
+    for f in d.iterdir():
+        if f.suffix == ".tmp" or (f.suffix == ".pkl" and f.stem not in used):
+            f.unlink(missing_ok=True)
+    return sum(1 for f in d.glob("*.pkl"))
 
 
 class UnitCache:
@@ -35,9 +69,14 @@ class UnitCache:
     def _file(self, key: str) -> Path:
         return self.directory / f"{key}.pkl"
 
+    def _used(self, keys) -> None:
+        with _USED_LOCK:
+            _USED.setdefault(self.directory.resolve(), set()).update(keys)
+
     def load(self, key: str) -> tuple[bool, Any]:
         if self.directory is None:
             return False, None
+        self._used((key,))
         f = self._file(key)
         if not f.exists():
             return False, None
@@ -72,6 +111,7 @@ class UnitCache:
         if self.directory is None:
             return executor.map(fn, items, progress=progress)
         keys = [unit_key(x) for x in items]
+        self._used(keys)
         results: list[Any] = [None] * total
         todo = []
         for i, k in enumerate(keys):

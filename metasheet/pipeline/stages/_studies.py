@@ -25,7 +25,7 @@ from pydantic import Field, ValidationError, model_validator
 from ... import paper
 from ...errors import ConfigError
 from ...robot.validity import GRIP_BAND_MM
-from ...studies.resume import UnitCache
+from ...studies.resume import UnitCache, keep_only_used
 from ..artefacts import OrientFile, RobotScene, read_material, read_orient, read_robot_scene
 from ..registry import Params, StageContext
 
@@ -290,8 +290,9 @@ def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, elem
 
 
 def unit_cache(ctx: StageContext) -> UnitCache:
-    """Per-unit results in ``<pipeline outputs>/.<stage>.units`` (outside the temporary workdir,
-    so they survive an interrupted run); :func:`drop_cache` removes it after success."""
+    """Per-unit results in ``<pipeline outputs>/.<stage>.units`` (``.<stage>-<column>.units`` for
+    a second column; outside the temporary workdir, so they survive an interrupted run);
+    :func:`drop_cache` removes or prunes it after success."""
     if not ctx.params.resume:
         return UnitCache(None)
     return UnitCache(_cache_dir(ctx))
@@ -302,7 +303,13 @@ def _cache_dir(ctx: StageContext) -> Path:
 
 
 def drop_cache(ctx: StageContext) -> None:
-    shutil.rmtree(_cache_dir(ctx), ignore_errors=True)
+    """After the stage (column) succeeded: the reproduction column keeps the units this run used
+    (its robot is the published foam's, whatever the pipeline's cell: a rerun after another cell
+    reuses them; ``metasheet run --force`` removes them first); another column's are removed."""
+    if ctx.column == "reproduction" and ctx.params.resume:
+        keep_only_used(_cache_dir(ctx))
+    else:
+        shutil.rmtree(_cache_dir(ctx), ignore_errors=True)
 
 
 def progress(ctx: StageContext):

@@ -1,0 +1,77 @@
+"""Unit results kept across runs (metasheet.studies.resume): the reproduction column's units stay
+after success, pruned to the run's, and a rerun whose stage key changed for the prediction only
+reuses them; the key covers the code; --force recomputes."""
+
+from metasheet.executor import Executor
+from metasheet.pipeline.config import load_pipeline
+from metasheet.pipeline.runner import run_pipeline
+from metasheet.studies import resume
+from metasheet.studies.resume import UnitCache, keep_only_used, unit_key
+
+from test_studies_stages import project
+
+
+def _square(x):
+    return x * x
+
+
+def test_keep_only_used_prunes_to_the_units_asked_for(tmp_path):
+    d = tmp_path / "u"
+    assert UnitCache(d).map(Executor(), _square, [1, 2, 3]) == [1, 4, 9]
+    old = UnitCache(d)
+    old.store(unit_key(7), 49)  # an earlier run's unit, not asked for in this process since
+    (d / f".{unit_key(8)}.123.tmp").write_bytes(b"half")  # a killed writer's
+    resume._USED.pop(d.resolve())  # a new run: nothing asked yet
+    assert UnitCache(d).map(Executor(), _square, [2, 3]) == [4, 9]
+    assert keep_only_used(d) == 2
+    assert sorted(f.stem for f in d.iterdir()) == sorted(unit_key(x) for x in (2, 3))
+
+
+def test_unit_keys_cover_the_code(monkeypatch):
+    key = unit_key((1, "a"))
+    assert unit_key((1, "a")) == key and unit_key((2, "a")) != key
+    monkeypatch.setattr(resume, "code_digest", lambda: "another version of metasheet")
+    assert unit_key((1, "a")) != key
+
+
+TEXT = """[pipeline]
+name = "keep"
+stages = ["workspace"]
+[workspace]
+model = "standin"
+columns = ["prediction", "reproduction"]
+continuity = false
+n_azimuth = 4
+n_elevation = 2
+n_steps = {n}
+reproduction = {{ n_steps = 4 }}
+"""
+
+
+def _units(out):
+    return {f.name: f.stat().st_mtime_ns for f in (out / ".workspace-reproduction.units").glob("*.pkl")}
+
+
+def test_a_rerun_for_the_prediction_reuses_the_reproduction_units(tmp_path):
+    out = tmp_path / "outputs" / "keep"
+    run_pipeline(load_pipeline(project(tmp_path, TEXT.format(n=4), "keep")))
+    rep = (out / "workspace" / "reproduction" / "workspace.csv").read_bytes()
+    pred = (out / "workspace" / "workspace.csv").read_bytes()
+    kept = _units(out)
+    assert len(kept) >= 8 and not (out / ".workspace.units").exists()  # the prediction's are removed
+    # another prediction (more steps per ray), the reproduction pinned by its own table
+    run_pipeline(load_pipeline(project(tmp_path, TEXT.format(n=5), "keep")))
+    assert (out / "workspace" / "workspace.csv").read_bytes() != pred
+    assert (out / "workspace" / "reproduction" / "workspace.csv").read_bytes() == rep
+    assert _units(out) == kept  # every unit loaded, none computed or rewritten
+    # --force computes them again: the same units, the same bytes
+    run_pipeline(load_pipeline(project(tmp_path, TEXT.format(n=5), "keep")), force=True)
+    again = _units(out)
+    assert again.keys() == kept.keys() and all(again[k] != kept[k] for k in kept)
+    assert (out / "workspace" / "reproduction" / "workspace.csv").read_bytes() == rep
+
+
+def test_without_resume_nothing_is_kept(tmp_path):
+    text = TEXT.format(n=4).replace("continuity = false", "continuity = false\nresume = false")
+    run_pipeline(load_pipeline(project(tmp_path, text, "keep")))
+    assert not list((tmp_path / "outputs" / "keep").glob(".*.units"))
