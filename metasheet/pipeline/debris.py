@@ -3,9 +3,9 @@
 A stage writes into ``.<stage>.tmp-<pid>`` and swaps it into place through
 ``.<stage>.old-<pid>`` (:mod:`.runner`); a resumable study keeps its finished units in
 ``.<stage>.units`` (a reproduction column's stay after success, pruned to the run's units:
-:func:`metasheet.pipeline.stages._studies.drop_cache`). A SIGKILLed run leaves them; a run (or ``metasheet clean``) removes the
-temporary folders of processes that are gone, and an interrupted run removes its own. Nothing
-outside :func:`output_folder` is ever removed.
+:func:`metasheet.pipeline.stages._studies.drop_cache`). A SIGKILLed run leaves them; a run (or
+``metasheet clean``) removes the temporary folders of processes that are gone, and an
+interrupted run removes its own. Nothing outside :func:`output_folder` is ever removed.
 """
 
 from __future__ import annotations

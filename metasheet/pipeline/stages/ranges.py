@@ -68,6 +68,7 @@ def _run_one(ctx: StageContext) -> dict:
     drop_cache(ctx)
     return summary
 
+
 def _span(motors_deg: np.ndarray) -> list[float] | None:
     """[min, max] [deg] of the motor angles (k, na) of a range's reached goals, None if none."""
     return [round(float(motors_deg.min()), 4), round(float(motors_deg.max()), 4)] if motors_deg.size else None
