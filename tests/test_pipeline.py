@@ -89,6 +89,21 @@ def test_parameter_change_reruns_only_that_stage_and_downstream(project):
     assert (project / "outputs/p/t_b/b.txt").read_text() == "10.0\n"
 
 
+def test_edited_code_reruns_every_stage_without_force(project, monkeypatch):
+    from metasheet.pipeline import manifest
+
+    pl = load_pipeline(write(project, BASE.format(v=1.5, s=2.0)))
+    run_pipeline(pl)
+    first = json.loads((project / "outputs/p/t_a/manifest.json").read_text())
+    assert first["versions"]["metasheet_code"] == manifest.code_digest()
+    CALLS.clear()
+    monkeypatch.setattr(manifest, "code_digest", lambda: "an edited metasheet")
+    out = run_pipeline(pl)
+    assert [o.status for o in out] == ["ran", "ran"] and CALLS == ["t_a", "t_b"]
+    CALLS.clear()
+    assert [o.status for o in run_pipeline(pl)] == ["cached", "cached"] and CALLS == []
+
+
 def test_tampered_output_is_recomputed(project):
     pl = load_pipeline(write(project, BASE.format(v=1.5, s=2.0)))
     run_pipeline(pl)
@@ -211,22 +226,25 @@ def test_quick_pipeline_prints_what_it_models(tmp_path, as_value):
 
 def test_a_stage_waits_only_for_the_optional_stages_it_reads(tmp_path):
     """The paper pipeline's anisotropy sweep runs the full model: it does not wait for the
-    reduce stage (it runs beside it); its reduced studies do. A uniform orient does not wait
-    for the design chart; a graded one reads it."""
+    reduce stage (it runs beside it); its reduced studies do. With a design chart in the
+    pipeline (the paper's has none: pipelines/chart.toml), a uniform orient does not wait for
+    it, a graded one reads it."""
     from metasheet.pipeline.config import upstream
 
     root = Path(__file__).resolve().parents[1]
     paper = load_pipeline(root / "pipelines" / "paper.toml")
     assert "reduce" not in upstream(paper, "anisotropy") and "robot" in upstream(paper, "anisotropy")
     assert all("reduce" in upstream(paper, s) for s in ("workspace", "ranges", "maze"))
-    assert "chart" not in upstream(paper, "orient") and "chart" in upstream(paper, "printmap")
     text = (root / "pipelines" / "paper.toml").read_text()
-    graded = text.replace('scene = "authors"\n', 'scene = "authors"\ngrading = { density_expr = "0.15" }\n', 1)
-    assert graded != text
+    charted = text.replace('stages = ["cell", "homogenize", ', 'stages = ["cell", "homogenize", "chart", ', 1)
+    graded = charted.replace('scene = "authors"\n', 'scene = "authors"\ngrading = { density_expr = "0.15" }\n', 1)
+    assert text != charted != graded
     (tmp_path / "pipelines").mkdir()
     (tmp_path / "cells").symlink_to(root / "cells")
-    (tmp_path / "pipelines" / "paper.toml").write_text(graded)
-    assert "chart" in upstream(load_pipeline(tmp_path / "pipelines" / "paper.toml"), "orient")
+    for variant, reads in ((charted, False), (graded, True)):
+        (tmp_path / "pipelines" / "paper.toml").write_text(variant)
+        pl = load_pipeline(tmp_path / "pipelines" / "paper.toml")
+        assert ("chart" in upstream(pl, "orient")) == reads and "chart" in upstream(pl, "printmap")
 
 
 def spin(seconds):

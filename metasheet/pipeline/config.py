@@ -55,12 +55,17 @@ class PipelineSection(Params):
     @field_validator("name")
     @classmethod
     def _one_folder(cls, name: str) -> str:
-        if not _NAME.fullmatch(name):
-            raise ValueError(f"expected one folder name: letters, digits, '_', '-' and '.', not starting or ending "
-                             f"with '.', 1 to {NAME_MAX} characters")
-        if _WINDOWS_RESERVED.fullmatch(name):
-            raise ValueError("a device name reserved on Windows (CON, PRN, AUX, NUL, COM1-9, LPT1-9)")
-        return name
+        return check_run_name(name)
+
+
+def check_run_name(name: str) -> str:
+    """``name`` when it is a run name (one folder under the output root), else ValueError saying why."""
+    if not _NAME.fullmatch(name):
+        raise ValueError(f"expected one folder name: letters, digits, '_', '-' and '.', not starting or ending "
+                         f"with '.', 1 to {NAME_MAX} characters")
+    if _WINDOWS_RESERVED.fullmatch(name):
+        raise ValueError("a device name reserved on Windows (CON, PRN, AUX, NUL, COM1-9, LPT1-9)")
+    return name
 
 
 @dataclass(frozen=True)
@@ -272,3 +277,10 @@ def upstream(pipeline: Pipeline, name: str) -> tuple[str, ...]:
     st = stages()[name]
     optional = st.optional if st.reads is None else tuple(u for u in st.optional if u in st.reads(pipeline.params[name]))
     return tuple(u for u in (*st.requires, *optional) if u in pipeline.params)
+
+
+def siblings(pipeline: Pipeline, name: str) -> tuple[str, ...]:
+    """The other pipelines' stage folders stage ``name`` reads when they have outputs,
+    ``"<pipeline name>/<stage>"`` under the same output root (:attr:`.registry.Stage.siblings`)."""
+    st = stages()[name]
+    return () if st.siblings is None else tuple(st.siblings(pipeline.params[name]))

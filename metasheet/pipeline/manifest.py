@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..provenance import code_digest
 
 MANIFEST = "manifest.json"
 
@@ -119,7 +120,8 @@ def output_hashes(directory: Path) -> dict[str, dict]:
 
 def versions() -> dict[str, str]:
     """Python, metasheet and dependency versions."""
-    v = {"python": platform.python_version(), "metasheet": __version__, "platform": platform.platform()}
+    v = {"python": platform.python_version(), "metasheet": __version__, "platform": platform.platform(),
+         "metasheet_code": code_digest()}
     for name in TRACKED:
         try:
             v[name] = metadata.version(name)
@@ -129,9 +131,12 @@ def versions() -> dict[str, str]:
 
 
 def cache_key(stage: str, params: dict, files: dict[str, str], inputs: dict[str, dict]) -> str:
-    """The key that decides whether a stage must run again."""
+    """The key that decides whether a stage must run again: its parameters, the files they
+    name, its inputs' keys, and the code (:func:`~metasheet.provenance.code_digest`), so an
+    edited metasheet reruns a stage without ``--force``."""
     return sha256_json(
-        {"stage": stage, "params": params, "files": files, "inputs": inputs, "version": __version__}
+        {"stage": stage, "params": params, "files": files, "inputs": inputs, "version": __version__,
+         "code": code_digest()}
     )
 
 

@@ -63,6 +63,8 @@ class StageContext:
         constants; "reproduction": the paper's own model), :mod:`metasheet.studies.columns`.
     subdir : folder of ``workdir`` the files go to ("": the stage's own folder; a study's
         second column writes into ``<column>/``).
+    siblings : ``"<pipeline>/<stage>"`` -> that folder, for each of the stage's
+        :attr:`Stage.siblings` that has outputs beside this pipeline's (same output root).
     """
 
     name: str
@@ -75,6 +77,7 @@ class StageContext:
     timings: dict[str, float] = field(default_factory=dict)
     column: str = "prediction"
     subdir: str = ""
+    siblings: dict[str, Path] = field(default_factory=dict)
 
     def path(self, filename: str) -> Path:
         """Where to write the output file ``filename``."""
@@ -96,6 +99,10 @@ class Stage:
     optional : upstream stages it reads when they are in the pipeline.
     reads : params -> the ``optional`` stages it reads with these parameters (None: all of them):
         a stage that does not read one does not wait for it, and runs beside it.
+    siblings : params -> other pipelines' stage folders it reads when they have outputs,
+        ``"<pipeline name>/<stage>"`` under the same output root (None: none). Their outputs'
+        hashes join its cache key, so a rerun of that pipeline makes this stage stale; it
+        never waits for them, nor runs them.
     outputs : files it writes (documentation and a post-run check).
     doc : one line for ``metasheet stages``.
     """
@@ -106,6 +113,7 @@ class Stage:
     requires: tuple[str, ...] = ()
     optional: tuple[str, ...] = ()
     reads: Callable[[Params], tuple[str, ...]] | None = None
+    siblings: Callable[[Params], tuple[str, ...]] | None = None
     outputs: tuple[str, ...] = ()
     doc: str = ""
 

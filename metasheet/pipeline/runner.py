@@ -201,7 +201,8 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
         work.mkdir(parents=True)
     except OSError as exc:
         raise output_error(exc, str(base)) from exc
-    ctx = StageContext(name, pipeline.params[name], work, inputs, pipeline.root, executor, progress)
+    ctx = StageContext(name, pipeline.params[name], work, inputs, pipeline.root, executor, progress,
+                       siblings={rel: base.parent / rel for rel in sk.siblings})
     try:
         summary = stage.run(ctx) or {}
         missing = [f for f in stage.outputs if not any(work.glob(f))]

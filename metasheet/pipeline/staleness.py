@@ -14,24 +14,29 @@ from pathlib import Path
 
 from ..errors import StageError
 from . import manifest as mf
-from .config import Pipeline, upstream
+from .config import Pipeline, siblings, upstream
 
 
 @dataclass(frozen=True)
 class StageKey:
-    """What a stage's cache key hashes and the key itself (recorded in its manifest)."""
+    """What a stage's cache key hashes and the key itself (recorded in its manifest);
+    ``siblings``: those of the stage's sibling folders that have outputs (their hashes are in
+    ``input_hashes`` under ``"<pipeline>/<stage>"``)."""
 
     key: str
     params: dict
     files: dict[str, str]
     input_hashes: dict[str, dict[str, str]]
+    siblings: tuple[str, ...] = ()
 
 
 def stage_key(pipeline: Pipeline, name: str, base: Path) -> StageKey:
     """The cache key of stage ``name`` of ``pipeline`` with its upstream outputs under
-    ``base`` (``<out root>/<pipeline name>``): its parameters, the files they name and the
-    content hashes its upstream stages' manifests record. StageError when an upstream stage
-    has no manifest (no outputs)."""
+    ``base`` (``<out root>/<pipeline name>``): its parameters, the files they name, the
+    content hashes its upstream stages' manifests record and those of its sibling folders
+    (other pipelines' stages under the same root) that have a manifest: a sibling without
+    one is left out, so the stage is stale once it appears. StageError when an upstream
+    stage has no manifest (no outputs)."""
     params = pipeline.params[name].model_dump(mode="json")
     input_hashes = {}
     for u in upstream(pipeline, name):
@@ -39,8 +44,14 @@ def stage_key(pipeline: Pipeline, name: str, base: Path) -> StageKey:
         if m is None:
             raise StageError(f"stage {name!r}: upstream stage {u!r} has no outputs in {base / u}")
         input_hashes[u] = {k: mf.content_hash(v) for k, v in m["outputs"].items()}
+    found = []
+    for rel in siblings(pipeline, name):  # "<pipeline>/<stage>": a slash, never a stage name
+        m = mf.read_manifest(base.parent / rel)
+        if m is not None:
+            input_hashes[rel] = {k: mf.content_hash(v) for k, v in m["outputs"].items()}
+            found.append(rel)
     files = mf.param_files(params, pipeline.root)
-    return StageKey(mf.cache_key(name, params, files, input_hashes), params, files, input_hashes)
+    return StageKey(mf.cache_key(name, params, files, input_hashes), params, files, input_hashes, tuple(found))
 
 
 def closure(pipeline: Pipeline, names) -> tuple[str, ...]:

@@ -171,8 +171,9 @@ def scale_rows(cell: Mapping | None, thickness: float | None) -> tuple[list[str]
 def constants_section(homogenize: Mapping | None, chart_rows: list[Mapping] | None, material: Mapping | None,
                       robot: Mapping | None, anisotropy: Mapping | None,
                       shrink: float | None = None, *, cell: Mapping | None = None,
-                      thickness: float | None = None) -> tuple[list[str], list[str]]:
-    """The whole section: (Markdown lines, differences found)."""
+                      thickness: float | None = None, chart_note: list[str] = ()) -> tuple[list[str], list[str]]:
+    """The whole section: (Markdown lines, differences found); ``chart_note``: lines before the
+    design chart's sweep (where the chart came from, or the command that makes it)."""
     if not homogenize:
         return [], []
     lines = ["## Printed foam: homogenised vs published vs literature (paper Section III-A)", ""]
@@ -183,5 +184,5 @@ def constants_section(homogenize: Mapping | None, chart_rows: list[Mapping] | No
     cl, diffs = cell_rows(homogenize)
     kl, kd = scale_rows(cell, thickness)
     sl, sd = sweep_rows(chart_rows or [], shrink)
-    lines += cl + kl + sl + robot_rows(robot, anisotropy)
+    lines += cl + kl + [*chart_note] + sl + robot_rows(robot, anisotropy)
     return lines, diffs + kd + sd

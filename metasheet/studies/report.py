@@ -12,12 +12,13 @@ from collections.abc import Mapping
 from ..material import CONSTANT_NAMES
 from .columns_report import columns_section, scene_facts_section
 from .constants_report import constants_section
-from .convergence_report import convergence_section
+from .convergence_report import HEADING as CONVERGENCE_HEADING, convergence_section
 from .design_report import design_section
 from .model_report import model_section
 from .reduce_report import reduce_section
 from .sheet_report import sheet_dns_section
-from .uncertainty_report import print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
+from .siblings_report import missing_lines, source_lines
+from .uncertainty_report import SIZE_HEADING, print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
 
 
 def _maze_strain_rows(z: dict) -> list:
@@ -50,6 +51,18 @@ def _fmt(v) -> str:
     if isinstance(v, dict):
         return "; ".join(f"{k}: {_fmt(x)}" for k, x in v.items())
     return str(v)
+
+
+def _point_time(w: Mapping, timings: Mapping | None) -> list[tuple[str, object]]:
+    """The workspace's wall time and time per tried point, from its manifest's ``timings_s``
+    (keys prefixed ``<column>.`` when the stage ran two columns); none when unknown."""
+    t = timings or {}
+    col = w.get("column")
+    wall = t.get(f"{col}.points", t.get("points"))
+    per = t.get(f"{col}.s_per_point", t.get("s_per_point"))
+    if wall is None or per is None:
+        return []
+    return [("wall time [s]", round(wall, 1)), ("time per tried point [s]", round(per, 3))]
 
 
 def _untested_rows(w: dict) -> list:
@@ -147,15 +160,24 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                 for k, v in sc["values"].items()]
         lines += [f"## Scene: {sc['name']} (metasheet/robot/scenes.py; robot and study keys may override)", "",
                   _table(rows), ""]
+    # the studies of our own model in pipelines of their own (issue 59): where each came from
+    beside = s.get("siblings") or {}
+    chart_note = source_lines(beside.get("chart"), "cell")[0] + missing_lines(beside.get("chart"))
     section, found = constants_section(s.get("homogenize"), s.get("chart", {}).get("rows"), s.get("material"),
                                        s.get("robot"), s.get("anisotropy"), s.get("chart", {}).get("shrink"),
-                                       cell=s.get("cell"), thickness=summaries.get("sheet_thickness_mm"))
-    lines += section
+                                       cell=s.get("cell"), thickness=summaries.get("sheet_thickness_mm"),
+                                       chart_note=chart_note)
+    lines += section or missing_lines(beside.get("chart"))  # without the constants, where the chart would be
     diffs += found
     section, found = uncertainty_rows(s["homogenize"], s.get("homogenize_timings")) if "homogenize" in s else ([], [])
-    lines += section + size_study_rows(s.get("size_study"), pictures.get("size_study"), s.get("homogenize_timings"))
+    size_note, size_diffs = source_lines(beside.get("cell_size"), "cell")
+    size_file = (beside.get("cell_size") or {}).get("file", "homogenize/convergence.json")
+    lines += section + size_study_rows(s.get("size_study"), pictures.get("size_study"),
+                                       s.get("size_study_timings") or s.get("homogenize_timings"),
+                                       source=size_file, preface=size_note)
+    lines += missing_lines(beside.get("cell_size"), SIZE_HEADING)
     lines += robot_spread_rows(s.get("robot")) + print_rows(s.get("print_consistency"))
-    diffs += found
+    diffs += found + size_diffs
     if "robot" in s:
         flat = []
         for k, v in sorted(s["robot"].items()):
@@ -171,9 +193,10 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     section, found = model_section(s.get("robot"), s.get("anisotropy"))
     lines += section
     diffs += found
-    section, found = convergence_section(s.get("convergence"), summaries.get("meshes") or {})
-    lines += section
-    diffs += found
+    conv_note, conv_diffs = source_lines(beside.get("convergence"), "robot")
+    section, found = convergence_section(s.get("convergence"), summaries.get("meshes") or {}, preface=conv_note)
+    lines += section + missing_lines(beside.get("convergence"), CONVERGENCE_HEADING)
+    diffs += found + conv_diffs
     section, found = reduce_section(s.get("reduce_json"), summaries.get("reduce_seconds"))
     lines += section
     diffs += found
@@ -197,7 +220,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                           ("smallest Jacobian singular value", w["min_singular_value"]),
                           ("connected components", w["components"]),
                           ("continuity paths passed / tested", f"{w['edges_passed']} / {w['edges_tested']}"),
-                          ("wall time [s]", w["wall_s"]), ("time per tried point [s]", w["s_per_point"]),
+                          *_point_time(w, s.get("workspace_timings")),
                           ("executor", w["executor"]), ("robot model", w["model"]),
                           ("rotation test", _rotation_test(w.get("rotation_test")))]), ""]
         section, found = _reduced("workspace", w)

@@ -11,7 +11,6 @@ run leaves no half-written unit.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import os
 import pickle
@@ -21,21 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from ..executor import Executor
+from ..provenance import code_digest
 
 #: The keys each cache directory was asked for in this process (stages run in threads).
 _USED: dict[Path, set[str]] = {}
 _USED_LOCK = threading.Lock()
-
-
-@functools.cache
-def code_digest() -> str:
-    """sha256 of metasheet's Python sources (each ``.py`` file's path in the package and bytes),
-    once per process: a unit result kept on disk is reused by the same code only."""
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for f in sorted(root.rglob("*.py")):
-        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
-    return h.hexdigest()
 
 
 def unit_key(item: Any) -> str:

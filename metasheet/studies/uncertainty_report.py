@@ -77,13 +77,19 @@ def uncertainty_rows(h: Mapping, timings: Mapping | None) -> tuple[list[str], li
     return [*lines, text, ""], diffs
 
 
-def size_study_rows(conv: Mapping | None, picture: str | None, timings: Mapping | None = None) -> list[str]:
+#: the cell-size study's heading (also over the line naming the command, when the study is not there)
+SIZE_HEADING = "### Cell-size study"
+
+
+def size_study_rows(conv: Mapping | None, picture: str | None, timings: Mapping | None = None, *,
+                    source: str = "homogenize/convergence.json", preface: list[str] = ()) -> list[str]:
     """The cell-size study: per size the means and half-widths, the trend verdicts, and what the
-    relative target would cost at each size (``timings``: the homogenize manifest's)."""
+    relative target would cost at each size (``timings``: the homogenize manifest's).
+    ``source``: the file it came from; ``preface``: lines after the heading."""
     if not conv or not conv.get("sizes"):
         return []
     names = list(conv["constants"])
-    lines = ["### Cell-size study (homogenize/convergence.json)", ""]
+    lines = [f"{SIZE_HEADING} ({source})", "", *preface]
     if picture:
         lines += [f"![cell-size study]({picture})", ""]
     lines += ["| cells | k | " + " | ".join(f"{n} [{_UNITS.get(n, '-')}]" for n in names) + " |",

@@ -3,25 +3,54 @@ studies, each labelled with the paper figure it reproduces, and the differences 
 
 Reads the summaries (``<stage>.json``, or the manifest's summary) of whichever study stages
 ran, copies their pictures next to ``report.md`` so the page is self-contained.
+
+The studies of our own model that are not the paper's figures run as pipelines of their
+own (issue 59): the design chart, the cell-size study and the robot's mesh convergence.
+``[report] chart``, ``cell_size`` and ``convergence`` name those pipelines' runs; the report
+reads their outputs beside its own (``<out root>/<run>/<stage>/``) when this pipeline does
+not hold them itself, and otherwise names the command that makes them. Their outputs are
+inputs of the report's cache key (:attr:`~metasheet.pipeline.registry.Stage.siblings`).
 """
 
 from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from ...studies.report import build_report
 from ..artefacts import read_cell_design, read_cell_info, read_chart, read_constants, read_material, read_summary
+from ..config import check_run_name
 from ..manifest import read_manifest
 from ..registry import Params, Stage, StageContext, register
 
 STUDIES = ("workspace", "ranges", "anisotropy", "maze")
 
+#: [report] key -> (the stage of that pipeline the report reads, the file it needs, what it holds)
+SIBLINGS = {"chart": ("chart", "chart.csv", "the design chart"),
+            "cell_size": ("homogenize", "convergence.json", "the cell-size study"),
+            "convergence": ("robot", "convergence.json", "the robot's mesh convergence")}
+_BESIDE = ("run name of the pipeline beside this one (the same output root) whose {} the report shows when "
+           "this pipeline has none; '': none")
+
 
 class ReportParams(Params):
     title: str = Field("metasheet: reproduction of the paper's studies", description="report title")
+    chart: str = Field("", description=_BESIDE.format("chart stage (chart.csv)"))
+    cell_size: str = Field("", description=_BESIDE.format("cell-size study (homogenize/convergence.json)"))
+    convergence: str = Field("", description=_BESIDE.format("mesh convergence (robot/convergence.json)"))
+
+    @field_validator("chart", "cell_size", "convergence")
+    @classmethod
+    def _run_name(cls, name: str) -> str:
+        return check_run_name(name) if name else name
+
+
+def sibling_folders(p: ReportParams) -> tuple[str, ...]:
+    """The other pipelines' stage folders the report reads when they have outputs."""
+    return tuple(f"{getattr(p, key)}/{stage}" for key, (stage, _, _) in SIBLINGS.items() if getattr(p, key))
 
 
 def run(ctx: StageContext) -> dict:
@@ -32,21 +61,32 @@ def run(ctx: StageContext) -> dict:
         if png.exists():
             shutil.copyfile(png, ctx.path(png.name))
             pictures[name] = png.name
+    if "workspace" in ctx.inputs:  # its clocks: the manifest's, never the result's
+        summaries["workspace_timings"] = (read_manifest(ctx.inputs["workspace"]) or {}).get("timings_s")
     if "homogenize" in ctx.inputs:
         h = ctx.inputs["homogenize"]
         summaries["homogenize"] = read_constants(h)
         summaries["homogenize_timings"] = (read_manifest(h) or {}).get("timings_s")
-        if (h / "convergence.json").exists():  # the cell-size study
-            summaries["size_study"] = json.loads((h / "convergence.json").read_text())
-            if (h / "convergence.png").exists():
-                shutil.copyfile(h / "convergence.png", ctx.path("homogenize_convergence.png"))
-                pictures["size_study"] = "homogenize_convergence.png"
+    notes = {}
+    h, notes["cell_size"] = _source(ctx, "cell_size")
+    if h is not None:  # the cell-size study: this pipeline's homogenize, or the cell-size pipeline's
+        summaries["size_study"] = json.loads((h / "convergence.json").read_text())
+        summaries["size_study_timings"] = (read_manifest(h) or {}).get("timings_s")
+        if (h / "convergence.png").exists():
+            shutil.copyfile(h / "convergence.png", ctx.path("homogenize_convergence.png"))
+            pictures["size_study"] = "homogenize_convergence.png"
+        if notes["cell_size"]:
+            notes["cell_size"]["differs"] = _differs(h, ctx.inputs.get("homogenize"), ("cell",))
     if "printmap" in ctx.inputs and (ctx.inputs["printmap"] / "print_consistency.json").exists():
         summaries["print_consistency"] = json.loads((ctx.inputs["printmap"] / "print_consistency.json").read_text())
-    if "chart" in ctx.inputs:
+    chart, notes["chart"] = _source(ctx, "chart")
+    if chart is not None:
         from ...homogenize.chart import rows_of
 
-        summaries["chart"] = {"rows": rows_of(read_chart(ctx.inputs["chart"])), "shrink": _cell_shrink(ctx)}
+        summaries["chart"] = {"rows": rows_of(read_chart(chart)), "shrink": _cell_shrink(ctx)}
+        if notes["chart"] and (chart / "chart.png").exists():  # the chart pipeline's picture, as its own was
+            shutil.copyfile(chart / "chart.png", ctx.path("chart.png"))
+            pictures["chart"] = "chart.png"
     if "cell" in ctx.inputs:
         info = read_cell_info(ctx.inputs["cell"])
         summaries["cell"] = {k: info[k] for k in ("name", "kind", "size_mm", "mean_void_chord_mm", "seed_count")
@@ -59,9 +99,13 @@ def run(ctx: StageContext) -> dict:
         m = read_material(ctx.inputs["material"])
         summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source,
                                  "model": m.model}
-    if "robot" in ctx.inputs and (ctx.inputs["robot"] / "convergence.json").exists():
-        summaries["convergence"] = json.loads((ctx.inputs["robot"] / "convergence.json").read_text())
+    conv, notes["convergence"] = _source(ctx, "convergence")
+    if conv is not None:  # the robot's mesh study: this pipeline's robot, or the convergence pipeline's
+        summaries["convergence"] = json.loads((conv / "convergence.json").read_text())
         summaries["meshes"] = _robot_meshes(ctx)
+        if notes["convergence"]:
+            notes["convergence"]["differs"] = _differs(conv, ctx.inputs.get("robot"), ("orient", "material"))
+    summaries["siblings"] = {k: v for k, v in notes.items() if v}
     if "reduce" in ctx.inputs and (ctx.inputs["reduce"] / "reduce.json").exists():
         summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
         summaries["reduce_seconds"] = (read_manifest(ctx.inputs["reduce"]) or {}).get("wall_time_s")
@@ -84,6 +128,39 @@ def run(ctx: StageContext) -> dict:
     text = build_report(summaries, pictures, title=ctx.params.title)
     ctx.path("report.md").write_text(text)
     return {"sections": sorted(k for k, v in summaries.items() if v), "pictures": sorted(pictures.values())}
+
+
+def _source(ctx: StageContext, key: str) -> tuple[Path | None, dict | None]:
+    """Where the report reads the study ``key`` of :data:`SIBLINGS` from, and the note on it.
+
+    This pipeline's own stage when it wrote the study's file (no note); else the sibling
+    pipeline's stage folder named by ``[report] <key>`` when it did (a note ``found``); else
+    None and a note that is not ``found`` (the report names the command), or no note when
+    ``[report] <key>`` is empty.
+    """
+    stage, filename, what = SIBLINGS[key]
+    own = ctx.inputs.get(stage)
+    if own is not None and (own / filename).exists():
+        return own, None
+    run = getattr(ctx.params, key)
+    if not run:
+        return None, None
+    rel = f"{run}/{stage}"
+    folder = ctx.siblings.get(rel)
+    found = folder is not None and (folder / filename).exists()
+    note = {"what": what, "pipeline": run, "file": f"{rel}/{filename}", "found": found}
+    return (folder if found else None), note
+
+
+def _differs(theirs: Path, ours: Path | None, stages: tuple[str, ...]) -> list[str] | None:
+    """The upstream ``stages`` whose outputs the sibling's stage (folder ``theirs``) read and this
+    pipeline's same stage (``ours``) did not, by the content hashes their manifests record; None
+    when there is nothing to compare (this pipeline has no such stage, or its manifest names
+    none of ``stages``)."""
+    mine = (read_manifest(ours) or {}).get("inputs", {}) if ours is not None else {}
+    other = (read_manifest(theirs) or {}).get("inputs", {})
+    common = [s for s in stages if s in mine]
+    return [s for s in common if other.get(s) != mine[s]] if common else None
 
 
 def _columns(ctx: StageContext, name: str, pictures: dict) -> dict:
@@ -141,5 +218,6 @@ register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
               "ranges", "anisotropy", "maze", "sheet", "design"),
-    outputs=("report.md",), doc="Markdown report of the studies, labelled with the paper's figures",
+    siblings=sibling_folders, outputs=("report.md",),
+    doc="Markdown report of the studies, labelled with the paper's figures",
 ))

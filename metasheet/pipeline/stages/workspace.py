@@ -108,7 +108,10 @@ def _run_one(ctx: StageContext) -> dict:
         from ...studies.workspace import domain_spec
 
         at_rest = rest_rotations(domain_spec(spec, settings), settings)
+    # clocks go to the manifest (timings_s), never into a result: the same run gives the same bytes
     wall = time.perf_counter() - t0
+    ctx.timings["points"] = wall
+    ctx.timings["s_per_point"] = wall / max(1, int(r.tried.sum()))
     header = (["point", "ray", "step", "x_mm", "y_mm", "z_mm", "class", "class_name", "tried", "reached",
                "error_mm", "error_deg", "iterations"] + [f"motor{k}_deg" for k in range(r.motors_deg.shape[1])]
               + [f"rot{c}_error_deg" for c in ROT_COLS] + [f"rot{c}_error_mm" for c in ROT_COLS]
@@ -151,7 +154,6 @@ def _run_one(ctx: StageContext) -> dict:
         "components": res.n_components, "edges_tested": res.edges_tested, "edges_passed": res.edges_passed,
         "in_rest_component": int((res.component == 0).sum()),
         "near_rest": near_rest_control(res.goals, res.cls, r.reached, MODELS.get(spec).rest_pose()[:3], p.near_rest_mm),
-        "wall_s": round(wall, 2), "s_per_point": round(wall / max(1, int(r.tried.sum())), 4),
         "executor": ctx.executor.kind, "model": p.model,
         "material_model": getattr(spec, "model", None),
         "rotation_test": {"test": settings.test, "rot_deg": settings.rot_deg, "tol_rot_deg": settings.tol_rot_deg,
