@@ -1,5 +1,7 @@
+"""Shared pytest options and the expensive fixtures several test files share, each computed
+once per session. Keep this file small and general."""
+
 import pytest
-"""Shared pytest options. Keep this file small and general."""
 
 
 def pytest_addoption(parser):
@@ -28,3 +30,19 @@ def foam_rest_14(foam_robot_14):
     from metasheet.robot.equilibrium import solve_equilibrium
 
     return solve_equilibrium(foam_robot_14, foam_robot_14.coupling.rest_angles, tol=1e-10)
+
+
+@pytest.fixture(scope="session")
+def quick_outputs(tmp_path_factory):
+    """The quick pipeline run once per session through ``printmap`` (cell, homogenize, material,
+    orient, printmap): its output root, holding ``quick/<stage>/``. Read it; a test that runs a
+    stage again copies it first (``shutil.copytree``), and the copy's stages stay cached."""
+    from pathlib import Path
+
+    from metasheet.pipeline.config import load_pipeline
+    from metasheet.pipeline.runner import run_pipeline
+
+    root = tmp_path_factory.mktemp("quick-outputs")
+    pipeline = load_pipeline(Path(__file__).resolve().parents[1] / "pipelines" / "quick.toml")
+    run_pipeline(pipeline, out_root=root, only="printmap")
+    return root

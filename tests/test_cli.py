@@ -5,6 +5,8 @@ debris and clean in ``test_reliability_lock.py``.
 """
 
 import json
+import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -32,9 +34,13 @@ def test_stages_lists_material():
     assert r.returncode == 0 and "material" in r.stdout
 
 
-def test_run_writes_manifest(tmp_path):
+def test_run_writes_manifest(tmp_path, quick_outputs):
+    """A real run of the command: the session's quick outputs copied without their material
+    stage, which runs again (its upstream stages cached)."""
+    shutil.copytree(quick_outputs / "quick", tmp_path / "quick", ignore=shutil.ignore_patterns("material"))
     r = cli("run", "pipelines/quick.toml", "--stage", "material", "--out", str(tmp_path))
     assert r.returncode == 0, r.stderr
+    assert re.search(r"material\s+│ ran", r.stdout), r.stdout
     assert (tmp_path / "quick/material/material.json").is_file()
     manifest = json.loads((tmp_path / "quick/material/manifest.json").read_text())
     assert {"started", "wall_time_s", "cpu_s", "timings_s"} <= manifest.keys()

@@ -186,14 +186,25 @@ def test_roll_index_is_the_roll_direction(problem):
     assert roll_index(weak, axis) == 5
 
 
+@pytest.mark.slow
 def test_multi_start_keeps_the_best_feasible_run(problem):
     """Three starts (the spiral, two seeded random points): every run is recorded, the kept one
-    is feasible with the largest roll among the feasible ones, and the same seed repeats it."""
+    is feasible with the largest roll among the feasible ones, and the same seed repeats it.
+    Default-selection sibling: test_multi_start_on_two_short_runs."""
+    _multi_start(problem, starts=3, maxiter=15)
+
+
+def test_multi_start_on_two_short_runs(problem):
+    """The slow test's checks on two starts of 5 SLSQP iterations."""
+    _multi_start(problem, starts=2, maxiter=5)
+
+
+def _multi_start(problem, starts, maxiter):
     st = StrainSettings(limit=0.26)
-    kw = dict(maxiter=15, bound_deg=90.0, strain=st, floor_ratio=1.0, problem=problem, starts=3, seed=5)
+    kw = dict(maxiter=maxiter, bound_deg=90.0, strain=st, floor_ratio=1.0, problem=problem, starts=starts, seed=5)
     r = free_form(None, None, {}, problem.field.basis, 30.0, **kw)
     runs = r["record"]["starts"]["runs"]
-    assert len(runs) == 3
+    assert len(runs) == starts
     feasible = [x["ratio_abs_roll"] for x in runs if x["feasible"]]
     assert feasible and r["record"]["ratio_abs_roll"] == max(feasible)
     assert runs[r["record"]["starts"]["kept"]]["ratio_abs_roll"] == max(feasible)

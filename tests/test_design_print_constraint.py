@@ -18,9 +18,8 @@ from metasheet.robot import SheetPair
 from metasheet.sheet import SheetParams
 
 
-@pytest.fixture(scope="module")
-def case():
-    params = SheetParams(mesh_size=15.0)
+def _case(mesh_size):
+    params = SheetParams(mesh_size=mesh_size)
     mesh = SheetPair.spiral(params, pitch_deg=30.0).sheet
     basis = PolarBSpline(n_radial=2, n_angular=3, degree=1, r_max=68.0, symmetric=True)
 
@@ -31,11 +30,33 @@ def case():
     return params, mesh, basis, spiral, pc
 
 
+@pytest.fixture(scope="module")
+def case():
+    """The coarse robot's sheet (15 mm) for the slow tests."""
+    return _case(15.0)
+
+
+@pytest.fixture(scope="module")
+def coarse_case():
+    """A 24 mm sheet for their default-selection siblings."""
+    return _case(24.0)
+
+
 def _field(spiral, basis, c):
     return lambda q: spiral(q) + basis.design_matrix(q) @ c
 
 
+@pytest.mark.slow
 def test_derivative_equals_central_differences(case):
+    """Default-selection sibling: test_derivative_equals_central_differences_on_a_coarse_sheet."""
+    _derivative_check(case)
+
+
+def test_derivative_equals_central_differences_on_a_coarse_sheet(coarse_case):
+    _derivative_check(coarse_case)
+
+
+def _derivative_check(case):
     params, mesh, basis, spiral, pc = case
     cent = foam_centroids(mesh.points, mesh.tets, params)
     _, seam0, _ = read_back_errors(mesh.points, mesh.tets, params, spiral, cent)
@@ -51,7 +72,17 @@ def test_derivative_equals_central_differences(case):
         np.testing.assert_allclose(pc.G[:, j], fd, rtol=0, atol=1e-6 * np.abs(fd).max())
 
 
+@pytest.mark.slow
 def test_prediction_and_the_8_bit_check_at_another_design(case):
+    """Default-selection sibling: test_prediction_and_the_8_bit_check_on_a_coarse_sheet."""
+    _prediction_check(case)
+
+
+def test_prediction_and_the_8_bit_check_on_a_coarse_sheet(coarse_case):
+    _prediction_check(coarse_case)
+
+
+def _prediction_check(case):
     params, mesh, basis, spiral, pc = case
     c = np.array([0.3, -0.25])  # [rad], tens of degrees
     cent = foam_centroids(mesh.points, mesh.tets, params)
@@ -66,7 +97,7 @@ def test_prediction_and_the_8_bit_check_at_another_design(case):
     assert np.allclose(pc.slack_jacobian(c) @ c, slack - pc.slack(np.zeros(2)))
 
 
-def test_no_budget_is_refused(case):
-    params, mesh, basis, spiral, _ = case
+def test_no_budget_is_refused(coarse_case):
+    params, mesh, basis, spiral, _ = coarse_case
     with pytest.raises(ConfigError, match="angle_tolerance_deg"):
         print_constraint(mesh.points, mesh.tets, params, spiral, basis.design_matrix, tolerance_deg=0.5)

@@ -74,7 +74,10 @@ def test_cell_constants(tmp_path):
     assert n["misfit"] < 0.1  # the TI fit holds 93 % of the stiffness (Frobenius, Mandel)
 
 
+@pytest.mark.slow
 def test_chart_lookup(tmp_path):
+    """Nine cells homogenised (about 12 s on 2 quiet cores). Default siblings: the chart's own
+    tests (test_homogenize_chart.py) and this file's listing check of the script."""
     n = run("chart_lookup", tmp_path)
     assert n["points"] == 9
     # measured: 3 x 3 Polyfoam chart, 0.4 mm voxels, target E_t 2, E_l 0.3 MPa
@@ -136,7 +139,10 @@ def test_goto(tmp_path):
     assert sil["rot_error_deg"] == pytest.approx(6.0, abs=0.1)
 
 
+@pytest.mark.slow
 def test_small_workspace(tmp_path):
+    """Default siblings: the workspace study on coarse robots (test_studies_core.py,
+    test_studies_robot.py) and this file's listing check of the script."""
     n = run("small_workspace", tmp_path)
     # measured: 3 + 2 rays of 2 steps on the P1 14 mm robot; all reached, one connected piece
     assert n["goals"] == 10 and n["reached"] == 10 and n["unreachable"] == 0

@@ -7,7 +7,8 @@ The schedule's decisions on made-up certificates (exact); the stage itself on a 
 (20 mm P1 sheets, 1,868 elements, rest +- 8 deg; 13-20 s a round): a deliberately small first
 round (8 snapshots: 0.092 mm, 5.4 %) grows into one that meets the targets (16 snapshots,
 tangent_tol halved: 0.012 mm, 0.71 %), a budget too small stops with ``certificate_met`` false
-and its reason; the budget's fields are validated when a pipeline is loaded.
+and its reason, a time budget spent (issue 59) with ``stopped: "time"`` and the certificate's
+shortfall; the budget's fields are validated when a pipeline is loaded.
 """
 
 import json
@@ -17,7 +18,8 @@ import math
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.rom.adapt import STOP_REASONS, Budget, Settings, chosen, miss_ratio, missed, next_round, round_record
+from metasheet.rom.adapt import (STOP_REASONS, Budget, Settings, chosen, miss_ratio, missed, next_round, out_of_time,
+                                 round_record, shortfall, shortfall_text)
 from metasheet.rom.certificate import TARGETS
 from metasheet.studies.reduce_report import reduce_section
 
@@ -80,6 +82,29 @@ def test_each_budget_stops_the_rounds_with_its_reason():
     assert set(STOP_REASONS) >= {"met", "rounds", "snapshots", "elements", "no_poses", "failed"}
 
 
+def test_the_time_budget_forbids_a_round_that_would_not_end_within_it():
+    timed = Budget(rounds=3, max_snapshots=100, growth=2.0, max_elements=500, seconds=180.0)
+    assert not out_of_time(timed, 100.0, 80.0)  # 180 s: the next round, at least as long, may fit
+    assert out_of_time(timed, 100.0, 80.5) and out_of_time(timed, 181.0, 0.0)
+    assert not out_of_time(BUDGET, 1e9, 1e9)  # no time budget: never
+    assert "time" in STOP_REASONS and "depends on the machine" in STOP_REASONS["time"]
+
+
+def test_the_shortfall_names_each_missed_measure_with_its_worst_and_target():
+    short = shortfall(_cert(pos=0.2, jac=0.05))
+    assert list(short) == ["position_mm", "jacobian_rel"]
+    assert short["position_mm"] == {"worst": 0.2, "target": 0.1, "ratio": pytest.approx(2.0), "failed": 0}
+    assert shortfall_text(short) == "position_mm 0.2 against 0.1 (2x), jacobian_rel 0.05 against 0.02 (2.5x)"
+    failed = _cert()
+    failed["position_mm"].update(failed=1, met=False)
+    assert shortfall_text(shortfall(failed)) == "position_mm 0.05 against 0.1 (0.5x, 1 pose(s) failed)"
+    assert shortfall(_cert()) == {} and shortfall_text({}) == ""
+    none = shortfall(_cert(poses=0))  # nothing compared: every measure missed, no ratio stated
+    assert set(none) == set(TARGETS)
+    assert shortfall_text({"position_mm": {"worst": None, "target": 0.1, "ratio": None, "failed": 0}}) == \
+        "position_mm: no pose compared"
+
+
 def test_the_round_kept_is_the_first_met_else_the_closest_to_the_targets():
     assert missed(_cert(pos=0.2, jac=0.05)) == ("position_mm", "jacobian_rel")
     assert miss_ratio(_cert(jac=0.05)) == pytest.approx(2.5) and miss_ratio(_cert(poses=0)) == math.inf
@@ -116,6 +141,21 @@ def test_the_report_states_the_rounds_and_a_budget_spent_without_the_targets():
     r2 = round_record(2, Settings(48, 0.01, 0.02, 0.005), INFO, _cert(), 0)
     lines, diffs = reduce_section(_reduce_json([r1, r2], met=True))
     assert "the targets were met in round 2" in "\n".join(lines) and diffs == []
+    assert "The time budget" not in "\n".join(lines)
+
+
+def test_the_report_says_a_time_budget_spent_and_the_shortfall():
+    red = _reduce_json([round_record(1, FIRST, INFO, _cert(jac=0.05), 0)], met=False)
+    red["adaptation"].update(stopped="time", reason="time budget spent after 1 round(s) (time_budget_s = 120 s; "
+                             "another round would not end within it): this result depends on the machine's speed "
+                             "and load", shortfall=shortfall(_cert(jac=0.05)))
+    red["adaptation"]["budget"]["time_budget_s"] = 120.0
+    lines, diffs = reduce_section(red)
+    text = "\n".join(lines)
+    assert "(budget: 2 rounds, 48 snapshots, 2400 elements, 120 s)" in text
+    assert "**The time budget stopped the rounds after 1: this model depends on the machine's speed and load**" in text
+    assert "The certificate misses: Jacobian [relative Frobenius] worst 0.05 against 0.02 (2.5 times)." in text
+    assert "time budget spent after 1 round(s)" in diffs[0] and "it misses Jacobian" in diffs[0]
 
 
 # -- the stage on a coarse robot ------------------------------------------------------------------
@@ -132,14 +172,18 @@ def tiny(tmp_path_factory):
 
 
 def _run(tiny, name, **params):
-    """The reduce stage with ``params`` on the tiny robot, in its own folder: (reduce.json, summary)."""
+    """The reduce stage with ``params`` on the tiny robot, in its own folder: (reduce.json, summary).
+    No time budget unless ``params`` gives one: the rounds' results must not depend on how
+    loaded the test machine is."""
     from metasheet.pipeline.registry import StageContext
     from metasheet.pipeline.stages import reduce as stage
 
     root, out = tiny
     work = out / name
     work.mkdir()
-    p = stage.ReduceParams(box_deg=8.0, held_out=4, surface_equilibria=16, surface_check=0, resume=False, **params)
+    params = {"box_deg": 8.0, "held_out": 4, "surface_equilibria": 16, "surface_check": 0, "resume": False,
+              "time_budget_s": 86400.0, **params}
+    p = stage.ReduceParams(**params)
     inputs = {n: out / "tiny" / n for n in ("orient", "material", "robot")}
     summary = stage.run(StageContext("reduce", p, work, inputs, root))
     return json.loads((work / "reduce.json").read_text()), summary
@@ -191,6 +235,42 @@ def test_a_budget_too_small_stops_with_the_certificate_not_met_and_says_why(tiny
     assert "after 1 training round(s): the snapshot budget (max_snapshots) is spent" in diffs[0]
 
 
+#: a cheap first round that misses the targets (~6 CPU s with the stage): the point is the stop, not the model
+LOOSE = {"snapshots": 4, "held_out": 1, "fit_tol_mm": 1.0, "fit_jacobian_tol": 0.5, "ecsw_tol": 0.02}
+
+
+def test_a_time_budget_spent_stops_after_the_first_round_and_states_the_shortfall(tiny, caplog):
+    """A budget of ~0: the first round completes (there is no model without it), no second one
+    starts, and reduce.json, the warning and the report say why and what the certificate misses."""
+    with caplog.at_level(logging.WARNING, logger="metasheet.pipeline.stages.reduce"):
+        red, summary = _run(tiny, "timed", **LOOSE, time_budget_s=1e-3)
+    ad = red["adaptation"]
+    assert [r["snapshots"] for r in ad["rounds"]] == [4] and ad["stopped"] == summary["stopped"] == "time"
+    assert ad["reason"] == ("time budget spent after 1 round(s) (time_budget_s = 0.001 s; another round would not "
+                            "end within it): this result depends on the machine's speed and load")
+    assert red["certificate_met"] is False and ad["budget"]["time_budget_s"] == 1e-3
+    assert list(ad["shortfall"]) == list(missed(red["certificate"])) and ad["shortfall"]
+    for name, m in ad["shortfall"].items():
+        assert m["worst"] == red["certificate"][name]["worst"] > m["target"] == TARGETS[name]
+    assert "certificate NOT met after 1 round(s): time budget spent" in caplog.text and "it misses " in caplog.text
+    lines, diffs = reduce_section(red)
+    assert "**The time budget stopped the rounds after 1: this model depends on the machine's speed and load**" \
+        in "\n".join(lines)
+    assert "time budget spent after 1 round(s)" in diffs[0]
+
+
+def test_a_later_round_under_way_when_the_time_runs_out_is_abandoned(tiny, monkeypatch):
+    """The estimate let round 2 start (forced here), the budget ran out while it solved its
+    snapshots: it is abandoned after its first, and round 1's model stands."""
+    from metasheet.pipeline.stages import reduce as stage
+
+    monkeypatch.setattr(stage, "out_of_time", lambda *a: False)
+    red, summary = _run(tiny, "abandoned", **LOOSE, time_budget_s=1e-3)
+    ad = red["adaptation"]
+    assert [r["snapshots"] for r in ad["rounds"]] == [4] and ad["stopped"] == "time" and ad["chosen_round"] == 1
+    assert "round 2 abandoned while it solved its snapshots" in ad["reason"]
+
+
 def _pipeline(tmp_path, table: str):
     (tmp_path / "cells").mkdir(exist_ok=True)
     (tmp_path / "pipelines").mkdir(exist_ok=True)
@@ -205,6 +285,12 @@ def _pipeline(tmp_path, table: str):
     ("max_elements_fraction = 0", r"reduce\.max_elements_fraction: 0: .*allowed range is \(0, 1\]"),
     ("max_snapshots = 3", r"reduce\.max_snapshots: 3: .*allowed range is \[4, 2000\]"),
     ("snapshots = 48\nmax_snapshots = 24", r"reduce\.max_snapshots: 24: allowed range \[snapshots = 48, 2000\]"),
+    ("time_budget_s = -1.0", r"reduce\.time_budget_s: -1\.0: .*allowed range is \(0, 86400\]"),
+    ("time_budget_s = 0", r"reduce\.time_budget_s: 0: .*allowed range is \(0, 86400\]"),
+    ("time_budget_s = 1e6", r"reduce\.time_budget_s: 1000000\.0: .*allowed range is \(0, 86400\]"),
+    ("time_budget_s = nan", r"reduce\.time_budget_s: nan: .*allowed range is \(0, 86400\]"),
+    ("time_budget_s = inf", r"reduce\.time_budget_s: inf: .*allowed range is \(0, 86400\]"),
+    ('time_budget_s = "three minutes"', r"reduce\.time_budget_s: 'three minutes': .*number"),
 ])
 def test_the_budget_is_validated_when_the_pipeline_is_loaded(tmp_path, table, message):
     from metasheet.pipeline.config import load_pipeline

@@ -40,14 +40,30 @@ def _tree(root: Path) -> dict[str, bytes]:
 BLAS_THREADS = {"a": "2", "b": "1"}
 
 
+@pytest.mark.slow
+@pytest.mark.slow_ci
 def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
-    """Not marked slow: CI runs it (two quick runs, about a minute each on 2 shared cores).
-    Not marked ``bytes`` either: it sets the BLAS threads of each run itself (2, then 1), so
-    .ci/run's reruns under 1 and 2 threads would repeat it unchanged (2 x 2 minutes).
+    """The whole quick pipeline, robot included (about 70 s on 2 quiet cores); its default
+    sibling is :func:`test_quick_pipeline_to_material_twice_from_scratch_gives_the_same_bytes`.
+    Not marked ``bytes``: it sets the BLAS threads of each run itself (2, then 1), so .ci/run's
+    reruns under 1 and 2 threads would repeat it unchanged.
     The first runs serially with two BLAS threads asked for, the second with one, on a pool of
     two workers, its independent stages at once (``stages_at_once = 2``: printmap beside
     robot, both drawing pictures): the same bytes. Before: 10 of 26 files differed between
     the default threads and one (the Jacobian by 9e-9)."""
+    _twice_from_scratch(tmp_path, [])
+
+
+def test_quick_pipeline_to_material_twice_from_scratch_gives_the_same_bytes(tmp_path):
+    """The same two runs up to the material stage (cell, homogenize, material: the voxels, the
+    corrector solves and their BLAS sums, where threads split work)."""
+    _twice_from_scratch(tmp_path, ["--stage", "material"])
+
+
+def _twice_from_scratch(tmp_path: Path, only: list[str]) -> None:
+    """Run the quick pipeline (``only``: extra ``metasheet run`` arguments) twice from scratch
+    in copies of the project, serially with two BLAS threads, then on two workers with one;
+    assert the same bytes in every output and the same manifests but for the clocks."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}  # cold, as on a fresh clone
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     env.pop(cpu.DECISION, None)  # each run decides its code paths as a user's would (metasheet.cpu)
@@ -56,11 +72,11 @@ def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
         project = tmp_path / f"project_{run}"
         for d in ("cells", "pipelines"):
             shutil.copytree(ROOT / d, project / d)
-        extra = []
+        extra = list(only)
         if run == "b":
             toml = project / "pipelines" / "quick.toml"
             toml.write_text(toml.read_text().replace("[pipeline]\n", "[pipeline]\nstages_at_once = 2\n", 1))
-            extra = ["--workers", "2"]
+            extra += ["--workers", "2"]
         threads = {v: BLAS_THREADS[run] for v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")}
         t0 = time.perf_counter()
         r = subprocess.run([sys.executable, "-m", "metasheet.cli", "run", "pipelines/quick.toml",
@@ -73,7 +89,8 @@ def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
     assert a.keys() == b.keys()
     assert not any(".tmp-" in k or ".old-" in k for k in a)
     manifests = [k for k in a if k.endswith("manifest.json")]
-    assert len(manifests) == len(load_pipeline(project / "pipelines/quick.toml").order)
+    order = load_pipeline(project / "pipelines/quick.toml").order
+    assert len(manifests) == (order.index(only[1]) + 1 if only else len(order))
     differ = [k for k in a if k not in manifests and a[k] != b[k]]
     assert differ == [], f"files differ between two runs from scratch: {differ}"
     for k in manifests:

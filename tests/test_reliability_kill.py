@@ -70,8 +70,10 @@ def debris(project: Path) -> list[str]:
     return sorted(p.name for p in base.iterdir() if p.name.startswith(".")) if base.exists() else []
 
 
-@pytest.mark.parametrize(("signum", "side_by_side"), [(signal.SIGTERM, False), (signal.SIGINT, True),
-                                                        (signal.SIGHUP, False)])
+# SIGINT (with a stage beside the pooled one) and SIGHUP take the same handler as SIGTERM: slow
+@pytest.mark.parametrize(("signum", "side_by_side"), [
+    (signal.SIGTERM, False), pytest.param(signal.SIGINT, True, marks=pytest.mark.slow),
+    pytest.param(signal.SIGHUP, False, marks=pytest.mark.slow)])
 def test_a_stop_signal_during_a_pooled_stage_stops_every_process_at_once(project, signum, side_by_side):
     run = start(project, "run", str(pooled(project, 120.0, side_by_side=side_by_side)), seconds=120.0)
     workers = wait_for_workers(project, run)
@@ -88,7 +90,11 @@ def test_a_stop_signal_during_a_pooled_stage_stops_every_process_at_once(project
     assert not (project / "outputs" / ".k.lock.json").exists()
 
 
+@pytest.mark.slow
 def test_after_a_sigkill_the_workers_exit_and_the_next_run_equals_a_clean_one(project):
+    """Default sibling: test_reliability_lock.py's
+    ``test_sigkilled_run_then_a_normal_run_leaves_no_temporary_folder`` (the debris after a
+    SIGKILL); the orphaned pool workers' exit is this test's own."""
     toml = pooled(project, 120.0)
     run = start(project, "run", str(toml), seconds=0.0)
     workers = wait_for_workers(project, run)

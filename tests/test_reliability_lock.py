@@ -91,8 +91,10 @@ def test_sigterm_unwinds_like_ctrl_c(project):
     assert not (project / "outputs" / ".p.lock.json").exists()
 
 
+@pytest.mark.slow
 def test_clean_removes_debris_of_dead_processes_and_all_outputs(project):
-    """Before: there was no ``metasheet clean``."""
+    """Before: there was no ``metasheet clean``. Default siblings: test_reliability_confine.py's
+    clean tests (the same ``clean`` code, in process) and test_cli.py's clean command."""
     toml = pipeline(project)
     assert call(project, "run", str(toml)).returncode == 0
     base = project / "outputs" / "p"
@@ -114,7 +116,8 @@ def test_clean_removes_debris_of_dead_processes_and_all_outputs(project):
     assert r.returncode == 0 and "nothing to remove" in r.stdout
 
 
-@pytest.mark.parametrize("where", ["process pool", "dask cluster"])
+# the dask cluster's workers check the lock with the same code as the pool's: slow
+@pytest.mark.parametrize("where", ["process pool", pytest.param("dask cluster", marks=pytest.mark.slow)])
 def test_workers_never_take_the_lock(project, where):
     """The run holds the lock; the workers its stages hand work units to find it taken.
     Before: there was no lock at all (a worker found it free)."""
@@ -137,8 +140,10 @@ def test_workers_never_take_the_lock(project, where):
     assert all(p[1] != first.pid for p in probes)  # they ran in workers
 
 
+@pytest.mark.slow
 def test_waiters_take_their_turn_in_the_order_they_came(project):
-    """A run waiting for the lock goes before a ``clean --all`` that came after it. Before:
+    """Default sibling: :func:`test_second_run_waits_for_the_first_and_outputs_equal_a_single_run`.
+    A run waiting for the lock goes before a ``clean --all`` that came after it. Before:
     whichever polled first after the release won, so the clean could remove the outputs the
     first run wrote and the waiting run then rebuilt them."""
     toml = pipeline(project)

@@ -73,7 +73,10 @@ def _in_box(red, snap) -> bool:
     return red.in_box(np.radians(snap.angles_deg), tol=1e-9)
 
 
+@pytest.mark.slow
 def test_the_reduce_stages_basis_fits_the_robot_serve_builds(build):
+    """Default-selection siblings: test_reduced_session_reports_the_full_models_motor_angles
+    (the basis's robot key is the full robot's) and test_silicone_runs_on_the_full_model_with_a_note."""
     red, info = build("foam")
     full, _ = build("foam", "full")
     assert isinstance(red, ReducedRobot) and red.basis.robot_key == robot_key(full)
@@ -99,6 +102,7 @@ def test_a_basis_of_another_robot_is_a_clear_error(outputs, tmp_path):
 
 def test_reduced_session_reports_the_full_models_motor_angles(session, build):
     red, full = build("foam")[0], build("foam", "full")[0]
+    assert isinstance(red, ReducedRobot) and red.basis.robot_key == robot_key(full)  # the stage's basis fits
     session.set_goal(GOAL_IN)
     snap = session.wait_idle(60)
     assert snap.status == "reached" and snap.model == "reduced" and snap.note == "", snap.message

@@ -41,13 +41,25 @@ def trained(tmp_path_factory):
     return spec, ReducedSpec.from_file(spec, path), basis
 
 
+@pytest.mark.slow
 def test_workspace_classes_agree_or_differences_are_certified(trained):
+    """Default-selection sibling: test_workspace_classes_agree_on_two_rays."""
+    _workspace_classes(trained, 3, 3, 4)
+
+
+def test_workspace_classes_agree_on_two_rays(trained):
+    """The slow test's checks on 2 rays of 2 steps (not 3 of 3)."""
+    _workspace_classes(trained, 2, 2, 2)
+
+
+def _workspace_classes(trained, n_azimuth, n_steps, least_reached):
     spec, rspec, _ = trained
-    grid = star_grid(n_azimuth=3, n_elevation=1, n_steps=3, extent_axial=4.0, extent_lateral=7.0, thin_below=0.0)
+    grid = star_grid(n_azimuth=n_azimuth, n_elevation=1, n_steps=n_steps, extent_axial=4.0, extent_lateral=7.0,
+                     thin_below=0.0)
     s = WorkspaceSettings(max_steps=30, rotations=False, continuity=False)
     full = explore_workspace(spec, grid, s)
     red = explore_workspace(rspec, grid, s)
-    assert full.records.reached.sum() >= 4  # the test says something: points reached on both models
+    assert full.records.reached.sum() >= least_reached  # the test says something: points reached on both models
     differ = np.flatnonzero(full.cls != red.cls)
     assert len(differ) <= 1, (full.cls, red.cls)
     # every point the reduced model reached, re-solved by the full model at its motor angles
@@ -302,7 +314,20 @@ max_steps = 30
 """
 
 
+@pytest.mark.slow
 def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
+    """Default-selection sibling: test_ranges_stage_on_a_coarser_reduced_model."""
+    _ranges_stage(tmp_path, PIPELINE, 20)
+
+
+def test_ranges_stage_on_a_coarser_reduced_model(tmp_path):
+    """The slow test's pipeline and checks on 20 mm sheets, 4 snapshots, 8 surface checks."""
+    text = PIPELINE.replace("mesh_size = 16", "mesh_size = 20").replace("snapshots = 6", "snapshots = 4").replace(
+        "surface_check = 20", "surface_check = 8")
+    _ranges_stage(tmp_path, text, 8)
+
+
+def _ranges_stage(tmp_path, text, surface_check):
     import json
 
     from metasheet.pipeline.config import load_pipeline
@@ -311,7 +336,7 @@ def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
     (tmp_path / "cells").mkdir()
     (tmp_path / "pipelines").mkdir()
     p = tmp_path / "pipelines" / "rq.toml"
-    p.write_text(PIPELINE)
+    p.write_text(text)
     run_pipeline(load_pipeline(p))
     out = tmp_path / "outputs" / "rq"
     r = json.loads((out / "ranges" / "ranges.json").read_text())
@@ -337,12 +362,12 @@ def test_ranges_stage_on_the_reduced_model_records_and_certifies(tmp_path):
     # the surface in its own box (rest +- 7 deg), checked on 20 reduced-model equilibria beside the held-out poses
     surf = red["surface"]
     lo, hi = (np.array(b) for b in surf["box_deg"])
-    assert np.allclose(hi - lo, 14.0) and surf["check"]["equilibria"] == 20
+    assert np.allclose(hi - lo, 14.0) and surf["check"]["equilibria"] == surface_check
     assert surf["certified"] == (surf["check"]["met"] and (surf["certificate"]["poses"] == 0
                                                           or surf["certificate"]["met"]))
     assert surf["certificate"]["poses"] + surf["certificate"].get("poses_beyond_strain", 0) \
         + surf["held_out_outside_box"] == red["certificate"]["poses"] + red["certificate"].get("poses_beyond_strain", 0)
-    assert "further equilibria within the strain limit (of 20;" in text
+    assert f"further equilibria within the strain limit (of {surface_check};" in text
 
 
 def test_the_surface_box_must_lie_in_the_training_box():

@@ -54,15 +54,27 @@ def test_anisotropy_sweep_on_fem(spec):
     assert rot[-1, 1] > 3.0  # a visible rotation with the paper's foam, pushing 35 deg
 
 
+@pytest.mark.slow
 def test_workspace_on_fem_classes_consistent(spec):
-    grid = star_grid(n_azimuth=2, n_elevation=1, n_steps=2, extent_axial=6.0, extent_lateral=8.0, thin_below=0.0)
+    """Default-selection sibling: test_workspace_on_fem_classes_consistent_on_one_step_a_ray."""
+    _workspace_classes(spec, 2, 4)
+
+
+def test_workspace_on_fem_classes_consistent_on_one_step_a_ray(spec):
+    """The slow test's checks on the nearest point of each ray (2 points, not 4)."""
+    _workspace_classes(spec, 1, 2)
+
+
+def _workspace_classes(spec, n_steps, least_reached):
+    grid = star_grid(n_azimuth=2, n_elevation=1, n_steps=n_steps, extent_axial=6.0, extent_lateral=8.0,
+                     thin_below=0.0)
     s = WorkspaceSettings(max_steps=30, substeps=1)
     ws = explore_workspace(spec, grid, s)
     r = ws.records
     assert np.array_equal(r.reached, r.tried & r.converged & (np.nan_to_num(r.error_mm, nan=np.inf) <= s.tol_mm))
     ok = ((r.rot_error_mm <= s.tol_mm) & (r.rot_error_deg <= s.tol_rot_deg)).reshape(-1, 3, 2).all(axis=2)
     assert np.array_equal(ws.cls, np.where(r.reached, ok.sum(axis=1), -1))
-    assert r.reached.sum() >= 4  # the nearest points (3-4 mm) are reachable
+    assert r.reached.sum() >= least_reached  # the nearest points (3-4 mm) are reachable
     m = MODELS.get(spec)
     lo, hi = m.motor_range
     reached = r.reached

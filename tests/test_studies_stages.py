@@ -183,8 +183,20 @@ speed = 10
 """
 
 
+@pytest.mark.slow
 def test_stages_on_coarse_fem_robot(tmp_path):
-    run_pipeline(load_pipeline(project(tmp_path, ROBOT, "rb")))
+    """Default-selection sibling: test_stages_on_a_coarser_fem_robot."""
+    _check_fem_stages(tmp_path, ROBOT)
+
+
+def test_stages_on_a_coarser_fem_robot(tmp_path):
+    """The slow test's pipeline and checks on 20 mm sheets, two fibre angles (0 and 90 deg)."""
+    _check_fem_stages(tmp_path, ROBOT.replace("mesh_size = 14", "mesh_size = 20").replace("n_alpha = 3",
+                                                                                          "n_alpha = 2"))
+
+
+def _check_fem_stages(tmp_path, text):
+    run_pipeline(load_pipeline(project(tmp_path, text, "rb")))
     out = tmp_path / "outputs" / "rb"
     a = read_csv(out / "anisotropy" / "anisotropy.csv")
     rot = np.array([abs(float(r["push_rod_rotation_deg"])) for r in a])

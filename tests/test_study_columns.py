@@ -93,13 +93,26 @@ columns = ["prediction", "reproduction"]
 """
 
 
+@pytest.mark.slow
 def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_field(tmp_path):
+    """Default-selection sibling: test_the_reproduction_robot_on_coarse_sheets."""
+    _reproduction_robot(tmp_path, ROBOT)
+
+
+def test_the_reproduction_robot_on_coarse_sheets(tmp_path):
+    """The slow test's checks with both columns on orient's 20 mm sheets (the reproduction's
+    mesh overridden: not the authors' 5 mm)."""
+    text = ROBOT.replace("mesh_size = 16", "mesh_size = 20") + "reproduction = { mesh_size = 20.0 }\n"
+    _reproduction_robot(tmp_path, text)
+
+
+def _reproduction_robot(tmp_path, text):
     from metasheet import paper
     from metasheet.pipeline.stages._studies import build_spec
     from metasheet.pipeline.registry import StageContext
     from metasheet.pipeline.stages.anisotropy import AnisotropyParams
 
-    run_pipeline(load_pipeline(project(tmp_path, ROBOT, "rc")))
+    run_pipeline(load_pipeline(project(tmp_path, text, "rc")))
     out = tmp_path / "outputs" / "rc"
     inputs = {"orient": out / "orient", "material": out / "material"}
     p = AnisotropyParams(model="robot")
@@ -145,11 +158,29 @@ extent_lateral = 4
 """
 
 
+@pytest.mark.slow
 def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs_on_its_own(tmp_path):
+    """Default-selection sibling: test_one_basis_per_column_on_coarse_sheets."""
+    tets = _one_basis_per_column(tmp_path, REDUCED)
+    assert tets[1] > 2 * tets[0]  # the reproduction on the authors' mesh kind: P1, 5 mm (orient's: 16 mm)
+
+
+def test_one_basis_per_column_on_coarse_sheets(tmp_path):
+    """The slow test's pipeline and checks with the reproduction column on 12 mm sheets (not
+    the authors' 5 mm: its own mesh all the same) and the prediction on orient's 20 mm."""
+    text = REDUCED.replace("mesh_size = 16", "mesh_size = 20").replace(
+        "reproduction = { box_deg = 12.0 }", "reproduction = { box_deg = 12.0, mesh_size = 12.0 }").replace(
+        "extent_lateral = 4\n", "extent_lateral = 4\nreproduction = { mesh_size = 12.0 }\n")
+    assert text.count("mesh_size = 12.0") == 2
+    tets = _one_basis_per_column(tmp_path, text)
+    assert tets[1] > tets[0]  # the reproduction on its own, finer mesh
+
+
+def _one_basis_per_column(tmp_path, text):
     from metasheet.pipeline.stages._studies import basis_file
     from metasheet.rom.coordinates import ReducedBasis
 
-    run_pipeline(load_pipeline(project(tmp_path, REDUCED, "rr")))
+    run_pipeline(load_pipeline(project(tmp_path, text, "rr")))
     out = tmp_path / "outputs" / "rr"
     pred, rep = basis_file(out / "reduce", "prediction", "k"), basis_file(out / "reduce", "reproduction", "k")
     assert pred == out / "reduce" / "basis.npz" and rep == out / "reduce" / "reproduction" / "basis.npz"
@@ -167,9 +198,9 @@ def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs
         assert cert["certified"] == w["reachable"] > 0 and cert["disagree"] == 0
     tets = [json.loads((f / "workspace.json").read_text())["n_tets_per_sheet"]
             for f in (out / "workspace", out / "workspace" / "reproduction")]
-    assert tets[1] > 2 * tets[0]  # the reproduction on the authors' mesh kind: P1, 5 mm (orient's: 16 mm)
     report = (out / "report" / "report.md").read_text()
     assert report.count("## Reduced-order robot") == 2 and "the reproduction column's basis" in report
+    return tets
 
 
 def test_rest_rotations_are_the_papers_test_at_rest(tmp_path):

@@ -2,6 +2,8 @@
 after success, pruned to the run's, and a rerun whose stage key changed for the prediction only
 reuses them; the key covers the code; --force recomputes."""
 
+import pytest
+
 from metasheet.executor import Executor
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
@@ -41,37 +43,56 @@ stages = ["workspace"]
 model = "standin"
 columns = ["prediction", "reproduction"]
 continuity = false
-n_azimuth = 4
-n_elevation = 2
+n_azimuth = {az}
+n_elevation = {el}
 n_steps = {n}
-reproduction = {{ n_steps = 4 }}
+reproduction = {{ n_steps = {n0} }}
 """
+
+
+def _text(n, small=False):
+    """The stage for ``n`` steps a ray in the prediction: 4 x 2 rays of 4 steps in the
+    reproduction, or ``small``: 3 x 1 rays of 2 steps (n - 2 in the prediction)."""
+    if small:
+        return TEXT.format(az=3, el=1, n=n - 2, n0=2)
+    return TEXT.format(az=4, el=2, n=n, n0=4)
 
 
 def _units(out):
     return {f.name: f.stat().st_mtime_ns for f in (out / ".workspace-reproduction.units").glob("*.pkl")}
 
 
+@pytest.mark.slow
 def test_a_rerun_for_the_prediction_reuses_the_reproduction_units(tmp_path):
+    """Default-selection sibling: test_a_rerun_on_fewer_rays_reuses_the_reproduction_units."""
+    _rerun_reuses(tmp_path, small=False)
+
+
+def test_a_rerun_on_fewer_rays_reuses_the_reproduction_units(tmp_path):
+    """The slow test's three runs on 3 x 1 rays of 2 steps (the prediction 2, then 3)."""
+    _rerun_reuses(tmp_path, small=True)
+
+
+def _rerun_reuses(tmp_path, small):
     out = tmp_path / "outputs" / "keep"
-    run_pipeline(load_pipeline(project(tmp_path, TEXT.format(n=4), "keep")))
+    run_pipeline(load_pipeline(project(tmp_path, _text(4, small), "keep")))
     rep = (out / "workspace" / "reproduction" / "workspace.csv").read_bytes()
     pred = (out / "workspace" / "workspace.csv").read_bytes()
     kept = _units(out)
-    assert len(kept) >= 8 and not (out / ".workspace.units").exists()  # the prediction's are removed
+    assert len(kept) >= (3 if small else 8) and not (out / ".workspace.units").exists()  # the prediction's are removed
     # another prediction (more steps per ray), the reproduction pinned by its own table
-    run_pipeline(load_pipeline(project(tmp_path, TEXT.format(n=5), "keep")))
+    run_pipeline(load_pipeline(project(tmp_path, _text(5, small), "keep")))
     assert (out / "workspace" / "workspace.csv").read_bytes() != pred
     assert (out / "workspace" / "reproduction" / "workspace.csv").read_bytes() == rep
     assert _units(out) == kept  # every unit loaded, none computed or rewritten
     # --force computes them again: the same units, the same bytes
-    run_pipeline(load_pipeline(project(tmp_path, TEXT.format(n=5), "keep")), force=True)
+    run_pipeline(load_pipeline(project(tmp_path, _text(5, small), "keep")), force=True)
     again = _units(out)
     assert again.keys() == kept.keys() and all(again[k] != kept[k] for k in kept)
     assert (out / "workspace" / "reproduction" / "workspace.csv").read_bytes() == rep
 
 
 def test_without_resume_nothing_is_kept(tmp_path):
-    text = TEXT.format(n=4).replace("continuity = false", "continuity = false\nresume = false")
+    text = _text(4, small=True).replace("continuity = false", "continuity = false\nresume = false")
     run_pipeline(load_pipeline(project(tmp_path, text, "keep")))
     assert not list((tmp_path / "outputs" / "keep").glob(".*.units"))

@@ -18,15 +18,22 @@ so when a target is missed the next round trains again with
   it (9 halvings of the ECSW tolerance could not hold 0.005 mm on the 15 mm test robot),
 
 until the targets are met or the budget is spent: ``rounds`` rounds, ``max_snapshots``
-snapshots, or an element sample at its budget (a sample that large hardly reduces the cost).
-Every decision depends on the certificate's figures only (no clock): the same configuration
-gives the same rounds. The round kept is the one that met the targets, else the one closest to
-them (:func:`chosen`).
+snapshots, an element sample at its budget (a sample that large hardly reduces the cost), or
+the time budget ``seconds`` (issue 59). Every decision but the last depends on the
+certificate's figures only (no clock): the same configuration gives the same rounds. The time
+budget is checked only where another round would follow (:func:`out_of_time` before it starts,
+:func:`deadline` while it solves its snapshots), so a run that stops for any other reason gives
+the same result on any machine; one stopped by time (stop code ``"time"``) depends on the
+machine's speed and load, and reduce.json and the report say so with the certificate's
+shortfall (:func:`shortfall`). The round kept is the one that met the targets, else the one
+closest to them (:func:`chosen`).
 """
 
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from .certificate import TARGETS
@@ -38,6 +45,7 @@ STOP_REASONS = {
     "rounds": "the round budget (adapt_rounds) is spent",
     "snapshots": "the snapshot budget (max_snapshots) is spent",
     "elements": "the element sample reached its budget (max_elements_fraction of the mesh's elements)",
+    "time": "the time budget (time_budget_s) is spent: this result depends on the machine's speed and load",
     "failed": "the next round's training failed",
 }
 
@@ -57,12 +65,14 @@ class Settings:
 @dataclass(frozen=True)
 class Budget:
     """What the rounds may spend: ``rounds`` (1: no adaptation), ``max_snapshots``, the
-    snapshots' ``growth`` factor per round (> 1), ``max_elements`` in the element sample."""
+    snapshots' ``growth`` factor per round (> 1), ``max_elements`` in the element sample,
+    ``seconds`` of wall time from the stage's start [s] (None: no time budget)."""
 
     rounds: int
     max_snapshots: int
     growth: float
     max_elements: int
+    seconds: float | None = None
 
 
 def missed(cert: dict) -> tuple[str, ...]:
@@ -104,6 +114,63 @@ def next_round(s: Settings, cert: dict, info: dict, budget: Budget, done: int) -
     return replace(s, snapshots=n, tangent_tol=s.tangent_tol / 2,
                    fit_jacobian_tol=s.fit_jacobian_tol / 2 if jac else s.fit_jacobian_tol,
                    fit_tol_mm=s.fit_tol_mm / 2 if pose else s.fit_tol_mm), ""
+
+
+def out_of_time(budget: Budget, elapsed_s: float, last_round_s: float) -> bool:
+    """Whether the time budget forbids another round: ``elapsed_s`` [s] since the stage began
+    and ``last_round_s`` [s], the round just done, which the next one costs at least (more
+    snapshots, a larger basis; a round under way at the budget's end is abandoned, so the
+    estimate need not be an upper bound). Never without a time budget. The stage asks only
+    after :func:`next_round` gave another round: the one decision that reads a clock."""
+    return budget.seconds is not None and elapsed_s + last_round_s > budget.seconds
+
+
+class OutOfTime(Exception):
+    """The time budget ran out while a later round solved its snapshots (the stage catches it)."""
+
+
+def deadline(t_start: float, budget: Budget) -> Callable[[], None]:
+    """A check that raises :class:`OutOfTime` once ``budget.seconds`` [s] have passed since
+    ``t_start`` (``time.perf_counter``), for a round under way; a no-op without a time budget."""
+    def check() -> None:
+        if budget.seconds is not None and time.perf_counter() - t_start > budget.seconds:
+            raise OutOfTime
+    return check
+
+
+def stop_reason(stop: str, detail: str, rounds: int, budget: Budget) -> str:
+    """reduce.json ``adaptation.reason``: why ``rounds`` rounds stopped (a :data:`STOP_REASONS`
+    code and its ``detail``); for ``"time"`` the budget and that the result depends on the
+    machine. No clock value: the seconds go to the manifest."""
+    if stop != "time":
+        return STOP_REASONS[stop] + (f" ({detail})" if detail else "")
+    return (f"time budget spent after {rounds} round(s) (time_budget_s = {budget.seconds:g} s; "
+            f"{detail or 'another round would not end within it'}): this result depends on the machine's speed "
+            "and load")
+
+
+def shortfall(cert: dict) -> dict:
+    """The measures a certificate (:func:`.certificate.summarize`) misses: name -> its worst
+    error, target, worst / target (None: no pose compared) and failed poses; {} when met."""
+    out = {}
+    for name in missed(cert):
+        m, target = cert.get(name) or {}, TARGETS[name]
+        worst = m.get("worst")
+        out[name] = {"worst": worst, "target": target, "ratio": None if worst is None else worst / target,
+                     "failed": int(m.get("failed", 0))}
+    return out
+
+
+def shortfall_text(short: dict) -> str:
+    """:func:`shortfall` in words: "position_mm 0.17 against 0.1 (1.7x), ..." ("" when nothing
+    is missed; a measure within its target but with failed poses says how many failed)."""
+    def one(name, m):
+        if m["worst"] is None:
+            return f"{name}: no pose compared"
+        failed = f", {m['failed']} pose(s) failed" if m["failed"] else ""
+        return f"{name} {m['worst']:.3g} against {m['target']:g} ({m['ratio']:.2g}x{failed})"
+
+    return ", ".join(one(n, m) for n, m in short.items())
 
 
 def sample_error(info: dict) -> tuple[float, float]:

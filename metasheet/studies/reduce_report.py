@@ -5,7 +5,9 @@ reduced against full on held-out poses, worst and 95th percentile of each measur
 target, over the poses within the strain limit (the material model's domain; the others
 follow as information, outside every study's domain), and the training rounds that led there
 (issue 41: the stage grows the basis and the element sample until the targets are met or its
-budget is spent, and a budget spent without them is said here, not hidden).
+budget is spent, and a budget spent without them is said here, not hidden). A run whose rounds
+the time budget stopped (issue 59) says so in bold, with what the certificate misses: its
+result depends on the machine's speed and load.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ def reduce_section(red: Mapping | None, seconds: float | None = None) -> tuple[l
                   "", "| measure | worst | p95 | failed |", "|---|---|---|---|", *_rows(cert["beyond_strain"], False)]
     ad = red.get("adaptation") or {}
     spent = f", after {len(ad['rounds'])} training round(s): {ad['reason']}" if ad.get("rounds") else ""
+    spent += f"; it misses {_misses(ad.get('shortfall'))}" if ad.get("shortfall") else ""
     diffs = [] if cert.get("met") else [
         f"reduced model (issue 16): the certificate is not met on the held-out poses {where}{spent} (see its section)."]
     surf_lines, surf_diffs = _surface(red.get("surface"), where)
@@ -80,11 +83,32 @@ def _rounds(ad: Mapping | None) -> list[str]:
     verdict = (f"the targets were met in round {kept}" if met else
                f"**the targets were NOT met within the budget**; the model kept is round {kept}'s, the closest "
                "to them")
+    seconds = b.get("time_budget_s")
+    timed = f", {seconds:g} s" if seconds is not None else ""
     return ["", f"Training rounds: {n} (budget: {b.get('rounds')} rounds, {b.get('max_snapshots')} snapshots, "
-            f"{b.get('max_elements')} elements); {verdict}. Stopped: {ad.get('reason')}. Worst errors over the "
-            "held-out poses within the strain limit:", "",
+            f"{b.get('max_elements')} elements{timed}); {verdict}. Stopped: {ad.get('reason')}.",
+            *_time_spent(ad), "", "Worst errors over the held-out poses within the strain limit:", "",
             "| round | snapshots | k | elements | tangent_tol | fit_jacobian_tol | position [mm] | orientation [deg] "
             "| Jacobian | certificate |", "|---|---|---|---|---|---|---|---|---|---|", *rows]
+
+
+def _time_spent(ad: Mapping) -> list[str]:
+    """The time budget's stop in bold, and the certificate's shortfall (``adaptation``
+    ``shortfall``); nothing when the rounds stopped otherwise."""
+    if ad.get("stopped") != "time":
+        return []
+    misses = _misses(ad.get("shortfall"))
+    return ["", f"**The time budget stopped the rounds after {len(ad['rounds'])}: this model depends on the "
+            "machine's speed and load** (a quieter or faster machine, or a larger `[reduce] time_budget_s`, may "
+            "train further). " + (f"The certificate misses: {misses}." if misses else "The certificate is met.")]
+
+
+def _misses(short: Mapping | None) -> str:
+    """``adaptation`` ``shortfall`` in words: "effector position [mm] worst 0.17 against 0.1
+    (1.7 times); ..." ("" for none, or an older reduce.json without it)."""
+    return "; ".join(f"{label} worst {_g(m['worst'])} against {_g(m['target'])}"
+                     + (f" ({m['ratio']:.2g} times)" if m.get("ratio") is not None else "")
+                     for key, label in MEASURES if (m := (short or {}).get(key)))
 
 
 def _surface(surf: Mapping | None, where: str) -> tuple[list[str], list[str]]:

@@ -19,10 +19,18 @@ targets (:mod:`metasheet.rom.training`) and certifies the result on held-out ang
 The defaults must certify on any robot, not only on tuned settings (issue 41): when the
 certificate misses a target the stage trains again, round by round, on more snapshots and
 tighter tolerances (:mod:`metasheet.rom.adapt`), until the targets are met or the budget
-(``adapt_rounds``, ``max_snapshots``, ``max_elements_fraction``) is spent. ``reduce.json``
-records every round (``adaptation``), the verdict (``certificate_met``) and why the rounds
-stopped; a budget spent without the targets is said in the report and in a warning, and the
-outputs are written all the same (from the round closest to the targets).
+(``adapt_rounds``, ``max_snapshots``, ``max_elements_fraction``, ``time_budget_s``) is spent.
+``reduce.json`` records every round (``adaptation``), the verdict (``certificate_met``), why
+the rounds stopped and what the certificate misses (``shortfall``); a budget spent without the
+targets is said in the report and in a warning, and the outputs are written all the same (from
+the round closest to the targets).
+
+The time budget (issue 59) counts from the stage's start. The first round always completes (no
+model without it); another starts only if the time so far plus the last round's would fit
+(:func:`metasheet.rom.adapt.out_of_time`), and a later round still solving its snapshots when
+the budget runs out is abandoned. The clock is read only where another round would follow, so
+a run that stops for any other reason gives the same result on any machine; one stopped by
+time says so (``stopped: "time"``).
 
 Training time goes to the manifest (``timings_s``), not to ``reduce.json``.
 """
@@ -40,7 +48,8 @@ from pydantic import Field, model_validator
 from ...errors import ConfigError, ConvergenceError
 from ...robot.equilibrium import solve_equilibrium
 from ...robot.kinematics import kinematics
-from ...rom.adapt import STOP_REASONS, Budget, Settings, chosen, next_round, round_record
+from ...rom.adapt import (Budget, OutOfTime, Settings, chosen, deadline, next_round, out_of_time, round_record,
+                          shortfall, shortfall_text, stop_reason)
 from ...rom.certificate import (TARGETS, compare, compare_surface, held_out_angles, summarize, surface_check,
                                 with_inverse)
 from ..manifest import write_json_atomic
@@ -49,12 +58,15 @@ from ._studies import StudyRobotParams, build_spec, drop_cache, run_columns, uni
 
 log = logging.getLogger(__name__)
 
-#: the default budget: rounds, snapshots (the first round's 48 doubled twice)
-ADAPT_ROUNDS, MAX_SNAPSHOTS = 3, 192
+#: the default budget: rounds, snapshots (the first round's 16 doubled: 16, 32, 64, 128, then 192)
+ADAPT_ROUNDS, MAX_SNAPSHOTS = 5, 192
+#: the rounds' default time budget [s]: the first round is small and the budget decides how far
+#: it grows (issue 59: docs/performance.md, "The reduce stage's time budget")
+TIME_BUDGET_S = 120.0
 
 
 class ReduceParams(StudyRobotParams):
-    snapshots: int = Field(48, ge=4, le=2000, description="training equilibria (Sobol points in the box, "
+    snapshots: int = Field(16, ge=4, le=2000, description="training equilibria (Sobol points in the box, "
                            "plus its all-low and all-high corners)")
     box_deg: float | None = Field(None, gt=0, le=180, description="training box: the rest angles +- this [deg], "
                                   "cut to the motor range; None: the whole motor range")
@@ -68,15 +80,15 @@ class ReduceParams(StudyRobotParams):
                               "equilibria within this [mm]")
     fit_jacobian_tol: float = Field(0.01, gt=0, lt=1, description="... and their Jacobians within this (relative "
                                     "Frobenius) [-]: half the certificate's 2 %")
-    held_out: int = Field(16, ge=0, le=1000, description="certificate poses (Sobol, another seed) besides the "
+    held_out: int = Field(8, ge=0, le=1000, description="certificate poses (Sobol, another seed) besides the "
                           "two mixed corners")
     seed: int = Field(0, ge=0, description="Sobol scrambling seed of the training set (held-out: seed + 1)")
     strain_limit: float | None = Field(0.3, gt=0, description="the certificate's targets apply to held-out poses "
                                        "within this max principal strain [-] (the material model's domain; the "
                                        "others are reported apart); None: to all")
-    surface_equilibria: int = Field(64, ge=16, le=5000, description="reduced-model equilibria the equilibrium "
+    surface_equilibria: int = Field(32, ge=16, le=5000, description="reduced-model equilibria the equilibrium "
                                     "surface (the real-time model) is fitted on; half as many more choose its degree")
-    surface_check: int = Field(64, ge=0, le=5000, description="reduced-model equilibria, neither fitted nor used "
+    surface_check: int = Field(32, ge=0, le=5000, description="reduced-model equilibria, neither fitted nor used "
                                "for the degree, the surface is checked on (those within the strain limit)")
     surface_box_deg: float | None = Field(None, gt=0, le=180, description="the surface's box: the rest angles +- "
                                           "this [deg], within the training box; None: the training box")
@@ -91,6 +103,10 @@ class ReduceParams(StudyRobotParams):
     max_elements_fraction: float = Field(0.8, gt=0, le=1, description="the element sample's budget, a fraction of "
                                          "the mesh's elements: the ECSW tolerance is not tightened beyond it, and a "
                                          "round that reaches it is the last [-]")
+    time_budget_s: float = Field(TIME_BUDGET_S, gt=0, le=86400, description="the rounds' wall-time budget from "
+                                 "the stage's start [s]: the first round always completes, another starts if the "
+                                 "time so far plus the last round's fits, one still solving snapshots at the end is "
+                                 "abandoned; a run it stopped depends on the machine (reduce.json stopped: 'time')")
     ecsw_snapshots: int = Field(48, ge=1, le=2000, description="the element sample is fitted on at most this many "
                                 "snapshots (the box's corners and the design's first points) and their pushes: ECSW's "
                                 "matrix grows as states x modes x elements (8 bytes each); the basis takes them all")
@@ -201,17 +217,24 @@ def training_box(robot, box_deg: float | None):
     return np.maximum(lo, th0 - np.radians(box_deg)), np.minimum(hi, th0 + np.radians(box_deg))
 
 
-def training_equilibria(ctx, spec, fem, lo, hi, n: int, seed: int, label: str = ""):
+def training_equilibria(ctx, spec, fem, lo, hi, n: int, seed: int, label: str = "", check=None):
     """(rows, states): the full model's equilibria at ``n`` Sobol points in the box [lo, hi]
     (na,) [rad] and its two corners (:func:`_snapshot`'s rows, None where one failed; the
     converged ones as states), through the executor. A later round's design begins with the
-    earlier one's points (the same scrambled sequence), which the unit cache holds."""
+    earlier one's points (the same scrambled sequence), which the unit cache holds.
+    ``check()`` runs after each solved unit (it may raise, which cancels the rest: the solved
+    ones stay in the unit cache)."""
     from ...rom.training import motor_design
 
     angles = motor_design(lo, hi, n, seed)
     desc = f"training equilibria (full model{label})"
-    rows = unit_cache(ctx).map(ctx.executor, _snapshot, [(spec, a, "training") for a in angles],
-                               progress=lambda d, k: ctx.progress(desc, d, k))
+
+    def progress(done, total):
+        ctx.progress(desc, done, total)
+        if check is not None:
+            check()
+
+    rows = unit_cache(ctx).map(ctx.executor, _snapshot, [(spec, a, "training") for a in angles], progress=progress)
     snaps = _states(fem, rows)
     if len(snaps) < max(4, len(angles) // 2):
         raise ConvergenceError(f"reduce: only {len(snaps)} of {len(angles)} training equilibria converged")
@@ -226,20 +249,21 @@ def _round_line(rec: dict, rounds: int) -> str:
             f"{rec['elements']} elements; worst {figs}: {verdict}")
 
 
-def adapt(ctx, spec, fem, lo, hi, start_held) -> dict:
+def adapt(ctx, spec, fem, lo, hi, start_held, t_start: float) -> dict:
     """The training rounds (:mod:`metasheet.rom.adapt`): train, certify on the held-out poses
     (without the inverse model, which has no target) and grow until the targets are met or
-    the budget is spent. ``start_held()`` submits the held-out equilibria (a future of their
-    rows), called once the first round's snapshots are in. Returns the rounds' records, the
-    chosen round's basis, model, comparisons and snapshot rows, the held-out rows, states and
-    full Jacobians, the budget, the stop code and its detail."""
+    the budget is spent; the time budget counts from ``t_start`` (``time.perf_counter``, the
+    stage's start). ``start_held()`` submits the held-out equilibria (a future of their rows),
+    called once the first round's snapshots are in. Returns the rounds' records, the chosen
+    round's basis, model, comparisons and snapshot rows, the held-out rows, states and full
+    Jacobians, the budget, the stop code and its detail."""
     from ...rom.model import ReducedRobot
     from ...rom.training import train
 
     p: ReduceParams = ctx.params
     rob = fem.robot
     budget = Budget(p.adapt_rounds, p.max_snapshots, p.snapshot_growth,
-                    max(1, int(p.max_elements_fraction * rob.body.n_elements)))
+                    max(1, int(p.max_elements_fraction * rob.body.n_elements)), p.time_budget_s)
     settings = Settings(p.snapshots, p.tangent_tol, p.fit_tol_mm, p.fit_jacobian_tol)
     trials, held_job, held, stop, detail = [], None, None, "", ""
     for key in ("snapshots", "training", "certificate"):
@@ -247,11 +271,15 @@ def adapt(ctx, spec, fem, lo, hi, start_held) -> dict:
     while settings is not None:
         number = len(trials) + 1
         t0 = time.perf_counter()
+        # the first round always completes; a later one is abandoned while it solves snapshots
+        check = deadline(t_start, budget) if number > 1 else None
         try:
             rows, snaps = training_equilibria(ctx, spec, fem, lo, hi, settings.snapshots, p.seed,
-                                              "" if number == 1 else f", round {number}")
+                                              "" if number == 1 else f", round {number}", check)
             # the held-out equilibria need no basis: the workers solve them while round 1 trains
             held_job = held_job or start_held()
+            if check is not None:
+                check()
             t1 = time.perf_counter()
             ctx.timings["snapshots"] += t1 - t0
             basis = train(rob, snaps, fem.rest, sensitivities=np.hstack([r[4] for r in rows if r is not None]),
@@ -263,6 +291,10 @@ def adapt(ctx, spec, fem, lo, hi, start_held) -> dict:
             if not trials:
                 raise
             stop, detail = "failed", f"round {number}: {exc}"  # the rounds before stand
+            break
+        except OutOfTime:
+            ctx.timings[f"round_{number}_abandoned"] = time.perf_counter() - t0
+            stop, detail = "time", f"round {number} abandoned while it solved its snapshots"
             break
         t2 = time.perf_counter()
         ctx.timings["training"] += t2 - t1
@@ -281,18 +313,25 @@ def adapt(ctx, spec, fem, lo, hi, start_held) -> dict:
         ctx.timings[f"round_{number}"] = time.perf_counter() - t0
         ctx.progress(_round_line(rec, budget.rounds), number, number)
         settings, stop = next_round(settings, cert, basis.info, budget, number)
+        now = time.perf_counter()
+        if settings is not None and out_of_time(budget, now - t_start, now - t0):
+            settings, stop = None, "time"
     best = chosen([t["cert"] for t in trials])
     return {**trials[best], "records": [t["record"] for t in trials], "best": best, "held_rows": held_rows,
             "held": held, "full_J": full_J, "budget": budget, "stop": stop, "detail": detail}
 
 
 def _adaptation(a: dict, p: ReduceParams) -> dict:
-    """reduce.json ``adaptation``: the budget, every round, the round kept and why the rounds stopped."""
+    """reduce.json ``adaptation``: the budget, every round, the round kept, why the rounds
+    stopped (``reason``: a sentence) and what the kept round's certificate misses
+    (``shortfall``, :func:`metasheet.rom.adapt.shortfall`). No clock value: a run stopped by
+    time says so (``stopped: "time"``), its seconds are in the manifest (``timings_s``)."""
     b = a["budget"]
     return {"budget": {"rounds": b.rounds, "max_snapshots": b.max_snapshots, "snapshot_growth": b.growth,
-                       "max_elements": b.max_elements, "max_elements_fraction": p.max_elements_fraction},
+                       "max_elements": b.max_elements, "max_elements_fraction": p.max_elements_fraction,
+                       "time_budget_s": b.seconds},
             "rounds": a["records"], "chosen_round": a["best"] + 1, "stopped": a["stop"],
-            "reason": STOP_REASONS[a["stop"]] + (f" ({a['detail']})" if a["detail"] else "")}
+            "reason": stop_reason(a["stop"], a["detail"], len(a["records"]), b), "shortfall": shortfall(a["cert"])}
 
 
 def run(ctx: StageContext) -> dict:
@@ -300,6 +339,7 @@ def run(ctx: StageContext) -> dict:
     from ...rom.surface_robot import fit_surface_robot
 
     p: ReduceParams = ctx.params
+    t_start = time.perf_counter()  # the time budget's start
     if p.model != "robot":
         raise ConfigError(f"reduce.model: {p.model!r}: the reduced model is of the FEM robot: use 'robot'")
     spec = build_spec(ctx)
@@ -312,7 +352,7 @@ def run(ctx: StageContext) -> dict:
     with ThreadPoolExecutor(1) as beside:  # the workers' share while this process trains or compares
         a = adapt(ctx, spec, fem, lo, hi, lambda: beside.submit(
             cache.map, ctx.executor, _snapshot, [(spec, q, "held-out") for q in held_angles],
-            progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n)))
+            progress=lambda d, n: ctx.progress("held-out equilibria (full model)", d, n)), t_start)
         basis, red, held, full_J = a["basis"], a["red"], a["held"], a["full_J"]
         ctx.progress("inverse model and surface (the round kept)", 2, 3)
         t2 = time.perf_counter()
@@ -355,6 +395,7 @@ def run(ctx: StageContext) -> dict:
     drop_cache(ctx)
     if not cert["met"]:  # said loudly: the outputs stand, but the studies run on a model outside its targets
         msg = (f"WARNING: certificate NOT met after {len(a['records'])} round(s): {adaptation['reason']}; "
+               f"it misses {shortfall_text(adaptation['shortfall'])}; "
                f"outputs written from round {adaptation['chosen_round']}")
         log.warning("reduce: %s", msg)
         ctx.progress(msg, 3, 3)
