@@ -17,7 +17,8 @@ design, the changes to its [seeds] table, the resolution and the solver. A cell 
 at every CI resolution and without a variant fails: no catalogue cell is skipped.
 
 paper_foam also has a golden at the design's own resolution (``<cell>_n<res>.json``, solver
-"auto": CHOLMOD or AMG agree far below the tolerance; slow-marked when CHOLMOD is missing).
+"auto": CHOLMOD or AMG agree far below the tolerance; slow-marked). The catalogue goldens of
+SLOW_CELLS are slow too; laminate and solid have a small-grid golden checked by default.
 Update with ``python -m pytest tests/test_homogenize_golden.py --update-goldens -m "slow or not slow"``.
 """
 
@@ -64,6 +65,12 @@ VARIANTS = {
 }
 #: Designs checked at their own resolution in a slow test.
 FULL = ("paper_foam",)
+#: The cells whose catalogue goldens (test_golden_constants) are slow. The default selection's
+#: siblings: the CI variants of iso_foam and paper_foam (foams) and paper_polyfoam (Polyfoams),
+#: and for the layered and solid kinds the golden ``<cell>_direct.json`` of test_golden_small:
+#: the cell at its CI resolution solved directly (seconds; AMG-CG to 1e-10 is the slow part).
+SLOW_CELLS = ("closed_foam", "laminate", "quick_foam", "quick_polyfoam", "solid")
+SMALL = ("laminate", "solid")
 
 
 def _compute(name: str, resolution: int, *, design: str | None = None, seeds: dict | None = None,
@@ -119,9 +126,12 @@ def _at_ci_resolution(name: str) -> dict:
                 f"CI-sized variant of it to VARIANTS in {Path(__file__).name}")
 
 
-@pytest.mark.parametrize("name", CELLS)
+@pytest.mark.parametrize("name", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_CELLS else c
+                                  for c in CELLS])
 def test_golden_constants(name, request):
-    """Every catalogue cell: its own golden at a CI resolution, or its CI variant's."""
+    """Every catalogue cell: its own golden at a CI resolution, or its CI variant's.
+    Default-selection siblings of the slow cells: test_golden_small (laminate, solid) and the
+    CI variants' cases of this test (iso_foam, paper_foam: foams; paper_polyfoam: Polyfoams)."""
     if name in VARIANTS:
         v = VARIANTS[name]
         _golden(GOLDEN / f"{v.name}.json", request,
@@ -137,24 +147,26 @@ def test_golden_constants(name, request):
     _check(_compute(name, want["resolution"]), want)
 
 
+@pytest.mark.parametrize("name", SMALL)
+def test_golden_small(name, request):
+    """A deterministic catalogue cell at its CI resolution, solved directly: the default
+    selection's check of the catalogue-golden path (test_golden_constants of these cells is slow)."""
+    n = tomllib.loads((ROOT / "cells" / f"{name}.toml").read_text())["resolution"]
+    _golden(GOLDEN / f"{name}_direct.json", request, lambda: _compute(name, n, solver="direct"))
+
+
 def test_every_golden_is_checked():
     """No golden file left over (e.g. a design's record of being infeasible at CI sizes)."""
     full = {f"{name}_n{tomllib.loads((ROOT / 'cells' / f'{name}.toml').read_text())['resolution']}"
-            for name in FULL}
+            for name in FULL} | {f"{name}_direct" for name in SMALL}
     expected = {VARIANTS[c].name if c in VARIANTS else c for c in CELLS} | full
     assert {p.stem for p in GOLDEN.glob("*.json")} == expected
 
 
-def _full_params():
-    from metasheet.fem.solvers import available
-
-    # paper_foam at n = 64 (224k dofs): ~25 s with CHOLMOD or PARDISO (pip), ~2-5 min with
-    # AMG-CG: CI runs it wherever a fast direct solver is installed
-    fast = available("cholmod") or available("pardiso")
-    return [pytest.param(name, marks=() if fast else pytest.mark.slow) for name in FULL]
-
-
-@pytest.mark.parametrize("name", _full_params())
+@pytest.mark.slow
+@pytest.mark.parametrize("name", FULL)
 def test_golden_full_resolution(name, request):
+    """paper_foam at n = 64 (224k dofs): ~25 s with CHOLMOD or PARDISO (pip), ~2-5 min with
+    AMG-CG. Default-selection sibling: test_golden_constants[paper_foam] (its CI variant)."""
     n = tomllib.loads((ROOT / "cells" / f"{name}.toml").read_text())["resolution"]
     _golden(GOLDEN / f"{name}_n{n}.json", request, lambda: _compute(name, n, solver="auto"))

@@ -67,16 +67,7 @@ def test_rotation_moves_soft_axis_to_fibre():
 unit = st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: 0.2 < np.linalg.norm(v))
 
 
-@settings(max_examples=15, deadline=None)
-@given(
-    axis=unit,
-    E_t=st.floats(0.5, 20),
-    ratio=st.floats(0.02, 3.0),
-    nu_t=st.floats(-0.3, 0.45),
-    nu_tl=st.floats(0.0, 0.4),
-    mu_frac=st.floats(0.05, 1.0),
-)
-def test_fit_recovers_rotated_transverse_tensor(axis, E_t, ratio, nu_t, nu_tl, mu_frac):
+def _fit_recovers(axis, E_t, ratio, nu_t, nu_tl, mu_frac):
     E_l = E_t * ratio
     try:
         m = TransverseIsotropic(E_t, E_l, nu_t, nu_tl, mu_frac * E_t)
@@ -90,6 +81,31 @@ def test_fit_recovers_rotated_transverse_tensor(axis, E_t, ratio, nu_t, nu_tl, m
         assert abs(abs(fit.axis @ a) - 1) < 1e-6
     for k, v in m.to_dict().items():
         assert getattr(fit.material, k) == pytest.approx(v, rel=1e-6, abs=1e-9)
+
+
+@pytest.mark.slow
+@settings(max_examples=15, deadline=None)
+@given(
+    axis=unit,
+    E_t=st.floats(0.5, 20),
+    ratio=st.floats(0.02, 3.0),
+    nu_t=st.floats(-0.3, 0.45),
+    nu_tl=st.floats(0.0, 0.4),
+    mu_frac=st.floats(0.05, 1.0),
+)
+def test_fit_recovers_rotated_transverse_tensor(axis, E_t, ratio, nu_t, nu_tl, mu_frac):
+    """Default-selection sibling: test_fit_recovers_chosen_rotated_transverse_tensors."""
+    _fit_recovers(axis, E_t, ratio, nu_t, nu_tl, mu_frac)
+
+
+@pytest.mark.parametrize("axis, E_t, ratio, nu_t, nu_tl, mu_frac", [
+    ((0.3, -0.5, 0.8), 1.39, 0.0678, 0.26, 0.4161, 0.0117),  # the paper's soft foam, tilted
+    ((1.0, 0.2, -0.1), 8.0, 2.5, -0.2, 0.3, 0.5),  # stiff along the axis, auxetic across it
+    ((0.0, 0.0, 1.0), 3.0, 1.0, 0.3, 0.3, 0.385),  # isotropic: no axis to recover
+])
+def test_fit_recovers_chosen_rotated_transverse_tensors(axis, E_t, ratio, nu_t, nu_tl, mu_frac):
+    """Three hand-picked draws of the hypothesis test above (slow: 15 random ones)."""
+    _fit_recovers(axis, E_t, ratio, nu_t, nu_tl, mu_frac)
 
 
 def test_fit_with_given_axis_equals_average_over_rotations():

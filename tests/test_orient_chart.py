@@ -8,7 +8,7 @@ import pytest
 
 from metasheet.errors import InfeasibleError
 from metasheet.executor import Executor
-from metasheet.homogenize.chart import lookup, parse_csv
+from metasheet.homogenize.chart import lookup, parse_csv, to_csv
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import chart as chart_stage
 from metasheet.pipeline.stages import orient as orient_stage
@@ -25,6 +25,17 @@ def chart_dir(tmp_path_factory):
     return d
 
 
+@pytest.fixture(scope="module")
+def synthetic_chart(tmp_path_factory):
+    """A chart stage's chart.csv written from known power laws (test_homogenize_chart's): the
+    orient stage's look-up without homogenising a cell."""
+    from test_homogenize_chart import _synthetic_rows
+
+    d = tmp_path_factory.mktemp("synthetic_chart")
+    (d / "chart.csv").write_text(to_csv(_synthetic_rows()))
+    return d
+
+
 def run_orient(tmp_path, chart_dir, table):
     p = orient_stage.OrientParams(mesh_size=10.0, grading={"table": table})
     ctx = StageContext("orient", p, tmp_path, {"chart": chart_dir}, ROOT)
@@ -32,7 +43,11 @@ def run_orient(tmp_path, chart_dir, table):
     return meshio.read(tmp_path / "sheet.vtu")
 
 
-def test_graded_constants_come_from_the_chart(tmp_path, chart_dir):
+@pytest.mark.parametrize("chart", ["synthetic_chart", pytest.param("chart_dir", marks=pytest.mark.slow)])
+def test_graded_constants_come_from_the_chart(tmp_path, chart, request):
+    """On the chart stage's own chart (slow: it homogenises four cells) and on a synthetic chart;
+    the slow case's default-selection sibling: the synthetic_chart case."""
+    chart_dir = request.getfixturevalue(chart)
     table = parse_csv((chart_dir / "chart.csv").read_text())
     a_lo, a_hi = np.percentile(table["alpha"], [30, 70])
     regions = {"hub": {"density": 0.38, "alpha": float(a_lo)}, "arms": {"density": 0.32, "alpha": float(a_hi)},
@@ -48,6 +63,6 @@ def test_graded_constants_come_from_the_chart(tmp_path, chart_dir):
     assert not np.isclose(np.unique(cd["E_t"]), np.unique(cd["E_t"])[0]).all()  # regions differ
 
 
-def test_target_outside_the_chart_is_an_error(tmp_path, chart_dir):
+def test_target_outside_the_chart_is_an_error(tmp_path, synthetic_chart):
     with pytest.raises(InfeasibleError):
-        run_orient(tmp_path, chart_dir, {r: {"density": 0.9, "alpha": 50.0} for r in ("hub", "arms", "tips")})
+        run_orient(tmp_path, synthetic_chart, {r: {"density": 0.9, "alpha": 50.0} for r in ("hub", "arms", "tips")})

@@ -151,10 +151,13 @@ def test_bad_sheet_settings_are_named(tmp_path):
         load_pipeline(f)
 
 
+@pytest.mark.slow
 @pytest.mark.bytes
 def test_two_workers_give_the_same_bytes(run):
     """Each sheet of each realisation is a work unit: on a pool of two the stage writes the serial
-    run's sheet_dns.json and voxel file, byte for byte (wall times live in the manifest only)."""
+    run's sheet_dns.json and voxel file, byte for byte (wall times live in the manifest only).
+    Default-selection sibling: test_stage_writes_the_comparison_and_the_report (the serial run;
+    no cheaper pool-of-two run exists yet: the stage's whole pipeline is the cost)."""
     from metasheet.executor import Executor
 
     tmp, out = run

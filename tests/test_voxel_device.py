@@ -57,9 +57,9 @@ def _percolating(ph: np.ndarray) -> np.ndarray:
     return np.where(keep, ph, 0)
 
 
-def _two_phase() -> tuple[np.ndarray, tuple, dict, np.ndarray]:
+def _two_phase(n: int = 12, seeds: int = 5) -> tuple[np.ndarray, tuple, dict, np.ndarray]:
     """A TI and an isotropic phase on 3:1 voxels with a per-voxel modulus factor."""
-    ph = _percolating(edge_foam(12, 0.35, seeds=5, rng_seed=3))
+    ph = _percolating(edge_foam(n, 0.35, seeds=seeds, rng_seed=3))
     ph[(ph == 1) & (np.indices(ph.shape)[0] % 3 == 0)] = 2
     scale = 1.0 + 0.5 * np.random.default_rng(4).random(ph.shape)
     return ph, (1.0, 1.0, 3.0), {1: FIBRE, 2: SOFT}, scale
@@ -145,19 +145,26 @@ def test_dense_bottom_solves_the_pinned_level(device):
 
 
 #: (phases, size, stiffnesses, scale, direct_dofs): small direct_dofs give the cells 2 or 3 split levels
-#: (the K-cycle), as the paper's cell has
+#: (the K-cycle), as the paper's cell has. The cases in SLOW_CASES are slow; their default-selection
+#: siblings are the smaller cases of the same kind ("two phases, 8^3" and "1-voxel lattice, 8 cells")
 CASES = {
     "edge foam": lambda: (_percolating(edge_foam(16, 0.25, rng_seed=1)), UNIT, {1: TPU}, None, None),
     "edge foam, 3 split levels": lambda: (_percolating(edge_foam(16, 0.25, rng_seed=1)), UNIT, {1: TPU}, None, 600),
     "two phases, 3:1 voxels, scaled": lambda: (*_two_phase(), 800),
     "1-voxel lattice, 27 cells": lambda: (np.tile(cubic_lattice(7, 1), (3, 3, 3)), UNIT, {1: TPU}, None, 1000),
     "two interlocked lattices": lambda: (_two_lattices(), UNIT, {1: TPU, 2: TPU}, None, 1000),
+    "two phases, 8^3": lambda: (*_two_phase(8, 3), 300),
+    "1-voxel lattice, 8 cells": lambda: (np.tile(cubic_lattice(7, 1), (2, 2, 2)), UNIT, {1: TPU}, None, 300),
 }
+SLOW_CASES = ("1-voxel lattice, 27 cells", "edge foam, 3 split levels", "two phases, 3:1 voxels, scaled")
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_CASES else c
+                                  for c in sorted(CASES)])
 def test_same_cstar_and_iterations_as_the_cpu_path(device, case):
+    """Slow cases' default-selection siblings: "two phases, 8^3" (for the two-phase case),
+    "1-voxel lattice, 8 cells" (the 27-cell lattice) and "two interlocked lattices" (3 split levels)."""
     ph, size, stiff, scale, direct = CASES[case]()
     ref = periodic_stiffness(ph, size, stiff, scale=scale, rtol=1e-10, direct_dofs=direct)
     r = periodic_stiffness_device(ph, size, stiff, scale=scale, rtol=1e-10, device=device, direct_dofs=direct)
