@@ -23,17 +23,41 @@ def skew(v: np.ndarray) -> np.ndarray:
     return S
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` for (..., 3) arrays (broadcast), the same bits as ``np.cross``.
+
+    Each component is one product minus another, in ``np.cross``'s order
+    (``a1 b2 - a2 b1``, ``a2 b0 - a0 b2``, ``a0 b1 - a1 b0``), without its axis handling:
+    the robot's hot loops call it thousands of times a study point on small arrays, where
+    ``np.cross`` spends ~0.3 ms in bookkeeping (9 % of a P1 study point).
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
+_EYE3 = np.eye(3)
+_EYE3.flags.writeable = False
+
+
 def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
     """Rodrigues: rotation vector (3,) [rad] -> rotation matrix (3, 3).
 
     ``R = I + sin(t)/t K + (1 - cos(t))/t^2 K^2`` with ``K = skew(w)``, ``t = |w|``.
     """
     w = np.asarray(rotvec, dtype=float)
-    t = float(np.linalg.norm(w))
-    K = skew(w)
+    t = float(np.sqrt(w @ w))  # np.linalg.norm's own sum for a vector
+    w0, w1, w2 = w
+    K = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])  # skew(w)
     if t < 1e-8:  # second-order series: exact to rounding for |w| < 1e-8
-        return np.eye(3) + K + 0.5 * K @ K
-    return np.eye(3) + np.sin(t) / t * K + (1.0 - np.cos(t)) / t**2 * K @ K
+        return _EYE3 + K + 0.5 * K @ K
+    return _EYE3 + np.sin(t) / t * K + (1.0 - np.cos(t)) / t**2 * K @ K
 
 
 def rotation_vector(R: np.ndarray) -> np.ndarray:

@@ -45,3 +45,17 @@ def test_a_band_over_the_whole_sheet_is_refused(robot):
         validity_elements(robot, 500.0)
     with pytest.raises(ConfigError, match="strain_band_mm"):
         validity_elements(robot, -1.0)
+
+
+@pytest.mark.parametrize("element", ["p1", "p2"])
+def test_the_counted_elements_alone_give_the_full_arrays_entries(element):
+    """The strain of the counted elements only (issue 59: the check on a fraction of the sheets)
+    is the full array's entries bit for bit, whichever mask came before."""
+    rob = paper_robot_spec(mesh_size=16.0, element=element).build().robot
+    body = rob.body
+    x = body.rest + np.random.default_rng(3).normal(size=body.rest.shape) * 0.3
+    full = body.max_principal_strain(x)
+    for band in (5.0, 2.0, 5.0):
+        keep = validity_elements(rob, band)
+        assert np.array_equal(body.max_principal_strain(x, keep), full[keep])
+        assert validity_strain(body, x, keep) == full[keep].max()

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import axis_rotation, skew
+from ..rotations import axis_rotation, cross, skew
 
 
 @dataclass(frozen=True)
@@ -128,7 +128,7 @@ class RigidCoupling:
         J[b[0] : b[1], :, 0:3] = np.eye(3)
         J[b[0] : b[1], :, 3:6] = -skew(arm)
         for k, s in enumerate(self.servos):
-            J[b[k + 1] : b[k + 2], :, 6 + k] = np.cross(s.axis, x[s.nodes] - s.pivot)
+            J[b[k + 1] : b[k + 2], :, 6 + k] = cross(s.axis, x[s.nodes] - s.pivot)
         return J.reshape(3 * nr, self.n_rigid_dof)
 
     def rigid_geometric(self, x, p, r) -> np.ndarray:
@@ -144,5 +144,5 @@ class RigidCoupling:
         G[3:6, 3:6] = a.T @ re - np.sum(a * re) * np.eye(3)
         for k, s in enumerate(self.servos):
             d = x[s.nodes] - s.pivot
-            G[6 + k, 6 + k] = np.sum(r[s.nodes] * np.cross(s.axis, np.cross(s.axis, d)))
+            G[6 + k, 6 + k] = np.sum(r[s.nodes] * cross(s.axis, cross(s.axis, d)))
         return G

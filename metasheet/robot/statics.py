@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from ..fem.assembly import submatrix_map
 from ..fem.factor import SparseSolver
 from .memo import LinearizationMemo, factor_bytes, state_key
-from ..rotations import rotation_matrix, rotation_vector
+from ..rotations import cross, rotation_matrix, rotation_vector
 
 
 @dataclass(frozen=True)
@@ -169,16 +169,26 @@ class Linearizer:
         Costs one force evaluation and one solve with the cached factor. ``f`` (n, 3) [N] the
         internal forces at ``state`` if already known.
         """
+        return self.update_within(lin, state, None, f)
+
+    def update_within(self, lin: "Linearization", state: RobotState, chord_tol: float | None,
+                      f=None) -> "Linearization | None":
+        """:meth:`update`, or None when the reduced residual at ``state`` exceeds ``chord_tol``
+        times the force scale (:meth:`force_scale`; None: no test): the test needs the forces
+        only, so a chord update the control loop would drop for its residual
+        (:class:`.tangent.TangentCache`) costs no solve with the kept factor."""
         rob = self.robot
         c = rob.coupling
         f = rob.body.forces(state.x) if f is None else f
         r = np.asarray(f).reshape(-1, 3) - rob.f_ext
         rf = r[c.free].ravel()
-        y_r = self._solve(rf)
         Rr = rigid_forces(c, state.x, state.p, r)
-        return Linearization(state=state, r=r, S=lin.S, Y=lin.Y, y_r=y_r, C=lin.C,
-                             R_rigid=Rr - lin.C @ y_r, res_e=Rr[:6], res_f=rf, fresh=False,
-                             moment_scale=c.length_scale, exact=False)
+        out = Linearization(state=state, r=r, S=lin.S, Y=lin.Y, y_r=None, C=lin.C, R_rigid=None, res_e=Rr[:6],
+                            res_f=rf, fresh=False, moment_scale=c.length_scale, exact=False)
+        if chord_tol is not None and not out.residual_norm <= chord_tol * max(self.force_scale(out), 1e-300):
+            return None
+        y_r = self._solve(rf)
+        return replace(out, y_r=y_r, R_rigid=Rr - lin.C @ y_r)
 
 
 def rigid_forces(coupling, x, p, r) -> np.ndarray:
@@ -192,7 +202,7 @@ def rigid_forces(coupling, x, p, r) -> np.ndarray:
     arm[b[0]:b[1]] -= p
     for k, sv in enumerate(c.servos):
         arm[b[k + 1]:b[k + 2]] -= sv.pivot
-    mom = np.cross(arm, rr)  # one cross product for all rigid nodes
+    mom = cross(arm, rr)  # one cross product for all rigid nodes
     out = np.empty(c.n_rigid_dof)
     out[:3] = rr[b[0]:b[1]].sum(axis=0)
     out[3:6] = mom[b[0]:b[1]].sum(axis=0)

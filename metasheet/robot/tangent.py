@@ -96,14 +96,23 @@ class TangentCache:
         return (self.lin is not None and self.owns(state)
                 and self.linearizer.factorizations == self.generation)
 
-    def stale(self, lin: Linearization, state: RobotState, settings) -> str | None:
-        """Why the chord update ``lin`` at ``state`` is not good enough (a :data:`REASONS`
-        entry), or None. ``settings``: an :class:`.inverse_settings.InverseSettings`."""
+    def aged(self, state: RobotState, settings) -> str | None:
+        """"age" or "angle" when the kept tangent is too old for ``state`` whatever the
+        residual there (:meth:`stale`'s first two tests, which need no forces), else None."""
         s = settings
         if self.age >= s.refactor_every:
             return "age"
         if np.max(np.abs(state.angles - self.angles), initial=0.0) > np.radians(s.refresh_angle_deg):
             return "angle"
+        return None
+
+    def stale(self, lin: Linearization, state: RobotState, settings) -> str | None:
+        """Why the chord update ``lin`` at ``state`` is not good enough (a :data:`REASONS`
+        entry), or None. ``settings``: an :class:`.inverse_settings.InverseSettings`."""
+        s = settings
+        why = self.aged(state, s)
+        if why is not None:
+            return why
         # written as "not <=" so a NaN residual or step (a chord update gone wrong) is stale too
         if not lin.residual_norm <= s.chord_tol * max(self.linearizer.force_scale(lin), 1e-300):
             return "residual"
@@ -125,8 +134,14 @@ class TangentCache:
         self._for = settings
         lin = None
         if self.kept(state):
-            lin = self.linearizer.update(self.lin, state)
-            why = self.stale(lin, state, settings)
+            # the tests in :meth:`stale`'s order, each as early as it can be decided: age and
+            # angle before the forces, the residual (where the linearizer can) before the solve
+            why = self.aged(state, settings)
+            if why is None:
+                within = getattr(self.linearizer, "update_within", None)
+                lin = (self.linearizer.update(self.lin, state) if within is None
+                       else within(self.lin, state, settings.chord_tol))
+                why = "residual" if lin is None else self.stale(lin, state, settings)
             if why is not None:
                 self.reasons[why] = self.reasons.get(why, 0) + 1
                 lin = None

@@ -50,4 +50,4 @@ def validity_elements(robot, band_mm: float = GRIP_BAND_MM) -> np.ndarray:
 def validity_strain(body, x, elements: np.ndarray) -> float:
     """Largest principal Green-Lagrange strain [-] over the ``elements`` (m,) bool of ``body``
     (:meth:`~.body.ElasticBody.max_principal_strain`) at node positions ``x`` (n, 3) [mm]."""
-    return float(body.max_principal_strain(x)[elements].max())
+    return float(body.max_principal_strain(x, elements).max())

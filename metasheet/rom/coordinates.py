@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import rotation_vector, skew
+from ..rotations import cross, rotation_vector, skew
 
 
 @dataclass(frozen=True)
@@ -123,13 +123,13 @@ def coordinate_jacobian(coupling, x, p, eff, servo, free, V, *, node_major: bool
         T[eff, :, 0:3] = np.eye(3)
         T[eff, :, 3:6] = -skew(x[eff] - p)
         for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
-            T[idx, :, 6 + k] = np.cross(s.axis, x[idx] - s.pivot)
+            T[idx, :, 6 + k] = cross(s.axis, x[idx] - s.pivot)
         T[free, :, 6 + na:] = V.reshape(len(free), 3, -1)
         return T
     Tt = np.zeros((6 + na + V.shape[1], len(x), 3))
     Tt[0:3, eff, :] = np.eye(3)[:, None, :]
     Tt[3:6, eff, :] = -skew(x[eff] - p).transpose(2, 0, 1)
     for k, (s, idx) in enumerate(zip(coupling.servos, servo)):
-        Tt[6 + k, idx, :] = np.cross(s.axis, x[idx] - s.pivot)
+        Tt[6 + k, idx, :] = cross(s.axis, x[idx] - s.pivot)
     Tt[6 + na:, free, :] = V.reshape(len(free), 3, -1).transpose(2, 0, 1)
     return Tt.transpose(1, 2, 0)

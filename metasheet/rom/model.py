@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import axis_rotation
+from ..rotations import axis_rotation, cross
 from .coordinates import ReducedBasis, ReducedState, coordinate_jacobian, projected_state, robot_key
 from .linearizer import ReducedLinearizer
 
@@ -172,9 +172,9 @@ class ReducedRobot:
         g = np.empty(self.nq)
         fe = f[self._eff]
         g[:3] = fe.sum(axis=0)
-        g[3:6] = np.cross(x[self._eff] - st.p, fe).sum(axis=0)
+        g[3:6] = cross(x[self._eff] - st.p, fe).sum(axis=0)
         for k, (s, idx) in enumerate(zip(self.coupling.servos, self._servo)):
-            g[6 + k] = s.axis @ np.cross(x[idx] - s.pivot, f[idx]).sum(axis=0)
+            g[6 + k] = s.axis @ cross(x[idx] - s.pivot, f[idx]).sum(axis=0)
         g[6 + self.na:] = f[self._free].ravel() @ self._V
         return g
 
@@ -182,10 +182,10 @@ class ReducedRobot:
         """(nq,) generalised external forces: effector force [N], moment [N mm], servo torques [N mm], V^T f_ext [N]."""
         g = np.zeros(self.nq)
         g[:3] = self._F_e
-        g[3:6] = np.cross(st.R @ self._s_e, self._g)
+        g[3:6] = cross(st.R @ self._s_e, self._g)
         for k, (s, sk, th) in enumerate(zip(self.coupling.servos, self._s_k, st.angles)):
             Q = axis_rotation(s.axis, th - s.rest_angle)
-            g[6 + k] = s.axis @ np.cross(Q @ sk, self._g)
+            g[6 + k] = s.axis @ cross(Q @ sk, self._g)
         g[6 + self.na:] = self._ext_a
         return g
 
@@ -197,7 +197,7 @@ class ReducedRobot:
         G[3:6, 3:6] = np.outer(a, self._g) - (a @ self._g) * np.eye(3)
         for k, (s, sk, th) in enumerate(zip(self.coupling.servos, self._s_k, st.angles)):
             d = axis_rotation(s.axis, th - s.rest_angle) @ sk
-            G[6 + k, 6 + k] = self._g @ np.cross(s.axis, np.cross(s.axis, d))
+            G[6 + k, 6 + k] = self._g @ cross(s.axis, cross(s.axis, d))
         return G
 
     def _internal_geometric(self, x: np.ndarray, st: ReducedState, f: np.ndarray) -> np.ndarray:
@@ -205,7 +205,7 @@ class ReducedRobot:
         a, fe = x[self._eff] - st.p, f[self._eff]
         G[3:6, 3:6] = a.T @ fe - np.sum(a * fe) * np.eye(3)
         for k, (s, idx) in enumerate(zip(self.coupling.servos, self._servo)):
-            G[6 + k, 6 + k] = np.sum(f[idx] * np.cross(s.axis, np.cross(s.axis, x[idx] - s.pivot)))
+            G[6 + k, 6 + k] = np.sum(f[idx] * cross(s.axis, cross(s.axis, x[idx] - s.pivot)))
         return G
 
     def evaluate(self, st: ReducedState, tangent: bool = True):
