@@ -41,7 +41,6 @@ BLAS_THREADS = {"a": "2", "b": "1"}
 
 
 @pytest.mark.slow
-@pytest.mark.slow_ci
 def test_quick_pipeline_twice_from_scratch_gives_the_same_bytes(tmp_path):
     """The whole quick pipeline, robot included (about 70 s on 2 quiet cores); its default
     sibling is :func:`test_quick_pipeline_to_material_twice_from_scratch_gives_the_same_bytes`.
