@@ -1,7 +1,28 @@
 """Shared pytest options and the expensive fixtures several test files share, each computed
 once per session. Keep this file small and general."""
 
+import os
+
 import pytest
+
+# pytest-xdist's `-n auto` (pyproject addopts) asks for one worker per core; more than four buys
+# little here (the heavy tests run solvers with their own threads) and costs memory
+MAX_XDIST_WORKERS = 4
+
+
+def pytest_xdist_auto_num_workers(config):
+    return max(1, min(os.cpu_count() or 1, MAX_XDIST_WORKERS))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under xdist (``--dist loadgroup``) a test file runs in one worker, so its module-scoped
+    fixtures are computed once, and every file holding a byte-comparing test runs in one shared
+    worker, one after another: the tests that compare bytes stay serial, each at the thread and
+    worker counts it asks for, never beside another byte comparison."""
+    bytes_files = {item.nodeid.split("::")[0] for item in items if item.get_closest_marker("bytes")}
+    for item in items:
+        path = item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group("bytes" if path in bytes_files else path))
 
 
 def pytest_addoption(parser):
@@ -42,7 +63,18 @@ def quick_outputs(tmp_path_factory):
     from metasheet.pipeline.config import load_pipeline
     from metasheet.pipeline.runner import run_pipeline
 
-    root = tmp_path_factory.mktemp("quick-outputs")
     pipeline = load_pipeline(Path(__file__).resolve().parents[1] / "pipelines" / "quick.toml")
-    run_pipeline(pipeline, out_root=root, only="printmap")
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        root = tmp_path_factory.mktemp("quick-outputs")
+        run_pipeline(pipeline, out_root=root, only="printmap")
+        return root
+    # under xdist the workers share one run: the first to take the lock computes it, the
+    # others wait and read (the stages' manifests make the second call a cache hit)
+    import fcntl
+
+    root = tmp_path_factory.getbasetemp().parent / "quick-outputs"
+    root.mkdir(exist_ok=True)
+    with open(root.parent / "quick-outputs.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        run_pipeline(pipeline, out_root=root, only="printmap")
     return root
