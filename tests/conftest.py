@@ -1,15 +1,24 @@
 """Shared pytest options and the expensive fixtures several test files share, each computed
 once per session. Keep this file small and general."""
 
+import ctypes
+import glob
 import os
+import sys
+from ctypes.util import find_library
 
 import pytest
+
+# idle OpenMP threads (numba's kernels) sleep instead of spinning: xdist fills the cores with
+# test processes, and spinning threads took CPU from them (scheduling only: same results)
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 # pytest-xdist's `-n auto` (pyproject addopts) asks for one worker per core; more than four buys
 # little here (the heavy tests run solvers with their own threads) and costs memory
 MAX_XDIST_WORKERS = 4
 
 
+@pytest.hookimpl(optionalhook=True)
 def pytest_xdist_auto_num_workers(config):
     return max(1, min(os.cpu_count() or 1, MAX_XDIST_WORKERS))
 
@@ -32,6 +41,56 @@ def pytest_addoption(parser):
         default=False,
         help="rewrite golden files under tests/golden/ instead of comparing against them",
     )
+
+
+def mkl_rt_path() -> str | None:
+    """MKL's runtime library as pypardiso would find it, or None when pypardiso finds it cheaply
+    (or is not installed).
+
+    Every ``pypardiso.PyPardisoSolver()`` (one per direct homogenisation) looks for ``mkl_rt``;
+    a pip-installed MKL is not on the loader's path, so each one globs ``sys.prefix``
+    recursively: 0.7 s of CPU a solve here, more than the solve of a test's cell."""
+    try:
+        import pypardiso  # noqa: F401
+    except ImportError:
+        return None
+    if os.environ.get("PYPARDISO_MKL_RT") or find_library("mkl_rt") or find_library("mkl_rt.1"):
+        return None
+    for path in sorted(glob.glob(f"{sys.prefix}/[Ll]ib*/**/*mkl_rt*", recursive=True), key=len):
+        try:
+            ctypes.CDLL(path)  # the first that loads, as pypardiso takes it
+            return path
+        except OSError:
+            pass
+    return None
+
+
+@pytest.fixture(scope="session", autouse=True)
+def mkl_rt_found_once():
+    """Tell pypardiso where MKL is (its ``PYPARDISO_MKL_RT``) for the session: the same library
+    and solver, without the search per solve."""
+    path = mkl_rt_path()
+    with pytest.MonkeyPatch.context() as mp:
+        if path:
+            mp.setenv("PYPARDISO_MKL_RT", path)
+        yield
+
+
+@pytest.fixture(scope="session", autouse=True)
+def one_blas_thread_per_process():
+    """One BLAS / OpenMP thread in each test process, as a pipeline run gives itself
+    (:data:`metasheet.executor.UNIT_THREADS`): xdist already fills the cores with processes, and
+    idle OpenBLAS threads spin (a reduce stage measured 18 CPU s at two threads, 5 at one).
+    A thread count set in the environment (``OPENBLAS_NUM_THREADS=2 python -m pytest``, as
+    ``.ci/run`` reruns the bytes tests) is left as it is; tests that compare thread counts set
+    their own."""
+    from metasheet.executor import THREAD_VARS, own_threads
+
+    if any(os.environ.get(var) for var in THREAD_VARS):
+        yield
+    else:
+        with own_threads(1):
+            yield
 
 
 @pytest.fixture(scope="module")

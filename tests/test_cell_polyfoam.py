@@ -30,8 +30,17 @@ def quick():
     return design_cell(_load())
 
 
-def _moduli(cell):
-    r = homogenize_voxels(cell.phases, cell.size, cell.materials, axis=cell.axis_vector, localise=False)
+def _homogenize(cell):
+    return homogenize_voxels(cell.phases, cell.size, cell.materials, axis=cell.axis_vector, localise=False)
+
+
+@pytest.fixture(scope="module")
+def quick_homogenized(quick):
+    """The quick cell homogenised as the chart does it (axis given, no localisation), once."""
+    return _homogenize(quick)
+
+
+def _moduli(r):
     return 1.0 / np.diag(np.linalg.inv(r.C))[:3]
 
 
@@ -98,11 +107,13 @@ def test_quick_polyfoam_meets_its_density_percolates_and_is_non_cubic(quick):
     assert s["resolution"] == [nx, ny, nz]
 
 
-def test_density_solve_hits_other_targets():
-    for infill in (20.0, 40.0):
-        cell = design_cell(_load(infill_percentage=infill, voxel_mm=0.3))
-        assert abs(cell.relative_density - infill / 100) <= 0.005
-        assert cell.connectivity.ok
+@pytest.mark.parametrize("infill", [20.0, pytest.param(40.0, marks=pytest.mark.slow)])
+def test_density_solve_hits_other_targets(infill):
+    """Default-selection sibling of the slow 40 % case: test_density_solve_hits_other_targets[20.0]
+    (the quick cell, built by every run, is 30 %)."""
+    cell = design_cell(_load(infill_percentage=infill, voxel_mm=0.3))
+    assert abs(cell.relative_density - infill / 100) <= 0.005
+    assert cell.connectivity.ok
 
 
 def test_level_set_is_periodic_and_matches_the_voxels(quick):
@@ -128,23 +139,31 @@ def test_same_seed_same_bytes_other_seed_other_bytes(quick):
 
 # --- the homogenised symmetry ------------------------------------------------------------------
 
-def test_shrink_makes_x_the_soft_axis(quick):
-    Ex, Ey, Ez = _moduli(quick)
+def test_shrink_makes_x_the_soft_axis(quick_homogenized):
+    Ex, Ey, Ez = _moduli(quick_homogenized)
     assert Ex < 0.3 * min(Ey, Ez)  # measured 0.27, 1.52, 2.87 MPa
 
 
+# Measured E_x / E_y over seeds 1..6 at these settings: 0.83-1.08 (4 seeds), 0.94-1.09
+# (8 seeds). E_z is about 3x E_x, E_y: the trapezohedron's cells are taller than wide
+# (1 / beta = 3.3 along z), their walls mostly vertical.
+def _in_plane_ratio(seed: int) -> float:
+    """E_x / E_y of the unshrunk quick cell at ``seed``, each seed within the measured spread."""
+    Ex, Ey, Ez = _moduli(_homogenize(design_cell(_load(kgon_x_shrink=1.0, seed=seed))))
+    assert 0.8 < Ex / Ey < 1.25
+    assert Ez > 2.0 * max(Ex, Ey)
+    return Ex / Ey
+
+
+def test_no_shrink_is_isotropic_in_the_print_plane_at_one_seed():
+    _in_plane_ratio(1)
+
+
+@pytest.mark.slow
 def test_no_shrink_is_isotropic_in_the_print_plane():
-    # Measured E_x / E_y over seeds 1..6 at these settings: 0.83-1.08 (4 seeds), 0.94-1.09
-    # (8 seeds). E_z is about 3x E_x, E_y: the trapezohedron's cells are taller than wide
-    # (1 / beta = 3.3 along z), their walls mostly vertical.
-    ratios = []
-    for seed in (1, 2, 3):
-        cell = design_cell(_load(kgon_x_shrink=1.0, seed=seed))
-        Ex, Ey, Ez = _moduli(cell)
-        ratios.append(Ex / Ey)
-        assert 0.8 < Ex / Ey < 1.25
-        assert Ez > 2.0 * max(Ex, Ey)
-    assert 0.9 < np.mean(ratios) < 1.1
+    """Default-selection sibling: test_no_shrink_is_isotropic_in_the_print_plane_at_one_seed (the
+    per-seed bounds at seed 1; the mean over seeds here)."""
+    assert 0.9 < np.mean([_in_plane_ratio(seed) for seed in (1, 2, 3)]) < 1.1
 
 
 # --- the interface -----------------------------------------------------------------------------
@@ -187,13 +206,16 @@ def test_too_many_voxels_and_too_coarse_voxels_are_refused():
         design_cell(_load(), resolution=32)
 
 
-def test_chart_call_sequence_works():
-    # what the chart code does (metasheet.homogenize.chart.evaluate_point)
+def test_chart_call_sequence_works(quick, quick_homogenized):
+    # what the chart code does (metasheet.homogenize.chart.evaluate_point): parse with the
+    # point's overrides, build, homogenise. This point's overrides are the quick cell's own
+    # values, so the build and the homogenisation are the module's (one design gives one cell:
+    # test_same_seed_same_bytes_other_seed_other_bytes)
     design = parse_design(_data(), overrides={"infill_percentage": 30, "kgon_x_shrink": 0.5, "seed": 1,
                                               "voxel_mm": 0.3})
-    cell = design_cell(design)
-    r = homogenize_voxels(cell.phases, cell.size, cell.materials, axis=cell.axis_vector, localise=False)
-    assert r.resolution == cell.shape and r.fit.material.E_l < r.fit.material.E_t
+    assert design == quick.design
+    r = quick_homogenized
+    assert r.resolution == quick.shape and r.fit.material.E_l < r.fit.material.E_t
 
 
 def test_cell_stage_writes_a_polyfoam(tmp_path):
@@ -236,8 +258,8 @@ def test_the_built_walls_are_steep(quick):
     assert np.abs(d.wall_nz).max() > 0.5  # and sloped walls exist (45 deg: |n_z| up to 0.707)
 
 
-def test_candidate_physics_options():
-    base = design_cell(_load())
+def test_candidate_physics_options(quick):
+    base = quick  # design_cell(_load()), built once for the module
     horizontal = design_cell(parse_design({**_data(), "wall_measure": "horizontal"}))
     # the bead is the wall's horizontal width: sloped walls thinner, so smaller cells for 30 %
     assert abs(horizontal.relative_density - 0.3) <= 0.005 and horizontal.connectivity.ok

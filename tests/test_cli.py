@@ -2,6 +2,11 @@
 
 The error paths, message by message, are in ``test_reliability_errors.py``; the lock,
 debris and clean in ``test_reliability_lock.py``.
+
+One test runs the command as a user does, in its own process (its exit status, the results
+table, the lock's holder file); the others call ``metasheet.cli.main`` in this process, as
+test_reliability_errors.py does: the same code from the argument list on, without the four CPU
+seconds a fresh interpreter spends importing the stages.
 """
 
 import json
@@ -10,6 +15,8 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,17 +27,38 @@ def cli(*args, cwd=ROOT):
     )
 
 
-def test_bad_config_is_one_clean_message(tmp_path):
+@pytest.fixture
+def cli_here(capsys, monkeypatch):
+    """``metasheet ARGS`` in this process, from the repository root: (returncode, stdout, stderr)
+    like :func:`cli`'s result (a SystemExit's code; 0 when main returns)."""
+    from metasheet.cli import main
+
+    monkeypatch.chdir(ROOT)
+
+    def run(*args):
+        capsys.readouterr()
+        try:
+            main(list(args))
+            code = 0
+        except SystemExit as exc:
+            code = 0 if exc.code is None else exc.code
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess(["metasheet", *args], code, out, err)
+
+    return run
+
+
+def test_bad_config_is_one_clean_message(tmp_path, cli_here):
     bad = tmp_path / "bad.toml"
     bad.write_text('[pipeline]\nname = "x"\nstages = ["material"]\n[material]\nE_t = -1\n')
-    r = cli("run", str(bad))
+    r = cli_here("run", str(bad))
     assert r.returncode == 2
     assert "material.E_t: -1" in r.stderr and "greater than 0" in r.stderr
     assert "Traceback" not in r.stderr + r.stdout
 
 
-def test_stages_lists_material():
-    r = cli("stages")
+def test_stages_lists_material(cli_here):
+    r = cli_here("stages")
     assert r.returncode == 0 and "material" in r.stdout
 
 
@@ -52,17 +80,17 @@ def test_run_writes_manifest(tmp_path, quick_outputs):
     assert set(h["timings_s"]) == {"assembly", "setup", "solve", "post"}
 
 
-def test_validate_checks_the_files_a_pipeline_names(tmp_path):
-    r = cli("validate", "pipelines/quick.toml")
+def test_validate_checks_the_files_a_pipeline_names(tmp_path, cli_here):
+    r = cli_here("validate", "pipelines/quick.toml")
     assert r.returncode == 0 and "ok; stages in order: cell -> homogenize" in r.stdout
     (tmp_path / "cells").mkdir()
     bad = tmp_path / "bad.toml"
     bad.write_text('[pipeline]\nname = "x"\nstages = ["cell"]\n[cell]\ndesign = "cells/missing.toml"\n')
-    r = cli("validate", str(bad))
+    r = cli_here("validate", str(bad))
     assert r.returncode == 2
     assert r.stderr == f"error: {bad}: cell.design: 'cells/missing.toml': no such file under {tmp_path}\n"
 
 
-def test_clean_on_a_folder_never_written(tmp_path):
-    r = cli("clean", "pipelines/quick.toml", "--out", str(tmp_path))
+def test_clean_on_a_folder_never_written(tmp_path, cli_here):
+    r = cli_here("clean", "pipelines/quick.toml", "--out", str(tmp_path))
     assert r.returncode == 0 and "nothing to remove" in r.stdout

@@ -3,7 +3,10 @@ outputs, resume, same bytes, the gradient's gain, the check on the published con
 bad [design] values named."""
 
 import csv
+import fcntl
 import json
+import os
+import shutil
 import tomllib
 
 import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
@@ -37,29 +40,49 @@ DESIGN = {"n_trials": "8", "batch": "4", "population": "4", "n_radial": "2", "ma
           "sobol_n": "8", "strain_front": "[0.35]"}
 
 
-def _pipeline(tmp_path, n=8, extra="", name="p.toml"):
+def _pipeline(tmp_path, n=8, extra: str | dict = "", name="p.toml"):
     f = tmp_path / name
     table = {**DESIGN, "n_trials": str(n)}
-    if extra:  # one "key = value" line replaces the default's
+    if isinstance(extra, str) and extra:  # one "key = value" line replaces the default's
         k, v = (x.strip() for x in extra.split("=", 1))
         table[k] = v
+    elif isinstance(extra, dict):  # key -> value, each replacing the default's
+        table.update(extra)
     f.write_text(BASE.format(design="\n".join(f"{k} = {v}" for k, v in table.items())))
     return load_pipeline(f)
 
 
-def _run(tmp_path, out, n=8, extra=""):
+def _run(tmp_path, out, n=8, extra: str | dict = ""):
     run_pipeline(_pipeline(tmp_path, n, extra), out_root=out)
     return out / "d" / "design"
 
 
+def first_run(tmp_path_factory):
+    """The first run (DESIGN, 8 trials, every part of the stage) once per session: its folder,
+    holding p.toml and out/d/{material,orient,design}. tests/test_design_chosen.py reads it too:
+    under xdist the workers share it, as conftest's quick_outputs (the first to take the lock
+    runs it and marks it done, the others read it). Read it; a test that runs a stage again in
+    it copies it first."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    base = tmp_path_factory.getbasetemp() if worker is None else tmp_path_factory.getbasetemp().parent
+    tmp = base / "design-first"
+    with open(base / "design-first.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (tmp / "done").exists():
+            tmp.mkdir(exist_ok=True)
+            _run(tmp, tmp / "out")
+            (tmp / "done").touch()
+    return tmp
+
+
 @pytest.fixture(scope="module")
 def first(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("design")
-    d = _run(tmp, tmp / "out")
+    tmp = first_run(tmp_path_factory)
+    d = tmp / "out" / "d" / "design"
     return tmp, d, {f: (d / f).read_bytes() for f in ("trials.csv", "pareto.csv", "design.json")}
 
 
-def test_outputs(first):
+def test_outputs(first, tmp_path):
     _, d, _ = first
     for f in ("trials.csv", "pareto.csv", "pareto.png", "field.png", "design.json", "chosen.toml", "study.journal",
               "sensitivity.csv", "sensitivity.png"):
@@ -83,7 +106,7 @@ def test_outputs(first):
     chosen = tomllib.loads((d / "chosen.toml").read_text())
     assert chosen["orient"]["pitch_deg"] == s["chosen"]["design"]["pitch_deg"]
     assert chosen["material"]["E_l"] == 0.2
-    f = d.parent.parent / "chosen.toml"
+    f = tmp_path / "chosen.toml"
     f.write_text((d / "chosen.toml").read_text())
     assert load_pipeline(f).section.stages == ["material", "orient", "robot"]  # a valid pipeline
 
@@ -158,14 +181,15 @@ def test_comparison_of_every_objective(first):
     assert any(x.startswith("| rod roll per motor degree | deg/deg | ") for x in md)
 
 
-def test_report_section(first):
+def test_report_section(first, tmp_path):
     """The report stage with the design stage in the pipeline: its section and pictures (the
     design stage's outputs are reused, only the report runs)."""
-    tmp, d, _ = first
-    f = tmp / "r.toml"
-    _pipeline(tmp, 8)  # writes p.toml, the first run's pipeline
+    tmp, _, _ = first
+    shutil.copytree(tmp / "out", tmp_path / "out")
+    d = tmp_path / "out" / "d" / "design"
+    f = tmp_path / "r.toml"
     f.write_text((tmp / "p.toml").read_text().replace('"design"]', '"design", "report"]'))
-    out = run_pipeline(load_pipeline(f), out_root=tmp / "out")
+    out = run_pipeline(load_pipeline(f), out_root=tmp_path / "out")
     assert {o.name: o.status for o in out}["design"] == "cached"
     r = d.parent / "report"
     text = (r / "report.md").read_text()
@@ -176,8 +200,44 @@ def test_report_section(first):
     assert (r / "design_field.png").is_file() and "![fibre fields](design_field.png)" in text
 
 
-def test_resume_and_same_bytes(first):
+#: the light sibling's [design] changes: the search as DESIGN's (the same study, resumed), the
+#: rest of the stage cheap (none of these is in the study's name): no round trip, no gradient
+#: (its field is a third panel of field.png, whose streamlines cost most of a light run),
+#: 2-point sensitivities
+LIGHT = {"round_trip": "false", "gradient": "false", "oat_points": "2", "sobol_n": "2"}
+
+
+def test_resume_and_same_bytes_light(first, tmp_path):
+    """Default-selection sibling of test_resume_and_same_bytes: 4 more trials resumed from the
+    first run's journal (in a copy of its outputs), then the same settings from scratch with the
+    first run's material and orient outputs copied (cached: the design stage starts afresh)."""
     tmp, _, before = first
+    shutil.copytree(tmp / "out", tmp_path / "resumed")
+    d2 = _run(tmp_path, tmp_path / "resumed", n=12, extra=LIGHT)
+    s = json.loads((d2 / "design.json").read_text())
+    assert s["search"]["n_trials"] == 12 and s["search"]["evaluated_this_run"] == 4
+    old, new = before["trials.csv"].decode().splitlines(), (d2 / "trials.csv").read_text().splitlines()
+    strip = lambda line: line.rsplit(",", 1)[0]  # the pareto flag may change with more trials
+    assert len(new) == 13 and [strip(x) for x in new[:9]] == [strip(x) for x in old]
+    assert not (tmp_path / "resumed" / "d" / ".design.units").exists()  # the journal is in the outputs now
+    for stage in ("material", "orient"):
+        shutil.copytree(tmp / "out" / "d" / stage, tmp_path / "fresh" / "d" / stage)
+    d3 = _run(tmp_path, tmp_path / "fresh", n=12, extra=LIGHT)
+    a, b = (json.loads((x / "design.json").read_text()) for x in (d2, d3))
+    assert b["search"]["evaluated_this_run"] == 12  # no journal: every trial evaluated
+    for f in ("trials.csv", "pareto.csv", "sensitivity.csv", "comparison.md"):
+        assert (d3 / f).read_bytes() == (d2 / f).read_bytes(), f
+    a["search"].pop("evaluated_this_run"), b["search"].pop("evaluated_this_run")
+    assert a == b
+
+
+@pytest.mark.slow
+def test_resume_and_same_bytes(first, tmp_path):
+    """Default-selection sibling: test_resume_and_same_bytes_light (this one: 8 more trials and
+    every part of the stage but the round trip, and orient run again from scratch)."""
+    src, _, before = first
+    tmp = tmp_path
+    shutil.copytree(src / "out", tmp / "out")
     # twice the trials in the same outputs: the first 8 come from the journal, 8 are new
     # (round_trip off: its 1.6 s a design is tested on the first run; it is not in the study's name)
     d2 = _run(tmp, tmp / "out", n=16, extra="round_trip = false")

@@ -1,5 +1,6 @@
 """Voxel homogenisation against exact answers: solid, laminate (Backus), bounds, lattice."""
 
+
 import numpy as np
 import pytest
 
@@ -43,9 +44,18 @@ def test_hex8_matches_scikit_fem():
         np.testing.assert_allclose(K @ u, F[:, I] - F[:, I].mean() * 0, atol=1e-12 * np.abs(F).max())
 
 
-@pytest.mark.parametrize("solver", ["direct", "amg"])
-@pytest.mark.parametrize("material", [TPU, TI], ids=["iso", "ti"])
+def _slow(*values, id):
+    return pytest.param(*values, marks=pytest.mark.slow, id=id)
+
+
+# each solver and each material once by default; the two other pairings are slow
+@pytest.mark.parametrize("material, solver", [
+    pytest.param(TPU, "direct", id="iso-direct"), pytest.param(TI, "amg", id="ti-amg"),
+    _slow(TPU, "amg", id="iso-amg"), _slow(TI, "direct", id="ti-direct"),
+])
 def test_solid_cell_returns_base_material(solver, material):
+    """Default-selection siblings of the slow cases: test_solid_cell_returns_base_material[iso-direct]
+    and [ti-amg] (each solver and each material once)."""
     ph = np.ones((5, 4, 6), np.int64)
     r = homogenize_voxels(ph, (1.0, 2.0, 0.5), {1: material}, solver=solver)
     C0 = material.stiffness()
@@ -54,9 +64,13 @@ def test_solid_cell_returns_base_material(solver, material):
     np.testing.assert_allclose(r.localisation.ratio_max, 1.0, atol=1e-10)
 
 
-@pytest.mark.parametrize("solver", ["direct", "amg"])
-@pytest.mark.parametrize("mats", [(TPU, SOFT), (TI, SOFT)], ids=["iso-iso", "ti-iso"])
+@pytest.mark.parametrize("mats, solver", [
+    pytest.param((TPU, SOFT), "amg", id="iso-iso-amg"), pytest.param((TI, SOFT), "direct", id="ti-iso-direct"),
+    _slow((TPU, SOFT), "direct", id="iso-iso-direct"), _slow((TI, SOFT), "amg", id="ti-iso-amg"),
+])
 def test_laminate_equals_backus(solver, mats):
+    """Default-selection siblings of the slow cases: test_laminate_equals_backus[iso-iso-amg] and
+    [ti-iso-direct] (each solver and each pair of materials once)."""
     ph = laminate(8, 0.375, axis=2)
     size = (1.0, 1.0, 2.0)
     r = homogenize_voxels(ph, size, {1: mats[0], 2: mats[1]}, solver=solver, rtol=1e-10)
@@ -76,8 +90,10 @@ def test_laminate_along_x_is_the_rotated_backus():
     assert np.abs(r.C - C_ex[np.ix_(perm, perm)]).max() <= 1e-6 * np.abs(C_ex).max()
 
 
-@pytest.mark.parametrize("density,seed", [(0.15, 0), (0.3, 1)])
+@pytest.mark.parametrize("density,seed", [(0.15, 0), _slow(0.3, 1, id="0.3-1")])
 def test_porous_cells_respect_voigt_and_hashin_shtrikman(density, seed):
+    """Default-selection sibling of the slow 0.3 case:
+    test_porous_cells_respect_voigt_and_hashin_shtrikman[0.15-0]."""
     ph = edge_foam(14, density, seeds=6, rng_seed=seed)
     r = homogenize_voxels(ph, (1.0, 1.0, 1.0), {1: TPU})
     f = r.relative_density

@@ -9,6 +9,7 @@ same bytes.
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,12 @@ def small_study(tmp_path_factory):
     picture (the slow ``study`` below: three each, a picture and a second full run)."""
     tmp = tmp_path_factory.mktemp("small")
     one = _run(tmp, "one", "picture = false")
+    # the same cell stage: its outputs copied, so "small" finds it cached (the cell key does
+    # not hold the pipeline's name) and only its homogenize stage runs
+    shutil.copytree(one.parent / "cell", tmp / "out" / "small" / "cell")
     ens = _run(tmp, "small", SMALL)
+    assert json.loads((ens / "manifest.json").read_text())["inputs"] == \
+        json.loads((one / "manifest.json").read_text())["inputs"]  # the same cell, cached
     return tmp, one, ens
 
 
@@ -105,11 +111,13 @@ def test_small_study_same_bytes_when_homogenize_runs_again(small_study):
 
 def test_size_max_voxels_refused_on_an_existing_cell(small_study):
     """Default-selection sibling of test_size_max_voxels_reaches_the_study_only: the study's
-    cells get the override and are refused by name (the cell stage's own cell already built)."""
+    cells get the override and are refused by name (the cell stage's own cell already built).
+    One realisation at the cell's own size (none to build again before the study's), two in the
+    study."""
     tmp, one, _ = small_study
     with pytest.raises(StageError, match="homogenize.*max_voxels: 1000: the cell needs"):
-        _run(tmp, "one", "realisations = 2\nsizes = [2]\nsize_max_voxels = 1000\npicture = false",
-             only="homogenize")
+        _run(tmp, "one", "realisations = 1\nsizes = [2]\nsize_realisations = 2\nsize_max_voxels = 1000\n"
+             "picture = false", only="homogenize")
     assert (one.parent / "cell" / "voxels.npz").exists()
 
 

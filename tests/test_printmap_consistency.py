@@ -4,7 +4,9 @@ A small orient output is built here (uniform design, the cell's constants), the 
 stage runs on it, and the quantised fields are read back from its files.
 """
 
+import fcntl
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,16 +35,30 @@ def _inputs(root: Path, constants=None, percent=P_CELL) -> dict:
     return {"cell": root / "cell", "homogenize": root / "homogenize"}
 
 
+def printmap_run(tmp_path_factory) -> tuple[Path, Path, Path, dict]:
+    """orient (8 mm, the cell's constants) and printmap (the 35 % cell, every setting a field) run
+    once per session: (root, orient/, printmap/, printmap's inputs); the stages' summaries in
+    root/summaries.json. tests/test_printmap_lua.py reads the same run. Under xdist the workers
+    share it, as conftest's quick_outputs: the first to take the lock computes it. Read it only."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    base = tmp_path_factory.getbasetemp() if worker is None else tmp_path_factory.getbasetemp().parent
+    root = base / "printmap-round-trip"
+    o, pm = root / "orient", root / "printmap"
+    with open(base / "printmap-round-trip.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (root / "summaries.json").exists():
+            for d in (o, pm):
+                d.mkdir(parents=True, exist_ok=True)
+            so = orient.run(StageContext("orient", orient.OrientParams(mesh_size=8.0, constants=CELL), o, {}, root))
+            sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(uniform_as_value=False), pm,
+                                           {"orient": o, **_inputs(root)}, root))
+            (root / "summaries.json").write_text(json.dumps({"orient": so, "printmap": sp}))
+    return root, o, pm, {"orient": o, "cell": root / "cell", "homogenize": root / "homogenize"}
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    root = tmp_path_factory.mktemp("roundtrip")
-    o, pm = root / "orient", root / "printmap"
-    o.mkdir()
-    pm.mkdir()
-    orient.run(StageContext("orient", orient.OrientParams(mesh_size=8.0, constants=CELL), o, {}, root))
-    inputs = {"orient": o, **_inputs(root)}
-    printmap.run(StageContext("printmap", printmap.PrintmapParams(uniform_as_value=False), pm, inputs, root))
-    return root, o, pm, inputs
+    return printmap_run(tmp_path_factory)
 
 
 def _held(pm: Path, label: str):
@@ -182,7 +198,26 @@ def test_stage_fails_on_a_mismatch_and_writes_nothing(run, tmp_path):
     assert not any(out.rglob("*"))
 
 
+def test_stage_refuses_constants_outside_the_point_model(run, tmp_path):
+    """Default-selection sibling of test_stage_refuses_a_design_outside_the_point_model: the same
+    refusal, before anything is sampled, on the module's uniform sheet against a cell three
+    times as stiff. Its point model prints p in [35 / 2, 35 x 2] %; orient's moduli need
+    p = 35 % x 3^(-1 / 1.1) = 12.89 %."""
+    _, o, _, _ = run
+    stiff = {k: v * 3.0 if k in ("E_t", "E_l", "mu_l") else v for k, v in CELL.items()}
+    out = tmp_path / "pm"
+    out.mkdir()
+    with pytest.raises(InfeasibleError, match=r"normal sheet element \d+ .*infill_percentage = 12\.89 %, outside "
+                                              r"the print model's range \[17\.5, 70\]"):
+        printmap.run(StageContext("printmap", printmap.PrintmapParams(), out,
+                                  {"orient": o, **_inputs(tmp_path, constants=stiff)}, tmp_path))
+    assert not any(out.rglob("*"))
+
+
+@pytest.mark.slow
 def test_stage_refuses_a_design_outside_the_point_model(tmp_path):
+    """Default-selection sibling: test_stage_refuses_constants_outside_the_point_model (this one
+    grades the sheet: a 12 mm orient run of its own)."""
     o = tmp_path / "orient"
     o.mkdir()
     po = orient.OrientParams(mesh_size=12.0, constants=CELL, grading={"table": {"arms": {"density": 0.4}}})

@@ -22,8 +22,9 @@ import pytest
 from metasheet.errors import ConfigError
 from metasheet.pipeline import printsource
 from metasheet.pipeline.registry import StageContext
-from metasheet.pipeline.stages import orient, printmap
+from metasheet.pipeline.stages import printmap
 from metasheet.sheet import icesl, icesl_lua
+from test_printmap_consistency import CELL, P_CELL, printmap_run
 
 LUA54 = shutil.which("lua5.4")
 
@@ -134,8 +135,8 @@ def run_lua(request):
     return _run_binary
 
 
-# the constants of a polyfoam cell (the paper's foam numbers, standing in for a homogenised cell)
-CELL = {"E_t": 1.39, "E_l": 0.0942, "nu_t": 0.26162, "nu_tl": 0.4161, "mu_l": 0.01628}
+# CELL (imported with the shared run): the constants of a polyfoam cell, the paper's foam numbers
+# standing in for a homogenised cell
 
 
 def polyfoam_inputs(root: Path, *, kind="polyfoam", settings=None, constants=None) -> dict:
@@ -157,15 +158,12 @@ class _Ctx:
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("stages")
-    o, pm = root / "orient", root / "printmap"
-    o.mkdir()
-    pm.mkdir()
-    po = orient.OrientParams(mesh_size=8.0, pitch_deg=40.0, constants=CELL)
-    so = orient.run(StageContext("orient", po, o, {}, root))
-    inputs = {"orient": o, **polyfoam_inputs(root)}
-    sp = printmap.run(StageContext("printmap", printmap.PrintmapParams(uniform_as_value=False), pm, inputs, root))
-    return o, pm, so, sp
+    """(orient/, printmap/, their summaries): the session's orient + printmap run of
+    tests/test_printmap_consistency.py (8 mm sheets of the cell's constants, the P_CELL % cell,
+    every setting a field), shared with it. Read it only."""
+    root, o, pm, _ = printmap_run(tmp_path_factory)
+    summaries = json.loads((root / "summaries.json").read_text())
+    return o, pm, summaries["orient"], summaries["printmap"]
 
 
 def _nonblank_png(path: Path):
@@ -201,7 +199,7 @@ def test_printmap_outputs(runs):
         for f in ("sheet.stl", "solid.stl", "print.lua", "infill_percentage.txt", "infill_angle.txt"):
             assert (pm / label / f).exists(), f"{label}/{f}"
         assert not (pm / label / "kgon_x_shrink.txt").exists()  # uniform shrink: a value, not a field
-        assert summary[f"{label}_infill_percentage_range"] == [80.0, 80.0]
+        assert summary[f"{label}_infill_percentage_range"] == [P_CELL, P_CELL]
     assert not list(pm.rglob(".*tmp*"))  # atomic writes leave no temporary file
     _nonblank_png(pm / "printmap.png")
 
@@ -212,8 +210,10 @@ FOAM_VALUES = {"infill_type_0": "Polyfoam", "print_perimeter_0": "false", "num_s
                "cover_thickness_mm_0": "0.0", "kgon_x_shrink_0": "0.2"}
 
 
-@pytest.mark.parametrize("label", ["normal", "mirrored"])
+@pytest.mark.parametrize("label", ["normal", pytest.param("mirrored", marks=pytest.mark.slow)])
 def test_lua_script_runs_and_binds_exactly_the_modelled_settings(runs, tmp_path, label, run_lua):
+    """Default-selection sibling of the slow mirrored case (its script differs in the box only):
+    test_lua_script_runs_and_binds_exactly_the_modelled_settings[lupa-normal]."""
     _, pm, _, _ = runs
     info = json.loads((pm / "printmap.json").read_text())["sheets"][label]
     driver = tmp_path / "standin.lua"
@@ -242,15 +242,23 @@ def test_lua_script_runs_and_binds_exactly_the_modelled_settings(runs, tmp_path,
     assert brushes == ["BRUSH difference sheet.stl-solid.stl 0", "BRUSH intersection sheet.stl*solid.stl 1"]
 
 
-def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, run_lua):
+# The hand-made scripts below read textures of n^3 values: the script's reader takes n from the
+# box (``local N``), so a 16^3 texture runs the same Lua as IceSL's 64^3 one (read through by the
+# printmap's own scripts above), in 1/64 of the time; the 64^3 cases are slow.
+TEXTURE_N = [16, pytest.param(64, marks=pytest.mark.slow)]
+
+
+@pytest.mark.parametrize("n", TEXTURE_N)
+def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, run_lua, n):
+    """Default-selection sibling of the slow 64 case: the 16 case of this test."""
     rng = np.random.default_rng(0)
     files = {"infill_percentage": "p.txt", "kgon_x_shrink": "s.txt", "infill_angle": "a.txt"}
     sums = {}
     for k, fname in files.items():
-        v = np.round(rng.random((64, 64, 64)), 4)
+        v = np.round(rng.random((n, n, n)), 4)
         (tmp_path / fname).write_text(icesl.field_text(v))
         sums[fname] = v.sum()
-    box = icesl.GridBox(np.array([-1.0, -2.0, -3.0]), np.array([1.0, 2.0, 3.0]))
+    box = icesl.GridBox(np.array([-1.0, -2.0, -3.0]), np.array([1.0, 2.0, 3.0]), n)
     (tmp_path / "print.lua").write_text(icesl_lua.lua_script(
         sheet_stl="sheet.stl", solid_stl="solid.stl", infill_type="Polyfoam",
         foam={**icesl.FOAM_BRUSH, "kgon_min_angle": 60.0}, fields=files,
@@ -261,6 +269,7 @@ def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, ru
     fields = {ln.split()[1]: ln.split()[2:] for ln in res.stdout.splitlines() if ln.startswith("FIELD")}
     assert {k: v[0] for k, v in fields.items()} == {f"{k}_0": f for k, f in files.items()}
     for f in fields.values():
+        assert [int(x) for x in f[1:6]] == [n, n, n, n**3, n**3]  # every texel set once
         assert float(f[6]) == pytest.approx(sums[f[0]], rel=1e-9)
         assert [float(x) for x in f[7:13]] == [-1.0, -2.0, -3.0, 1.0, 2.0, 3.0]
     assert "SET kgon_min_angle_0 60.0" in res.stdout.splitlines()
@@ -270,17 +279,19 @@ def test_graded_shrink_is_a_field_and_kgon_defaults_are_not_written(tmp_path, ru
                          fields={"kgon_x_shrink": "s.txt"}, solid={}, box=box, settings={})
 
 
-def test_lua_script_fails_loudly_on_a_short_field(tmp_path, run_lua):
-    box = icesl.GridBox(np.zeros(3), np.ones(3))
+@pytest.mark.parametrize("n", TEXTURE_N)
+def test_lua_script_fails_loudly_on_a_short_field(tmp_path, run_lua, n):
+    """Default-selection sibling of the slow 64 case: the 16 case of this test."""
+    box = icesl.GridBox(np.zeros(3), np.ones(3), n)
     files = {"infill_percentage": "density.txt", "infill_angle": "angle.txt"}
-    (tmp_path / "density.txt").write_text(icesl.field_text(np.zeros((64, 64, 64))))
+    (tmp_path / "density.txt").write_text(icesl.field_text(np.zeros((n, n, n))))
     (tmp_path / "angle.txt").write_text("0.5 0.5\n")
     (tmp_path / "print.lua").write_text(icesl_lua.lua_script(
         sheet_stl="s.stl", solid_stl="t.stl", infill_type="Polyfoam", foam={}, fields=files, solid={},
         box=box, settings={}))
     (tmp_path / "standin.lua").write_text(STANDIN)
     res = run_lua("standin.lua", "print.lua", cwd=tmp_path, timeout=60)
-    assert res.returncode != 0 and "expected 262144 values, read 2" in res.stderr
+    assert res.returncode != 0 and f"expected {n**3} values, read 2" in res.stderr
 
 
 # ------------------------------------------------------------------ the print source

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from types import SimpleNamespace
 
 import pytest
 from run_driver import call, make_project, outputs, pipeline, start, stderr_lines, stop_started, wait_started
@@ -20,43 +21,54 @@ def project(tmp_path):
     stop_started(tmp_path)
 
 
-def test_second_run_waits_for_the_first_and_outputs_equal_a_single_run(project):
+@pytest.fixture(scope="module")
+def contended(tmp_path_factory):
+    """One scene for the two tests below (each driver process spends about four CPU seconds
+    importing the stages; the scene needs four, not six): a single run for reference; then a
+    first run holds the lock (its stage waits at a gate), a ``--no-wait`` run is refused, and a
+    second run waits for the first; the gate opens and both finish."""
+    project = make_project(tmp_path_factory.mktemp("contended"))
+    try:
+        toml = pipeline(project)
+        single = call(project, "run", str(toml), "--out", str(project / "single"))
+        assert single.returncode == 0, single.stderr
+        first = start(project, "run", str(toml), "--out", str(project / "out"), seconds="gate")
+        wait_started(project, first)
+        refused = call(project, "run", str(toml), "--out", str(project / "out"), "--no-wait")
+        second = start(project, "run", str(toml), "--out", str(project / "out"), seconds="gate")
+        lines = stderr_lines(second)
+        t0 = time.monotonic()
+        while not any("waiting for it to finish" in ln for ln in lines):
+            assert not (project / "started" / str(second.pid)).exists(), "the second run did not wait"
+            assert second.poll() is None and time.monotonic() - t0 < 120, lines
+            time.sleep(0.05)
+        (project / "gate-open").write_text("")
+        _, err1 = first.communicate(timeout=300)
+        out2, _ = second.communicate(timeout=300)
+        yield SimpleNamespace(project=project, first=first, err1=err1, refused=refused, second=second,
+                              lines=lines, out2=out2)
+    finally:
+        stop_started(project)
+
+
+def test_second_run_waits_for_the_first_and_outputs_equal_a_single_run(contended):
     """Before: both ran every stage at once into the same folder, nothing said so."""
-    toml = pipeline(project)
-    single = call(project, "run", str(toml), "--out", str(project / "single"))
-    assert single.returncode == 0, single.stderr
-    first = start(project, "run", str(toml), "--out", str(project / "out"), seconds="gate")
-    wait_started(project, first)
-    second = start(project, "run", str(toml), "--out", str(project / "out"), seconds="gate")
-    lines = stderr_lines(second)
-    t0 = time.monotonic()
-    while not any("waiting for it to finish" in ln for ln in lines):
-        assert not (project / "started" / str(second.pid)).exists(), "the second run did not wait"
-        assert second.poll() is None and time.monotonic() - t0 < 120, lines
-        time.sleep(0.05)
-    (project / "gate-open").write_text("")
-    _, err1 = first.communicate(timeout=300)
-    out2, _ = second.communicate(timeout=300)
-    assert first.returncode == 0, err1
-    assert second.returncode == 0, "".join(lines)
-    assert any(f"in use by run pid {first.pid} since " in ln for ln in lines), lines
-    assert out2.count("cached") == 2  # it found the first run's outputs fresh
+    c, project = contended, contended.project
+    assert c.first.returncode == 0, c.err1
+    assert c.second.returncode == 0, "".join(c.lines)
+    assert any(f"in use by run pid {c.first.pid} since " in ln for ln in c.lines), c.lines
+    assert c.out2.count("cached") == 2  # it found the first run's outputs fresh
     assert len(list((project / "started").iterdir())) == 2  # only the single run and the first ran ``slow``
     assert outputs(project / "out" / "p") == outputs(project / "single" / "p")
 
 
-def test_no_wait_refuses_with_status_3_naming_the_holder(project):
+def test_no_wait_refuses_with_status_3_naming_the_holder(contended):
     """Before: no --no-wait (a usage error), and no lock to refuse on."""
-    toml = pipeline(project)
-    first = start(project, "run", str(toml), seconds="gate")
-    wait_started(project, first)
-    second = call(project, "run", str(toml), "--no-wait")
-    (project / "gate-open").write_text("")
-    first.communicate(timeout=300)
-    assert second.returncode == 3, second.stderr
-    lines = [ln for ln in second.stderr.splitlines() if ln.startswith("error: ")]
-    assert len(lines) == 1 and f"in use by run pid {first.pid} since " in lines[0], second.stderr
-    assert "--no-wait" in lines[0] and "Traceback" not in second.stderr
+    refused, first = contended.refused, contended.first
+    assert refused.returncode == 3, refused.stderr
+    lines = [ln for ln in refused.stderr.splitlines() if ln.startswith("error: ")]
+    assert len(lines) == 1 and f"in use by run pid {first.pid} since " in lines[0], refused.stderr
+    assert "--no-wait" in lines[0] and "Traceback" not in refused.stderr
     assert first.returncode == 0
 
 

@@ -29,6 +29,17 @@ GOAL = [1.0, 1.0, -1.0, 0.0, 3.0, 0.0]  # reachable on the coarse robot: x, y, z
 FAR = [0.0, 0.0, -3.0, 40.0, 0.0, 0.0]  # 40 deg about the rod: beyond the stroke
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _one_blas_thread():
+    """One BLAS / OpenMP thread (the session's solver thread too: the limit is the process's), as a
+    pipeline run computes (:data:`metasheet.executor.UNIT_THREADS`): OpenBLAS's idle threads spin.
+    Module-scoped and autouse: in place before the other fixtures compute."""
+    from metasheet.executor import UNIT_THREADS, own_threads
+
+    with own_threads(UNIT_THREADS):
+        yield
+
+
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
     toml, out = write_outputs(tmp_path_factory.mktemp("serve"))
@@ -111,13 +122,29 @@ def test_busy_port_is_a_clear_error():
     check_port("127.0.0.1", port)  # free again: no error
 
 
+@pytest.mark.slow
 def test_cli_serve_errors_are_one_line_with_status_2(tmp_path):
+    """The real entry point, in a process of its own (5 CPU s: it imports the whole CLI).
+    Default-selection sibling: test_serve_errors_are_one_line_with_status_2_in_process."""
     toml, out = write_outputs(tmp_path)
     (out / "tiny" / "robot" / "jacobian.json").unlink()
     r = subprocess.run([sys.executable, "-m", "metasheet.cli", "serve", str(toml), "--out", str(out), "--port", "8089"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith("error: ") and "jacobian.json: missing" in r.stderr
+
+
+def test_serve_errors_are_one_line_with_status_2_in_process(tmp_path, capsys):
+    """The slow test's checks on ``metasheet.cli.main`` here: its parsing and errors, no new process."""
+    from metasheet.cli import main
+
+    toml, out = write_outputs(tmp_path)
+    (out / "tiny" / "robot" / "jacobian.json").unlink()
+    with pytest.raises(SystemExit) as exc:
+        main(["serve", str(toml), "--out", str(out), "--port", "8089"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "Traceback" not in err
+    assert err.strip().splitlines()[-1].startswith("error: ") and "jacobian.json: missing" in err
 
 
 # -- the session -----------------------------------------------------------------------------

@@ -3,6 +3,10 @@
 
 The sheet is a 10 mm-wide tripod reaching 20 mm, 2 mm thick, printed with a 0.8 mm bead at
 0.5 mm voxels (seconds); the physics of the DNS is validated in tests/test_sheet_dns.py.
+
+The upstream stages leave out what the sheet stage does not read (the cell's surface and
+picture, the homogenisation's fields and picture: a fifth of the run; their own tests check
+them); the sheet stage itself runs whole.
 """
 
 import json
@@ -63,6 +67,12 @@ stages = ["cell", "homogenize", "material", "orient", "printmap", "robot", "shee
 
 [cell]
 design = "{design}"
+surface = false
+picture = false
+
+[homogenize]
+picture = false
+fields = false
 
 [material]
 source = "homogenize"
@@ -76,7 +86,7 @@ realisations = 2
 APPARENT = """
 [pipeline]
 name = "a"
-stages = ["material", "orient", "robot"]
+stages = {stages}
 
 [material]
 source = "sheet"
@@ -127,22 +137,30 @@ def test_homogenised_robot_matches_the_robot_stage(run):
     assert d["homogenised_robot"]["rod_rotation_deg_per_deg"] == pytest.approx(roll, rel=1e-2)
 
 
-def test_material_source_sheet_drives_the_robot(run):
-    tmp, out = run
-    f = tmp / "a.toml"
-    f.write_text(APPARENT.format(sheet_file=out / "sheet" / "sheet_dns.json", sheet=SHEET, robot=ROBOT))
-    run_pipeline(load_pipeline(f), out_root=tmp / "out")
-    m = json.loads((tmp / "out" / "a" / "material" / "material.json").read_text())
+@pytest.mark.parametrize("robot", [False, pytest.param(True, marks=pytest.mark.slow)])
+def test_material_source_sheet_drives_the_robot(run, tmp_path, robot):
+    """The material stage takes the sheet's apparent constants (their mean over the realisations).
+    The slow case runs orient and the robot on them too (5 s: orient and its picture again; the
+    robot stage reads any material the same way); its default-selection sibling is the case
+    without them (robot = False)."""
+    _, out = run
+    f = tmp_path / "a.toml"
+    stages = '["material", "orient", "robot"]' if robot else '["material"]'
+    f.write_text(APPARENT.format(stages=stages, sheet_file=out / "sheet" / "sheet_dns.json", sheet=SHEET,
+                                 robot=ROBOT))
+    run_pipeline(load_pipeline(f), out_root=tmp_path / "out")
+    m = json.loads((tmp_path / "out" / "a" / "material" / "material.json").read_text())
     app = json.loads((out / "sheet" / "sheet_dns.json").read_text())["spread"]["apparent"]
     assert m["source"] == "sheet"
     for k, v in app.items():
         assert m["constants"][k] == pytest.approx(v["mean"], rel=1e-12)
-    assert (tmp / "out" / "a" / "robot" / "jacobian.json").exists()
+    assert (tmp_path / "out" / "a" / "robot" / "jacobian.json").exists() == robot
 
 
 def test_bad_sheet_settings_are_named(tmp_path):
     f = tmp_path / "bad.toml"
-    f.write_text(APPARENT.format(sheet_file="", sheet=SHEET, robot=ROBOT).replace('sheet_file = ""\n', ""))
+    f.write_text(APPARENT.format(stages='["material"]', sheet_file="", sheet=SHEET, robot=ROBOT)
+                 .replace('sheet_file = ""\n', ""))
     with pytest.raises(ConfigError, match="sheet_file"):
         load_pipeline(f)
     bad = PIPELINE.format(design="x.toml", sheet=SHEET, robot=ROBOT)

@@ -408,9 +408,12 @@ def test_rotation_tries_stop_after_points_without_an_axis():
 
     from metasheet.studies.workspace import RayTask, explore_ray
 
-    grid = star_grid(**{**SMALL, "n_steps": 16})
+    # 4 x 2 rays of 12 steps: the rule stops 4 of the 10 rays short of their end (4 reached
+    # points left untried) and the other 6 not, both branches at a third of the 6 x 3 rays of 16
+    # steps' time
+    grid = star_grid(**{**SMALL, "n_azimuth": 4, "n_elevation": 2, "n_steps": 12})
     base = WorkspaceSettings(rot_deg=30.0, continuity=False)  # wide rotations: rays end with failing points
-    skipped = 0
+    skipped = stopped = 0
     for ray in range(len(grid.directions)):
         goals = grid.points[grid.ray_points(ray)]
         full = explore_ray(RayTask(StandInSpec(), base, goals))
@@ -427,7 +430,9 @@ def test_rotation_tries_stop_after_points_without_an_axis():
         assert not cut.rot_tried[stop:].any() and np.isnan(cut.rot_error_deg[stop:]).all()
         assert not cut.rot_ok[stop:].any()
         skipped += int(full.reached[stop:].sum())
+        stopped += stop < len(goals)
     assert skipped > 0  # the rule left some reached points untried on this grid
+    assert 0 < stopped < len(grid.directions)  # rays the rule stopped, and rays it did not
 
 
 def test_rot_stop_after_is_checked():

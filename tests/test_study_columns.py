@@ -10,7 +10,7 @@ from metasheet.errors import ConfigError
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
 
-from test_studies_stages import project
+from test_studies_stages import project, skip_pictures
 
 
 STANDIN = """[pipeline]
@@ -33,9 +33,19 @@ n_steps = 4
 """
 
 
-def test_each_column_writes_its_folder_and_names_itself(tmp_path):
-    run_pipeline(load_pipeline(project(tmp_path, STANDIN, "cols")))
-    out = tmp_path / "outputs" / "cols"
+@pytest.fixture(scope="module")
+def cols_run(tmp_path_factory):
+    """The stand-in pipeline's two columns, run once for the tests that read them (the ranges
+    picture skipped: not read here; the workspace's are, drawn for real)."""
+    root = tmp_path_factory.mktemp("cols")
+    with pytest.MonkeyPatch.context() as m:
+        skip_pictures(m, "ranges")
+        run_pipeline(load_pipeline(project(root, STANDIN, "cols")))
+    return root / "outputs" / "cols"
+
+
+def test_each_column_writes_its_folder_and_names_itself(cols_run):
+    out = cols_run
     pred = json.loads((out / "workspace" / "workspace.json").read_text())
     rep = json.loads((out / "workspace" / "reproduction" / "workspace.json").read_text())
     assert pred["column"] == "prediction" and rep["column"] == "reproduction"
@@ -99,11 +109,14 @@ def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_fi
     _reproduction_robot(tmp_path, ROBOT)
 
 
-def test_the_reproduction_robot_on_coarse_sheets(tmp_path):
+def test_the_reproduction_robot_on_coarse_sheets(tmp_path, monkeypatch):
     """The slow test's checks with both columns on orient's 20 mm sheets (the reproduction's
-    mesh overridden: not the authors' 5 mm)."""
+    mesh overridden: not the authors' 5 mm); orient's and the sweeps' pictures skipped (not read
+    here; :func:`test_studies_stages.skip_pictures`)."""
+    calls = skip_pictures(monkeypatch, "orient", "anisotropy")
     text = ROBOT.replace("mesh_size = 16", "mesh_size = 20") + "reproduction = { mesh_size = 20.0 }\n"
     _reproduction_robot(tmp_path, text)
+    assert calls == ["orient", "anisotropy", "anisotropy"]  # a sweep per column
 
 
 def _reproduction_robot(tmp_path, text):
@@ -165,14 +178,26 @@ def test_the_reduce_stage_trains_one_basis_per_column_and_each_study_column_runs
     assert tets[1] > 2 * tets[0]  # the reproduction on the authors' mesh kind: P1, 5 mm (orient's: 16 mm)
 
 
-def test_one_basis_per_column_on_coarse_sheets(tmp_path):
+def test_one_basis_per_column_on_coarse_sheets(tmp_path, monkeypatch):
     """The slow test's pipeline and checks with the reproduction column on 12 mm sheets (not
-    the authors' 5 mm: its own mesh all the same) and the prediction on orient's 20 mm."""
+    the authors' 5 mm: its own mesh all the same) and the prediction on orient's 20 mm; 4
+    training snapshots a column (the least allowed), one held-out pose, 4 surface checks; the
+    prediction trained on rest +- 10 deg (a box 20 deg wide: the check that the reproduction's
+    box, 24 deg, is its own then tells the two apart; the study's motors stay inside it); the
+    element sample fitted to 0.1 mm and 5 % instead of 0.02 mm and 1 % (its halvings were two
+    thirds of the time, and the held-out worst position error stays what the 4-snapshot basis
+    makes it: 0.37 mm against 0.39 at the tighter targets). The full model still certifies every
+    reachable point of both columns within the study's 1 mm. Orient's and the workspace's
+    pictures are skipped (not read here)."""
+    calls = skip_pictures(monkeypatch, "orient", "workspace")
     text = REDUCED.replace("mesh_size = 16", "mesh_size = 20").replace(
         "reproduction = { box_deg = 12.0 }", "reproduction = { box_deg = 12.0, mesh_size = 12.0 }").replace(
-        "extent_lateral = 4\n", "extent_lateral = 4\nreproduction = { mesh_size = 12.0 }\n")
-    assert text.count("mesh_size = 12.0") == 2
+        "extent_lateral = 4\n", "extent_lateral = 4\nreproduction = { mesh_size = 12.0 }\n").replace(
+        "snapshots = 8\nheld_out = 2\n", "snapshots = 4\nheld_out = 1\nbox_deg = 10.0\n").replace(
+        "surface_check = 8\n", "surface_check = 4\nfit_tol_mm = 0.1\nfit_jacobian_tol = 0.05\n")
+    assert text.count("mesh_size = 12.0") == 2 and "box_deg = 10.0" in text and "fit_tol_mm = 0.1" in text
     tets = _one_basis_per_column(tmp_path, text)
+    assert calls == ["orient", "workspace", "workspace"]
     assert tets[1] > tets[0]  # the reproduction on its own, finer mesh
 
 
@@ -203,9 +228,8 @@ def _one_basis_per_column(tmp_path, text):
     return tets
 
 
-def test_rest_rotations_are_the_papers_test_at_rest(tmp_path):
-    run_pipeline(load_pipeline(project(tmp_path, STANDIN, "cols")))
-    w = json.loads((tmp_path / "outputs" / "cols" / "workspace" / "workspace.json").read_text())
+def test_rest_rotations_are_the_papers_test_at_rest(cols_run):
+    w = json.loads((cols_run / "workspace" / "workspace.json").read_text())
     t = w["rest_rotations"]
     assert t["rot_deg"] == 10.0 and t["tol_rot_deg"] == 2.0
     for axis in "xyz":

@@ -10,7 +10,7 @@ from metasheet.pipeline.runner import run_pipeline
 from metasheet.studies import resume
 from metasheet.studies.resume import UnitCache, keep_only_used, unit_key
 
-from test_studies_stages import project
+from test_studies_stages import project, skip_pictures
 
 
 def _square(x):
@@ -68,9 +68,13 @@ def test_a_rerun_for_the_prediction_reuses_the_reproduction_units(tmp_path):
     _rerun_reuses(tmp_path, small=False)
 
 
-def test_a_rerun_on_fewer_rays_reuses_the_reproduction_units(tmp_path):
-    """The slow test's three runs on 3 x 1 rays of 2 steps (the prediction 2, then 3)."""
+def test_a_rerun_on_fewer_rays_reuses_the_reproduction_units(tmp_path, monkeypatch):
+    """The slow test's three runs on 3 x 1 rays of 2 steps (the prediction 2, then 3), without
+    the workspace pictures (six of them, each 3 x 3 matplotlib panels: nine tenths of this
+    test's time; they are not read here, and test_studies_stages.py draws and checks them)."""
+    calls = skip_pictures(monkeypatch, "workspace")
     _rerun_reuses(tmp_path, small=True)
+    assert calls == ["workspace"] * 6  # both columns ran in each of the three runs
 
 
 def _rerun_reuses(tmp_path, small):
@@ -92,7 +96,8 @@ def _rerun_reuses(tmp_path, small):
     assert (out / "workspace" / "reproduction" / "workspace.csv").read_bytes() == rep
 
 
-def test_without_resume_nothing_is_kept(tmp_path):
+def test_without_resume_nothing_is_kept(tmp_path, monkeypatch):
+    skip_pictures(monkeypatch, "workspace")  # not read here (see above)
     text = _text(4, small=True).replace("continuity = false", "continuity = false\nresume = false")
     run_pipeline(load_pipeline(project(tmp_path, text, "keep")))
     assert not list((tmp_path / "outputs" / "keep").glob(".*.units"))
