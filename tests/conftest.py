@@ -27,7 +27,12 @@ def pytest_collection_modifyitems(config, items):
     """Under xdist (``--dist loadgroup``) a test file runs in one worker, so its module-scoped
     fixtures are computed once, and every file holding a byte-comparing test runs in one shared
     worker, one after another: the tests that compare bytes stay serial, each at the thread and
-    worker counts it asks for, never beside another byte comparison."""
+    worker counts it asks for, never beside another byte comparison.
+
+    Known gap: pytest 9.2 keeps a node's id in ``_id``, and pytest-xdist 3.8 still writes the
+    group into ``_nodeid``, so the groups are ignored and xdist spreads a file's tests over the
+    workers (its module fixtures then run in each). ``.ci/run`` reruns the bytes tests in one
+    process (``-n 0``)."""
     bytes_files = {item.nodeid.split("::")[0] for item in items if item.get_closest_marker("bytes")}
     for item in items:
         path = item.nodeid.split("::")[0]
