@@ -24,17 +24,6 @@ from metasheet.rom.training import motor_design, sensitivity, static_modes, trai
 from metasheet.studies.adapter import paper_robot_spec
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _one_blas_thread():
-    """One BLAS / OpenMP thread, as a pipeline run computes (:data:`metasheet.executor.UNIT_THREADS`):
-    OpenBLAS's idle threads spin, and unpinned this file cost twice the CPU on two cores.
-    Module-scoped and autouse: in place before the other fixtures compute."""
-    from metasheet.executor import UNIT_THREADS, own_threads
-
-    with own_threads(UNIT_THREADS):
-        yield
-
-
 @pytest.fixture(scope="module")
 def full():
     rob = paper_robot_spec(mesh_size=16.0).build().robot

@@ -24,17 +24,6 @@ POSITION_TARGET_MM = 0.1  # the reduce stage's certificate target for positions 
 LOG = "metasheet.studies.reduced_adapter"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _one_blas_thread():
-    """One BLAS / OpenMP thread, as a pipeline run computes (:data:`metasheet.executor.UNIT_THREADS`):
-    OpenBLAS's idle threads spin, and unpinned this file cost twice the CPU on two cores.
-    Module-scoped and autouse: in place before the other fixtures compute."""
-    from metasheet.executor import UNIT_THREADS, own_threads
-
-    with own_threads(UNIT_THREADS):
-        yield
-
-
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     from metasheet.robot.equilibrium import solve_equilibrium
