@@ -1,11 +1,7 @@
 """Shared pytest options and the expensive fixtures several test files share, each computed
 once per session. Keep this file small and general."""
 
-import ctypes
-import glob
 import os
-import sys
-from ctypes.util import find_library
 
 import pytest
 
@@ -23,20 +19,38 @@ def pytest_xdist_auto_num_workers(config):
     return max(1, min(os.cpu_count() or 1, MAX_XDIST_WORKERS))
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the groups
 def pytest_collection_modifyitems(config, items):
     """Under xdist (``--dist loadgroup``) a test file runs in one worker, so its module-scoped
     fixtures are computed once, and every file holding a byte-comparing test runs in one shared
     worker, one after another: the tests that compare bytes stay serial, each at the thread and
-    worker counts it asks for, never beside another byte comparison.
-
-    Known gap: pytest 9.2 keeps a node's id in ``_id``, and pytest-xdist 3.8 still writes the
-    group into ``_nodeid``, so the groups are ignored and xdist spreads a file's tests over the
-    workers (its module fixtures then run in each). ``.ci/run`` reruns the bytes tests in one
-    process (``-n 0``)."""
+    worker counts it asks for, never beside another byte comparison."""
     bytes_files = {item.nodeid.split("::")[0] for item in items if item.get_closest_marker("bytes")}
     for item in items:
         path = item.nodeid.split("::")[0]
         item.add_marker(pytest.mark.xdist_group("bytes" if path in bytes_files else path))
+
+
+class _XdistGroupsSeen:
+    """pytest 9.2 keeps a node's id in ``_id``; pytest-xdist 3.8 writes the ``@group`` suffix
+    its ``loadgroup`` scheduler reads into the older ``_nodeid``, where nothing reads it, so the
+    groups were ignored (a file's tests spread over the workers, its module fixtures computed
+    in each). Running after xdist's hook, this copies the suffixed id to where pytest reads it
+    (a no-op on the versions where the two agree)."""
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_collection_modifyitems(self, items):
+        for item in items:
+            written = item.__dict__.get("_nodeid")
+            if isinstance(written, str) and "@" in written and written != item.nodeid:
+                from _pytest.nodeid import NodeId
+
+                item._id = NodeId.parse(written)
+
+
+def pytest_configure(config):
+    if hasattr(config, "workerinput") and config.getvalue("loadgroup"):
+        config.pluginmanager.register(_XdistGroupsSeen(), "metasheet-xdist-groups-seen")
 
 
 def pytest_addoption(parser):
@@ -46,39 +60,6 @@ def pytest_addoption(parser):
         default=False,
         help="rewrite golden files under tests/golden/ instead of comparing against them",
     )
-
-
-def mkl_rt_path() -> str | None:
-    """MKL's runtime library as pypardiso would find it, or None when pypardiso finds it cheaply
-    (or is not installed).
-
-    Every ``pypardiso.PyPardisoSolver()`` (one per direct homogenisation) looks for ``mkl_rt``;
-    a pip-installed MKL is not on the loader's path, so each one globs ``sys.prefix``
-    recursively: 0.7 s of CPU a solve here, more than the solve of a test's cell."""
-    try:
-        import pypardiso  # noqa: F401
-    except ImportError:
-        return None
-    if os.environ.get("PYPARDISO_MKL_RT") or find_library("mkl_rt") or find_library("mkl_rt.1"):
-        return None
-    for path in sorted(glob.glob(f"{sys.prefix}/[Ll]ib*/**/*mkl_rt*", recursive=True), key=len):
-        try:
-            ctypes.CDLL(path)  # the first that loads, as pypardiso takes it
-            return path
-        except OSError:
-            pass
-    return None
-
-
-@pytest.fixture(scope="session", autouse=True)
-def mkl_rt_found_once():
-    """Tell pypardiso where MKL is (its ``PYPARDISO_MKL_RT``) for the session: the same library
-    and solver, without the search per solve."""
-    path = mkl_rt_path()
-    with pytest.MonkeyPatch.context() as mp:
-        if path:
-            mp.setenv("PYPARDISO_MKL_RT", path)
-        yield
 
 
 @pytest.fixture(scope="session", autouse=True)

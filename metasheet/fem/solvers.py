@@ -48,6 +48,7 @@ import scipy.sparse.linalg as spla
 from ..errors import ConfigError, ConvergenceError
 from .amg import amg_cg
 from .assembly import transpose_map
+from .mkl import tell_pypardiso
 
 # MKL's threaded sums otherwise vary run to run: the homogenised constants differed in the 13th
 # digit between two runs of one pipeline, and the reduced model's element sample then by two
@@ -211,6 +212,8 @@ BACKENDS = {
 def _probe(module: str):
     if not module:
         return spla
+    if module == "pypardiso":
+        tell_pypardiso()  # before its import, which makes a solver and so searches once
     try:
         return importlib.import_module(module)
     except ImportError:
