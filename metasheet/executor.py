@@ -234,12 +234,26 @@ def _init_worker(n: int) -> None:
     for var in THREAD_VARS:
         os.environ[var] = str(n)
     ThreadpoolController().limit(limits=n)
+    _limit_numba(n)
     # below the process that waits for them: when it has serial work (training a basis, the
     # next stage's set-up) it is the run's critical path, and the workers take what is left
     if hasattr(os, "nice"):
         os.nice(WORKER_NICENESS)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), name="parent-watch", daemon=True).start()
+
+
+def _limit_numba(n: int) -> None:
+    """At most ``n`` threads in numba's parallel kernels (the voxel solver's) in this thread.
+    numba sizes its pool by ``NUMBA_NUM_THREADS`` (the cores), not by ``OMP_NUM_THREADS``: two
+    workers each ran the voxel solver on two threads on a 2-core machine (the paper's four
+    realisations: 174 s of wall against 152 s with one; the same bytes, the kernels' sums being
+    split by blocks, not by threads)."""
+    try:
+        import numba
+    except ImportError:
+        return
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
 
 
 def _exit_with_parent(parent: int) -> None:

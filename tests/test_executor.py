@@ -42,6 +42,18 @@ def test_pool_workers_limit_their_blas_threads():
     assert all(env == ["3"] * len(THREAD_VARS) and all(t <= 3 for t in blas) for blas, env in got)
 
 
+def numba_threads(_):
+    import numba
+
+    return numba.get_num_threads(), numba.config.NUMBA_NUM_THREADS
+
+
+def test_pool_workers_limit_numbas_threads():
+    """numba sizes its pool by the cores, not by OMP_NUM_THREADS: the worker limits it itself."""
+    got = Executor(workers=2).map(numba_threads, range(2))
+    assert all(n == min(UNIT_THREADS, total) for n, total in got)
+
+
 def test_worker_threads_is_validated():
     with pytest.raises(ConfigError, match="worker_threads"):
         Executor(workers=2, worker_threads=0)

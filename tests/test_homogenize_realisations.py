@@ -25,7 +25,7 @@ from metasheet.pipeline.runner import run_pipeline
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _run(tmp_path, name: str, homogenize: str, only: str | None = None) -> Path:
+def _run(tmp_path, name: str, homogenize: str, only: str | None = None, executor=None) -> Path:
     (tmp_path / "pipelines").mkdir(exist_ok=True)
     if not (tmp_path / "cells").exists():
         (tmp_path / "cells").symlink_to(ROOT / "cells")
@@ -33,7 +33,8 @@ def _run(tmp_path, name: str, homogenize: str, only: str | None = None) -> Path:
     toml.write_text(f'[pipeline]\nname = "{name}"\nstages = ["cell", "homogenize"]\n'
                     '[cell]\ndesign = "cells/quick_polyfoam.toml"\npicture = false\nsurface = false\n'
                     f'[homogenize]\nfields = false\n{homogenize}\n')
-    run_pipeline(load_pipeline(toml), out_root=tmp_path / "out", only=only, force=only is not None)
+    run_pipeline(load_pipeline(toml), out_root=tmp_path / "out", only=only, force=only is not None,
+                 **({"executor": executor} if executor else {}))
     return tmp_path / "out" / name / "homogenize"
 
 
@@ -100,11 +101,14 @@ def test_small_study_means_intervals_and_sizes(small_study):
 
 def test_small_study_same_bytes_when_homogenize_runs_again(small_study):
     """Default-selection sibling of test_same_bytes_on_a_second_run: the homogenize stage run
-    again (forced) on the same cell writes the same bytes."""
+    again (forced) on the same cell, now on a pool of two workers (the cell's own solve one
+    of the units, beside the realisations), writes the serial run's bytes."""
+    from metasheet.executor import Executor
+
     tmp, _, ens = small_study
     names = ("constants.json", "realisations.json", "convergence.json")
     before = {name: (ens / name).read_bytes() for name in names}
-    again = _run(tmp, "small", SMALL, only="homogenize")
+    again = _run(tmp, "small", SMALL, only="homogenize", executor=Executor(workers=2))
     for name in names:
         assert (again / name).read_bytes() == before[name], name
 

@@ -49,17 +49,19 @@ def test_scaled_sheets_change_one_column(tmp_path):
         assert np.allclose(b[:, j], 1.5 * a[:, j], rtol=1e-15, atol=0)
 
 
-def _run(orient, tmp_path, halfwidth):
+def _run(orient, tmp_path, halfwidth, executor=None):
     mat = tmp_path / "material"
-    mat.mkdir()
+    mat.mkdir(exist_ok=True)
     ci = {"confidence": 0.95, "k": 3, "n_cells": 8, "halfwidth": halfwidth,
           "rel_halfwidth": {k: halfwidth[k] / abs(MEANS[k]) for k in CONSTANT_NAMES}}
     write_material(mat / "material.json", PAPER_FOAM, density=FOAM_DENSITY, source="homogenize", ci95=ci)
     assert read_material(mat).ci95 == ci
-    work = tmp_path / "work"
+    work = tmp_path / ("work" if executor is None else "work_pool")
     work.mkdir()
     params = robot_stage.RobotParams(picture=False, compare_models=False, compare_published=False)
-    summary = robot_stage.run(StageContext("robot", params, work, {"orient": orient, "material": mat}, tmp_path))
+    ctx = StageContext("robot", params, work, {"orient": orient, "material": mat}, tmp_path,
+                       **({"executor": executor} if executor else {}))
+    summary = robot_stage.run(ctx)
     return summary, json.loads((work / "jacobian.json").read_text())
 
 
@@ -75,6 +77,18 @@ def test_stage_spread_at_the_bounds(orient_dir, tmp_path):
     assert u["rod_rotation_range"] == [min(roll), max(roll)] and max(roll) > min(roll)
     assert summary["foam_rod_rotation_range_95"] == [round(v, 5) for v in u["rod_rotation_range"]]
     assert u["constants_ci95"]["halfwidth"] == h
+
+
+def test_a_pool_of_two_writes_the_serial_bytes(orient_dir, tmp_path):
+    """Every robot of the stage (the cases and the bounds) is a unit of the executor: on two
+    workers jacobian.json and rest.vtu are the serial run's bytes."""
+    from metasheet.executor import Executor
+
+    h = {k: 0.2 * abs(v) for k, v in MEANS.items()}
+    _run(orient_dir, tmp_path, h)
+    _run(orient_dir, tmp_path, h, executor=Executor(workers=2))
+    for name in ("jacobian.json", "rest.vtu"):
+        assert (tmp_path / "work_pool" / name).read_bytes() == (tmp_path / "work" / name).read_bytes(), name
 
 
 def test_zero_halfwidths_give_the_mean_ten_times(orient_dir, tmp_path):

@@ -57,8 +57,13 @@ def test_model_cache_builds_once_per_spec_and_is_bounded():
     m0 = cache.get(specs[0])
     assert cache.get(StandInSpec(alpha=0.0)) is m0 and len(cache) == 1  # equal key: no rebuild
     cache.get(specs[1])
-    cache.get(specs[2])  # full: the oldest built is dropped
+    cache.get(specs[2])  # full: the least recently used is dropped
     assert len(cache) == 2 and specs[0] not in cache and specs[1] in cache and specs[2] in cache
+    m0 = cache.get(specs[0])  # rebuilt: drops specs[1]
+    assert specs[1] not in cache
+    cache.get(specs[2])  # used again, so the next new spec drops specs[0], built after it
+    cache.get(specs[1])
+    assert specs[2] in cache and specs[1] in cache and specs[0] not in cache
     assert cache.get(specs[0]) is not m0
     cache.clear()
     assert len(cache) == 0

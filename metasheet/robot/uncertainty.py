@@ -16,7 +16,7 @@ positive definite is skipped with the builder's reason.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -84,26 +84,26 @@ def rest_numbers(robot, *, length_scale: float) -> dict:
             "rod_rotation_deg_per_deg": float(kin.all_together[3:] @ ax)}
 
 
-def spread(build: Callable[[SheetPair], object], pair: SheetPair, means: Mapping[str, float],
-           halfwidth: Mapping[str, float], *, length_scale: float, progress=None) -> dict:
-    """The robot at the mean (``pair`` as given) and at each one-at-a-time bound.
+def summarise(mean: dict | ConfigError, at_bounds: Mapping[str, dict | ConfigError],
+              bs: list[Bound]) -> dict:
+    """The spread from the robot's :func:`rest_numbers` at the means (``mean``) and at each
+    bound of ``bs`` (``at_bounds[b.name]``; a ConfigError where the builder refused the bound's
+    tensor: skipped with its reason).
 
-    ``build(sheets) -> Robot``. Returns ``{"method", "cases": {name: {...}}, "skipped": {name:
-    reason}, "rod_rotation_range", "singular_values_min", "singular_values_max"}``; the ranges
-    include the mean case.
+    Returns ``{"method", "cases": {name: {...}}, "skipped": {name: reason},
+    "rod_rotation_range", "singular_values_min", "singular_values_max"}``; the ranges include
+    the mean case.
     """
-    cases = {"mean": rest_numbers(build(pair), length_scale=length_scale)}
+    if isinstance(mean, ConfigError):
+        raise mean
+    cases = {"mean": mean}
     skipped = {}
-    bs = bounds(means, halfwidth)
-    for i, b in enumerate(bs):
-        if progress is not None:
-            progress(i, len(bs))
-        try:
-            robot = build(scaled_sheets(pair, b.constant, b.factor))
-        except ConfigError as exc:  # e.g. nu_tl + h gives no positive-definite tensor
-            skipped[b.name] = str(exc)
-            continue
-        cases[b.name] = {**rest_numbers(robot, length_scale=length_scale), "value": b.value, "clipped": b.clipped}
+    for b in bs:
+        r = at_bounds[b.name]
+        if isinstance(r, ConfigError):  # e.g. nu_tl + h gives no positive-definite tensor
+            skipped[b.name] = str(r)
+        else:
+            cases[b.name] = {**r, "value": b.value, "clipped": b.clipped}
     roll = [c["rod_rotation_deg_per_deg"] for c in cases.values()]
     sv = np.array([c["singular_values"] for c in cases.values()])
     return {"method": "one at a time: each constant at its 95 % bounds mean -+ h, the others at their means; "

@@ -121,7 +121,9 @@ class ModelCache:
     picklable :class:`ModelSpec`; each process keeps the models it built in its own cache,
     :data:`MODELS`, so the units that follow on the same spec reuse the model (its
     factorisations, its controller's kept tangent). At most ``max_size`` models are kept; the
-    oldest built is dropped first (a robot is big). ``clear()`` empties it (tests, benchmarks).
+    least recently used is dropped first (a robot is big). It was the oldest built: in a
+    pipeline run the anisotropy sweep's twelve robots, one per unit, pushed out the models the
+    workspace and ranges units use on every ray. ``clear()`` empties it (tests, benchmarks).
 
     Parameters
     ----------
@@ -137,11 +139,12 @@ class ModelCache:
     def get(self, spec: ModelSpec) -> RobotModel:
         """The model of ``spec``, built on the first call and kept by ``spec.key``."""
         k = spec.key
-        m = self._models.get(k)
+        m = self._models.pop(k, None)
         if m is None:
             if len(self._models) >= self.max_size:
                 self._models.pop(next(iter(self._models)))
-            m = self._models[k] = spec.build()
+            m = spec.build()
+        self._models[k] = m  # the most recently used last: the one dropped is the least recently used
         return m
 
     def clear(self) -> None:

@@ -29,7 +29,7 @@ paper's claims depend on the shear modulus mu_l (the authors' force field does n
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Annotated, Literal, NamedTuple
 
 import numpy as np
@@ -123,55 +123,59 @@ def run(ctx: StageContext) -> dict:
         raise ConfigError(f"robot.rest_angle: {sc.rest_angle:g} deg: allowed range [angle_min, angle_max] = "
                           f"[{sc.angle_min:g}, {sc.angle_max:g}] deg")
     geo = sc.servo_geometry()
-    ctx.progress("building robots", 0, 5)
     scene = {"rod_length": sc.rod_length, "geometry": geo, "gravity": sc.gravity}
     # a scene with a sheet mass (the authors': 32 g) gives every sheet that mass, whatever its material
     foam_mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": material.density}
     sil_mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": p.silicone_density}
     model, other = material.model, other_model(material.model)
 
-    def build(name: str, m: str):  # the foam: the sheets' own per-element constants along their fibres
-        if name == "foam":
-            return six_dof_robot(orient.sheets(), model=m, **foam_mass, **scene)
-        return six_dof_robot(orient.sheets(need_constants=False), paper.PAPER_FOAM, model=m, **foam_mass, **scene)
-
-    robots = {
-        "foam": build("foam", model),
-        "silicone": six_dof_robot(orient.sheets(need_constants=False), Isotropic(p.silicone_E, p.silicone_nu),
-                                  **sil_mass, **scene),
-    }
+    robot_kw = {"foam": {"model": model, **foam_mass, **scene}, "silicone": {**sil_mass, **scene}}
+    tasks = {"foam": _CaseTask(orient, None, robot_kw["foam"]),
+             "silicone": _CaseTask(orient, Isotropic(p.silicone_E, p.silicone_nu), robot_kw["silicone"])}
     if p.compare_published and not paper.is_published(material.material):
-        robots["published"] = build("published", model)
-    skipped = {}
+        tasks["published"] = _CaseTask(orient, paper.PAPER_FOAM, robot_kw["foam"])
     if p.compare_models:  # the same robots under the other material model
         for name in ("foam", "published"):
-            if name in robots:
-                try:
-                    robots[f"{name}_{other}"] = build(name, other)
-                except ConfigError as exc:  # the authors' tensor is indefinite for these constants
-                    skipped[f"{name}_{other}"] = str(exc)
-    # the convergence study's meshes go to the workers while this thread evaluates the cases
-    with ThreadPoolExecutor(1) as side:
-        conv = (side.submit(_convergence, ctx, orient, {"model": model, **foam_mass, **scene})
-                if p.convergence else None)
-        cases = {}
-        for i, (name, rob) in enumerate(robots.items()):
-            ctx.progress(f"equilibrium and Jacobian: {name}", 1 + i, len(robots) + 2)
-            cases[name] = evaluate(rob, name, delta_deg=p.delta_deg, length_scale=p.length_scale)
-        if conv is not None:
-            ctx.progress("convergence study", len(robots), len(robots) + 2)
-            conv.result()
-    foam = robots["foam"]
-    spread = None
-    if p.uncertainty and material.ci95:
-        from ...robot.uncertainty import spread as robot_spread
+            if name in tasks:
+                tasks[f"{name}_{other}"] = replace(tasks[name], robot_kw={**tasks[name].robot_kw, "model": other})
+    tasks = {name: replace(t, name=name, delta_deg=p.delta_deg, length_scale=p.length_scale)
+             for name, t in tasks.items()}
+    bs = []
+    if p.uncertainty and material.ci95:  # the foam at its constants' 95 % bounds, one at a time
+        from ...robot.uncertainty import bounds
 
-        spread = robot_spread(lambda sheets: six_dof_robot(sheets, model=model, **foam_mass, **scene),
-                              orient.sheets(), material.material.to_dict(), material.ci95["halfwidth"],
-                              length_scale=p.length_scale,
-                              progress=lambda i, n: ctx.progress(f"foam at the constants' 95 % bounds ({i}/{n})",
-                                                                 len(robots), len(robots) + 2))
+        bs = bounds(material.material.to_dict(), material.ci95["halfwidth"])
+        tasks["bound mean"] = replace(tasks["foam"], name="mean", rest_only=True)
+        tasks |= {f"bound {b.name}": replace(tasks["foam"], name=b.name, bound=(b.constant, b.factor), rest_only=True)
+                  for b in bs}
+    # every robot is a unit of the executor (each builds its own); the convergence study's
+    # meshes go to the workers too, from a side thread
+    with ThreadPoolExecutor(1) as side:
+        conv = (side.submit(_convergence, ctx, orient, robot_kw["foam"]) if p.convergence else None)
+        names = list(tasks)
+        done = dict(zip(names, ctx.executor.map(
+            _case_unit, [tasks[n] for n in names],
+            progress=lambda d, n: ctx.progress("equilibrium and Jacobian of each robot", d, n))))
+        if conv is not None:
+            ctx.progress("convergence study", 0, 1)
+            conv.result()
+    cases, skipped = {}, {}
+    for name, result in done.items():
+        if name.startswith("bound "):
+            continue
+        if isinstance(result, ConfigError):
+            if name.endswith(f"_{other}"):  # the authors' tensor is indefinite for these constants
+                skipped[name] = str(result)
+                continue
+            raise result
+        cases[name] = result
+    spread = None
+    if bs:
+        from ...robot.uncertainty import summarise
+
+        spread = summarise(done["bound mean"], {b.name: done[f"bound {b.name}"] for b in bs}, bs)
         spread["constants_ci95"] = material.ci95
+    foam = tasks["foam"].build()  # its mesh and coupling for the files (cheap beside a solve)
     out = {
         "material_model": model,
         "units": {"J": "rows x, y, z [mm/rad], rx, ry, rz [rad/rad]; columns motors 0-5",
@@ -185,13 +189,14 @@ def run(ctx: StageContext) -> dict:
     write_jacobian(ctx.path("jacobian.json"), out)
     write_rest_vtu(ctx.path("rest.vtu"), foam, cases["foam"].rest)
     if p.picture:
-        ctx.progress("picture", len(robots) + 1, len(robots) + 2)
+        ctx.progress("picture", 1, 2)
         from ...viz.robot import robot_picture
 
+        robots = {"silicone": tasks["silicone"].build(), "foam": foam}
         ctx.path("robot.png").write_bytes(robot_picture(
             [(f"{n} (all motors {c.delta_deg:+.0f} deg)", robots[n], c.rest, c.moved)
              for n, c in (("silicone", cases["silicone"]), ("foam", cases["foam"]))]))
-    ctx.progress("done", len(robots) + 2, len(robots) + 2)
+    ctx.progress("done", 2, 2)
     return {
         name: {"singular_values": [round(v, 4) for v in c.kin.singular_values],
                "rod_rotation_deg_per_deg": round(c.rod_rotation_per_degree, 5),
@@ -239,6 +244,48 @@ class _LevelTask:
     level: Level
     own: bool
     robot_kw: dict
+
+
+@dataclass(frozen=True)
+class _CaseTask:
+    """One robot of the stage: the orient sheets under ``material`` (None: the sheets' own
+    per-element constants, the foam), ``robot_kw`` for :func:`six_dof_robot`; ``bound`` scales one
+    constant of the sheets' own (``(name, factor)``, the uncertainty's cases); ``rest_only``:
+    the rest numbers only (:func:`~metasheet.robot.uncertainty.rest_numbers`), else the full
+    :func:`~metasheet.robot.compare.evaluate`."""
+
+    orient: OrientFile
+    material: object | None
+    robot_kw: dict
+    name: str = ""
+    bound: tuple[str, float] | None = None
+    rest_only: bool = False
+    delta_deg: float = 0.0
+    length_scale: float = 1.0
+
+    def build(self):
+        if self.material is not None:
+            return six_dof_robot(self.orient.sheets(need_constants=False), self.material, **self.robot_kw)
+        sheets = self.orient.sheets()
+        if self.bound is not None:
+            from ...robot.uncertainty import scaled_sheets
+
+            sheets = scaled_sheets(sheets, *self.bound)
+        return six_dof_robot(sheets, **self.robot_kw)
+
+
+def _case_unit(task: _CaseTask):
+    """Work unit: the robot of ``task`` built and evaluated; a ConfigError it raised (a tensor
+    that is not positive definite) is returned, for the stage to skip or raise."""
+    from ...robot.uncertainty import rest_numbers
+
+    try:
+        robot = task.build()
+    except ConfigError as exc:
+        return exc
+    if task.rest_only:
+        return rest_numbers(robot, length_scale=task.length_scale)
+    return evaluate(robot, task.name, delta_deg=task.delta_deg, length_scale=task.length_scale)
 
 
 def _level_unit(task: _LevelTask):
