@@ -69,14 +69,22 @@ def one_blas_thread_per_process():
     idle OpenBLAS threads spin (a reduce stage measured 18 CPU s at two threads, 5 at one).
     A thread count set in the environment (``OPENBLAS_NUM_THREADS=2 python -m pytest``, as
     ``.ci/run`` reruns the bytes tests) is left as it is; tests that compare thread counts set
-    their own."""
+    their own. numba's parallel kernels (the voxel solver's) get one thread too: numba sizes its
+    pool by the cores, whatever ``OMP_NUM_THREADS`` says."""
+    import numba
+
     from metasheet.executor import THREAD_VARS, own_threads
 
-    if any(os.environ.get(var) for var in THREAD_VARS):
+    if any(os.environ.get(var) for var in (*THREAD_VARS, "NUMBA_NUM_THREADS")):
         yield
-    else:
+        return
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
         with own_threads(1):
             yield
+    finally:
+        numba.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")
