@@ -29,17 +29,6 @@ GOAL = [1.0, 1.0, -1.0, 0.0, 3.0, 0.0]  # reachable on the coarse robot: x, y, z
 FAR = [0.0, 0.0, -3.0, 40.0, 0.0, 0.0]  # 40 deg about the rod: beyond the stroke
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _one_blas_thread():
-    """One BLAS / OpenMP thread (the session's solver thread too: the limit is the process's), as a
-    pipeline run computes (:data:`metasheet.executor.UNIT_THREADS`): OpenBLAS's idle threads spin.
-    Module-scoped and autouse: in place before the other fixtures compute."""
-    from metasheet.executor import UNIT_THREADS, own_threads
-
-    with own_threads(UNIT_THREADS):
-        yield
-
-
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
     toml, out = write_outputs(tmp_path_factory.mktemp("serve"))

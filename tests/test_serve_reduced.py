@@ -33,18 +33,6 @@ ANGLE_TOL = 0.3  # [deg] reduced against full motor angles for one goal
 POS_TOL = 0.1  # [mm] reduced against full effector position at the same motor angles
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _one_blas_thread():
-    """One BLAS / OpenMP thread (the session's solver thread too: the limit is the process's), as a
-    pipeline run computes (:data:`metasheet.executor.UNIT_THREADS`): OpenBLAS's idle threads spin,
-    and unpinned the reduce stage below cost twice the CPU on two cores. Module-scoped and
-    autouse: in place before the other fixtures compute."""
-    from metasheet.executor import UNIT_THREADS, own_threads
-
-    with own_threads(UNIT_THREADS):
-        yield
-
-
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
     root = tmp_path_factory.mktemp("serve_reduced")
