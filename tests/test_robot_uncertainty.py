@@ -65,9 +65,19 @@ def _run(orient, tmp_path, halfwidth, executor=None):
     return summary, json.loads((work / "jacobian.json").read_text())
 
 
-def test_stage_spread_at_the_bounds(orient_dir, tmp_path):
-    h = {k: 0.2 * abs(v) for k, v in MEANS.items()}
-    summary, data = _run(orient_dir, tmp_path, h)
+H20 = {k: 0.2 * abs(v) for k, v in MEANS.items()}  # half-widths of 20 % of each constant
+
+
+@pytest.fixture(scope="module")
+def serial_run(orient_dir, tmp_path_factory):
+    """The stage run serially at the 20 % half-widths: (its folder, summary, jacobian.json)."""
+    tmp = tmp_path_factory.mktemp("bounds")
+    return (tmp, *_run(orient_dir, tmp, H20))
+
+
+def test_stage_spread_at_the_bounds(serial_run):
+    h = H20
+    _, summary, data = serial_run
     u = data["uncertainty"]
     foam = data["materials"]["foam"]
     assert u["cases"]["mean"]["rod_rotation_deg_per_deg"] == pytest.approx(foam["rod_rotation_deg_per_deg"], rel=1e-9)
@@ -79,16 +89,15 @@ def test_stage_spread_at_the_bounds(orient_dir, tmp_path):
     assert u["constants_ci95"]["halfwidth"] == h
 
 
-def test_a_pool_of_two_writes_the_serial_bytes(orient_dir, tmp_path):
+def test_a_pool_of_two_writes_the_serial_bytes(orient_dir, serial_run):
     """Every robot of the stage (the cases and the bounds) is a unit of the executor: on two
     workers jacobian.json and rest.vtu are the serial run's bytes."""
     from metasheet.executor import Executor
 
-    h = {k: 0.2 * abs(v) for k, v in MEANS.items()}
-    _run(orient_dir, tmp_path, h)
-    _run(orient_dir, tmp_path, h, executor=Executor(workers=2))
+    tmp, _, _ = serial_run
+    _run(orient_dir, tmp, H20, executor=Executor(workers=2))
     for name in ("jacobian.json", "rest.vtu"):
-        assert (tmp_path / "work_pool" / name).read_bytes() == (tmp_path / "work" / name).read_bytes(), name
+        assert (tmp / "work_pool" / name).read_bytes() == (tmp / "work" / name).read_bytes(), name
 
 
 def test_zero_halfwidths_give_the_mean_ten_times(orient_dir, tmp_path):
