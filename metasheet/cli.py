@@ -38,8 +38,9 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from .errors import MetasheetError
+from .errors import ConfigError, MetasheetError
 from .goto import format_result, goto_robot, goto_tolerances, parse_pose, pipeline_robot, pose_text, stall_text
+from .pipeline.config import MAX_WORKERS
 from .stop_signals import Stopped, exit_now, stop_on_signals
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
@@ -159,26 +160,33 @@ def _reporter(target: Console):
 @app.command(epilog=docs("run"))
 def run(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
-    stage: Annotated[Optional[str], typer.Option("--stage", help="run only this stage (and what it needs)")] = None,
+    stage: Annotated[Optional[list[str]], typer.Option("--stage", help="run only this stage (and what it needs)")] = None,
     force: Annotated[bool, typer.Option("--force", help="rerun even when outputs are up to date")] = False,
-    workers: Annotated[Optional[int], typer.Option("--workers", min=1, help="local worker processes")] = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", min=1, max=MAX_WORKERS,
+                                                   help="local worker processes")] = None,
     scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="dask scheduler, tcp://HOST:PORT")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
     no_wait: Annotated[bool, typer.Option("--no-wait", help="exit (status 3) instead of waiting when another "
                                           "run holds the output folder")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="replace stage folders even when they hold files "
+                                            "metasheet did not write")] = False,
 ) -> None:
     """Run the stages of PIPELINE in dependency order; up-to-date stages are skipped.
 
     One run per output folder at a time: a second run waits for the first (or exits with
-    status 3 with --no-wait). Temporary folders left by killed runs are removed first.
+    status 3 with --no-wait). Temporary folders left by killed runs are removed first. A stage
+    folder holding files metasheet did not write is not replaced (exit 2) without --overwrite.
     """
     from .executor import Executor
     from .pipeline.config import load_pipeline
     from .pipeline.runner import run_pipeline
 
+    if stage and len(stage) > 1:
+        raise ConfigError(f"--stage: given {len(stage)} times ({', '.join(stage)}): run one stage (and what it "
+                          "needs) at a time, or the whole pipeline without --stage")
     p = load_pipeline(pipeline)
     ex = Executor(workers or p.section.workers, scheduler or p.section.scheduler)
-    options = dict(out_root=out, only=stage, force=force, executor=ex, wait=not no_wait)
+    options = dict(out_root=out, only=stage[0] if stage else None, force=force, executor=ex, wait=not no_wait, overwrite=overwrite)
     if console.is_terminal:  # progress bars on a terminal; plain lines in a log
         columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn())
@@ -196,12 +204,17 @@ def run(
 @app.command(epilog=docs("clean"))
 def clean(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
-    everything: Annotated[bool, typer.Option("--all", help="also remove every stage's outputs")] = False,
+    everything: Annotated[bool, typer.Option("--all", help="also remove the stage folders metasheet wrote (files "
+                                             "it did not write are kept)")] = False,
     out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
     no_wait: Annotated[bool, typer.Option("--no-wait", help="exit (status 3) instead of waiting for a "
                                           "running run")] = False,
 ) -> None:
-    """Remove the temporary folders killed runs left in PIPELINE's outputs (--all: the outputs too)."""
+    """Remove the temporary folders killed runs left in PIPELINE's outputs (--all: the outputs too).
+
+    Only what metasheet wrote is removed: a stage folder whose manifest lists every file in it.
+    Anything else in the output folder is kept, and named.
+    """
     from .pipeline.config import load_pipeline
     from .pipeline.runner import clean as clean_outputs
 

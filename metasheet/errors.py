@@ -83,6 +83,8 @@ _OS_HINTS = {
     _errno.EACCES: "permission denied: make it writable or choose another output root (--out)",
     _errno.EPERM: "operation not permitted (immutable or not owned): choose another output root (--out)",
     _errno.EROFS: "read-only file system: choose another output root (--out)",
+    _errno.EFBIG: "file too large for this process's limit (ulimit -f) or the file system: raise the limit "
+                  "or choose another output root (--out)",
 }
 
 
@@ -120,3 +122,13 @@ def check_range(field: str, value, lo=None, hi=None, *, lo_open=False, hi_open=F
         hi_s = "inf" if hi is None else f"{hi:g}"
         raise ConfigError(f"{field}: {value!r}: allowed range is {left}{lo_s}, {hi_s}{right}")
     return value
+
+
+#: pydantic's strict type errors in words (a parameter file's values are not coerced: "8" and
+#: true are no numbers, 2.5 is no count).
+TYPE_WORDS = {
+    "float_type": "expected a number, without quotes (a string or true / false is not read as one)",
+    "int_type": "expected a whole number, without quotes or decimals",
+    "bool_type": "expected true or false",
+    "string_type": "expected a string, in quotes",
+}

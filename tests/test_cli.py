@@ -53,7 +53,7 @@ def test_bad_config_is_one_clean_message(tmp_path, cli_here):
     bad.write_text('[pipeline]\nname = "x"\nstages = ["material"]\n[material]\nE_t = -1\n')
     r = cli_here("run", str(bad))
     assert r.returncode == 2
-    assert "material.E_t: -1" in r.stderr and "greater than 0" in r.stderr
+    assert "material.E_t: -1" in r.stderr and "allowed range is [1e-06, 2e+06]" in r.stderr
     assert "Traceback" not in r.stderr + r.stdout
 
 

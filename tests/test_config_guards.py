@@ -115,18 +115,47 @@ def test_every_float_parameter_refuses_infinity(table, path, data):
 @pytest.mark.parametrize("tables, message", [
     ('[material]\nsource = "config"\nnu_tl = nan\n', "material.nu_tl: nan: Input should be a finite number"),
     ('[material]\nsource = "config"\nE_t = inf\n',
-     "material.E_t: inf: Input should be a finite number; allowed range is (0, inf)"),
-    ("[material]\ndensity = inf\n", "material.density: inf: Input should be a finite number; allowed range is (0, inf)"),
+     "material.E_t: inf: Input should be a finite number; allowed range is [1e-06, 2e+06]"),
+    ("[material]\ndensity = inf\n", "material.density: inf: Input should be a finite number; allowed range is [1e-13, 1e-07]"),
     ("[material]\nnu_t = -inf\n", "material.nu_t: -inf: Input should be a finite number; allowed range is (-1, 1)"),
     ("[orient]\ntip_box = [15.0, inf, 30.0]\n", "orient.tip_box[1]: inf: Input should be a finite number"),
     ("[orient]\ngrading = { table = { hub = { density = nan } } }\n",
      "orient.grading.table.hub.density: nan: Input should be a finite number"),
     ("[orient]\nconstants = { E_l = inf }\n",
-     "orient.constants.E_l: inf: Input should be a finite number; allowed range is (0, inf)"),
+     "orient.constants.E_l: inf: Input should be a finite number; allowed range is [1e-06, 2e+06]"),
 ])
 def test_nan_and_inf_in_tables_are_refused(project, capsys, tables, message):
     """Before: they passed, and material.json got ``Infinity`` (not JSON)."""
     assert message in refused(project, pipeline('"material", "orient"', tables), capsys)
+
+
+@pytest.mark.parametrize("head, tables, message", [
+    ("", '[orient]\nmesh_size = "8"\n', "orient.mesh_size: '8': expected a number, without quotes"),
+    ("", "[orient]\nmesh_size = true\n", "orient.mesh_size: True: expected a number, without quotes"),
+    ('workers = "2"\n', "", "pipeline.workers: '2': expected a whole number"),
+    ("workers = 2.5\n", "", "pipeline.workers: 2.5: expected a whole number"),
+    ("", '[orient]\nelement = "p2"\nmesh_size = 8\n', None),  # an integer is a number
+])
+def test_no_string_bool_or_decimal_is_coerced(project, capsys, head, tables, message):
+    """Issue 60: "8", "2" and true (read as 1.0) passed ``validate``."""
+    text = f'[pipeline]\nname = "p"\nstages = ["material", "orient"]\n{head}{tables}'
+    if message is None:
+        assert load_pipeline(write(project, text)).params["orient"].mesh_size == 8.0
+    else:
+        assert message in refused(project, text, capsys)
+
+
+@pytest.mark.parametrize("tables, message", [
+    ('[material]\nsource = "config"\ndensity = 1e300\n', "material.density: 1e+300:"),
+    ('[material]\nsource = "config"\nmu_l = 1e-300\n', "material.mu_l: 1e-300:"),
+    ('[material]\nsource = "config"\nE_l = 1e308\n', "material.E_l: 1e+308:"),
+    ('[orient]\nconstants = { E_t = 1e9 }\n', "orient.constants.E_t: 1000000000.0:"),
+])
+def test_absurd_moduli_and_densities_are_refused(project, capsys, tables, message):
+    """Issue 60: they passed and the run failed inside an SVD; E_l = 1e308 was reported as a
+    range error of nu_tl "(-0, 0)"."""
+    msg = refused(project, pipeline('"material", "orient"', tables), capsys)
+    assert message in msg and "allowed range is [1e-" in msg and "nu_tl" not in msg
 
 
 def test_nested_floats_in_lists_are_finite(project, capsys):
@@ -244,7 +273,8 @@ def test_the_project_pipelines_still_validate(name):
 def test_a_pipeline_of_every_stage_with_defaults_validates(project):
     (project / "cells" / "quick_foam.toml").write_text("")
     names = [n for n in stages() if n not in ("cell", "homogenize", "sheet")]  # cell needs a design (and sheet, cell)
-    assert load_pipeline(write(project, pipeline(", ".join(f'"{n}"' for n in names))))
+    # the design stage's rest problem takes P1 sheets only (orient's default is P2)
+    assert load_pipeline(write(project, pipeline(", ".join(f'"{n}"' for n in names), '[orient]\nelement = "p1"\n')))
 
 
 # 5. robot goto's goal ----------------------------------------------------------------------------

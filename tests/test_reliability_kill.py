@@ -148,22 +148,31 @@ def test_sigterm_stops_serve_and_its_solver_thread(tmp_path):
         proc.communicate()
 
 
-def ignored_signals() -> int:
-    """This process's ignored-signal mask (Linux /proc)."""
-    return int(Path("/proc/self/status").read_text().split("SigIgn:")[1].split()[0], 16)
+def signal_mask(field: str) -> int:
+    """This process's signal mask ``field`` (``SigIgn``, ``SigCgt``: ignored, caught; Linux /proc)."""
+    return int(Path("/proc/self/status").read_text().split(f"{field}:")[1].split()[0], 16)
 
 
-def test_meshing_in_a_stage_thread_leaves_a_broken_pipe_an_error_not_a_kill():
-    """gmsh's initialize restored SIGPIPE's default action: once a stage had meshed, killing the
-    pool on Ctrl-C killed the run itself (exit 141, its feeder thread writing to a dead worker)
-    before it could remove its temporary folders."""
+def test_meshing_in_a_stage_thread_keeps_every_signals_action():
+    """gmsh's initialize set SIGTERM, SIGHUP and SIGPIPE back to their default actions: once a
+    stage had meshed, a SIGTERM or SIGHUP killed the run outright (its temporary folders and lock
+    left behind), and killing the pool on Ctrl-C killed the run itself (exit 141, its feeder
+    thread writing to a dead worker)."""
     import threading
 
     from metasheet.sheet.geometry import SheetParams, tripod_sheet
 
-    pipe_bit = 1 << (signal.SIGPIPE - 1)
-    assert ignored_signals() & pipe_bit  # Python's own start-up choice
-    t = threading.Thread(target=tripod_sheet, args=(SheetParams(mesh_size=15.0),))
-    t.start()
-    t.join()
-    assert ignored_signals() & pipe_bit
+    bit = {s: 1 << (s - 1) for s in (signal.SIGPIPE, signal.SIGTERM, signal.SIGHUP)}
+    previous = {s: signal.signal(s, lambda *a: None) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        assert signal_mask("SigIgn") & bit[signal.SIGPIPE]  # Python's own start-up choice
+        assert signal_mask("SigCgt") & bit[signal.SIGTERM] and signal_mask("SigCgt") & bit[signal.SIGHUP]
+        t = threading.Thread(target=tripod_sheet, args=(SheetParams(mesh_size=15.0),))
+        t.start()
+        t.join()
+        assert signal_mask("SigIgn") & bit[signal.SIGPIPE]
+        assert signal_mask("SigCgt") & bit[signal.SIGTERM], "SIGTERM no longer caught after gmsh"
+        assert signal_mask("SigCgt") & bit[signal.SIGHUP], "SIGHUP no longer caught after gmsh"
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)

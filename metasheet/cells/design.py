@@ -23,6 +23,7 @@ Reading the file is the stage's job (no file I/O here).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
@@ -30,7 +31,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, ValidationError
 
-from ..errors import ConfigError
+from ..errors import TYPE_WORDS, ConfigError
 from ..material import Isotropic
 from .connectivity import ConnectivityReport, check_percolation, settle_phases
 from .foam import Foam, foam_field, voxel_centres
@@ -103,7 +104,8 @@ def _config_error(err: ValidationError, prefix: str) -> ConfigError:
         field = f"{prefix}.{loc}" if loc else prefix
         value = e.get("input")
         shown = "" if isinstance(value, dict) else f" {value!r}:"
-        lines.append(f"{field}:{shown} {e['msg']}")
+        msg = "required key is missing" if e["type"] == "missing" else TYPE_WORDS.get(e["type"], e["msg"])
+        lines.append(f"{field}:{shown} {msg}")
     return ConfigError("; ".join(lines))
 
 
@@ -163,7 +165,8 @@ def parse_design(data: Mapping[str, Any], *, overrides: Mapping[str, Any] | None
     if isinstance(data.get("metric"), Mapping) and "kind" not in data["metric"]:
         data["metric"] = {"kind": "stretched", **data["metric"]}
     try:
-        return _KINDS[kind].model_validate(data)
+        # strict, as pipeline files: no string or bool read as a number
+        return _KINDS[kind].model_validate_json(json.dumps(data), strict=True)
     except ValidationError as err:
         raise _config_error(err, source) from None
 

@@ -16,7 +16,7 @@ from .metrics import PolyhedralMetric, StretchedMetric
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class MaterialSpec(_Model):

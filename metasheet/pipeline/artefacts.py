@@ -37,6 +37,7 @@ from ..robot.builder import SheetPair
 from ..robot.scenes import RobotScene  # noqa: F401  (the robot stage's scene; read_robot_scene returns it)
 from ..sheet.geometry import SheetMesh
 from ..sheet.outline import SheetParams
+from ..stop_signals import Stopped
 from .manifest import read_manifest, write_json_atomic
 
 SHEET_FILES = {"normal": "sheet.vtu", "mirrored": "sheet_mirrored.vtu"}
@@ -60,6 +61,8 @@ def read_mesh(path: Path):
     try:
         return reader(str(path))
     except (Exception, SystemExit) as exc:  # noqa: BLE001  (any parse failure of corrupt bytes)
+        if isinstance(exc, Stopped):  # a stop signal during the read: the run unwinds
+            raise
         cause = type(exc).__name__ + (f": {exc}" if str(exc) else "")  # meshio's ReadError has no text
         raise MeshError(f"{path}: unreadable mesh file ({cause}): it is corrupt or truncated; rerun the stage "
                         "that wrote it (`metasheet run PIPELINE` rewrites outputs whose bytes changed)") from exc

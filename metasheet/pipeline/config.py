@@ -19,6 +19,7 @@ build its robot on: :data:`metasheet.pipeline.stages.orient.MAX_SHEET_TETS`).
 
 from __future__ import annotations
 
+import json
 import re
 import tomllib
 from dataclasses import dataclass
@@ -28,7 +29,7 @@ from typing import Annotated, Any, Union, get_args, get_origin, get_type_hints
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 
-from ..errors import ConfigError
+from ..errors import TYPE_WORDS, ConfigError
 from .registry import Params, Stage, stages
 
 
@@ -40,6 +41,10 @@ _NAME = re.compile(rf"[A-Za-z0-9_-]([A-Za-z0-9_.-]{{0,{NAME_MAX - 2}}}[A-Za-z0-9
 _WINDOWS_RESERVED = re.compile(r"(con|prn|aux|nul|com[1-9]|lpt[1-9])(\..*)?", re.IGNORECASE)
 
 
+#: Most local worker processes a run takes (the file's ``workers`` and ``--workers``).
+MAX_WORKERS = 256
+
+
 class PipelineSection(Params):
     """The ``[pipeline]`` table."""
 
@@ -47,7 +52,7 @@ class PipelineSection(Params):
                       f"starting or ending with '.'; at most {NAME_MAX} characters)")
     stages: list[str] = Field(min_length=1, description="stages to run")
     description: str = ""
-    workers: int = Field(1, ge=1, le=256, description="local worker processes for sweeps")
+    workers: int = Field(1, ge=1, le=MAX_WORKERS, description="local worker processes for sweeps")
     scheduler: str | None = Field(None, description="dask.distributed scheduler address")
     stages_at_once: int = Field(1, ge=1, le=16, description="stages whose inputs are ready that run at once "
                                 "(each in a thread of the run, its work units on the workers); 1: one after another")
@@ -115,14 +120,15 @@ def format_validation(source: str, table: str, err: ValidationError, data: dict,
         elif e["type"] == "value_error" and cause is not None:
             msg = str(cause)  # the validator's own words, without pydantic's "Value error, "
         else:
-            msg = e["msg"]
-            if e["type"] in _RANGE_ERRORS and range_text(bounds):
+            msg = TYPE_WORDS.get(e["type"], e["msg"])
+            if (e["type"] in _RANGE_ERRORS or e["type"] in TYPE_WORDS) and range_text(bounds):
                 msg += f"; allowed range is {range_text(bounds)}"
         lines.append(f"{source}: {field}: {value!r}: {msg}")
     return "\n".join(lines)
 
 
 _RANGE_ERRORS = {"finite_number", "greater_than", "greater_than_equal", "less_than", "less_than_equal"}
+
 
 
 def _unwrap(tp) -> tuple[Any, list]:
@@ -175,7 +181,13 @@ def validate_table(source: str, table: str, model: type[Params], data: Any) -> P
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: {table}: {data!r}: expected a table")
     try:
-        return model.model_validate(data)
+        text = json.dumps(data, allow_nan=True)
+    except (TypeError, ValueError) as err:  # a TOML date or time: no parameter takes one
+        raise ConfigError(f"{source}: {table}: {err}: dates and times are not parameters") from None
+    try:
+        # strict: no string, bool or float read as a number ("8", true -> 1.0, 2.5 -> 2);
+        # JSON mode still takes TOML's arrays for tuples and strings for paths
+        return model.model_validate_json(text, strict=True)
     except ValidationError as err:
         raise ConfigError(format_validation(source, table, err, data, model)) from None
 
@@ -190,7 +202,7 @@ def load_pipeline(path: str | Path) -> Pipeline:
     if not path.is_file():
         raise ConfigError(f"{path}: pipeline file not found")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8").removeprefix("\ufeff"))  # an editor's BOM
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{path}: invalid TOML: {err}") from None
     except (OSError, UnicodeDecodeError) as err:
@@ -219,6 +231,7 @@ def load_pipeline(path: str | Path) -> Pipeline:
         check_project_files(str(path), name, params[name], root)
         try:
             params[name].check_pipeline(name, params)
+            params[name].check_files(name, params, root)
         except ConfigError as err:  # "table.field: value: what"
             raise ConfigError(f"{path}: {err}") from None
     return Pipeline(path, root, section, order, params)

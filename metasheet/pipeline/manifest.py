@@ -148,6 +148,23 @@ def read_manifest(directory: Path) -> dict | None:
         return None
 
 
+def damage(directory: Path) -> str | None:
+    """Why the manifest in ``directory`` cannot be read (not UTF-8 JSON, not a JSON object);
+    None when it is absent or readable. A damaged manifest means "stale" to every reader: a
+    run recomputes the stage, ``diff`` reports it, ``serve`` and ``goto`` refuse the outputs
+    (as they do a readable one without the current key)."""
+    path = directory / MANIFEST
+    if not path.exists():
+        return None
+    try:
+        m = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        return f"{path}: unreadable ({type(exc).__name__}: {exc})"
+    if not isinstance(m, dict):
+        return f"{path}: not a JSON object"
+    return None
+
+
 def is_fresh(directory: Path, key: str) -> bool:
     """True when ``directory`` holds a manifest with ``key`` and every output it lists, intact."""
     m = read_manifest(directory)

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MetasheetError
-from .manifest import MANIFEST, sha256_file
+from .manifest import MANIFEST, damage, sha256_file
 
 #: JSON keys holding wall-clock times: never compared.
 TIME_KEYS = ("timings_s", "wall_s", "s_per_point", "time_s", "seconds", "median_step_ms")
@@ -172,11 +172,26 @@ def compare_trees(a: Path, b: Path, *, rtol: float = 0.0, atol: float = 0.0,
                 if p.is_file() and not (skip_manifests and p.name == MANIFEST)}
 
     fa, fb = files(a), files(b)
-    out = []
+    out = [_damaged(rel, a, b) for rel in sorted(_manifests(a) | _manifests(b))] if skip_manifests else []
+    out = [d for d in out if d is not None]
     for rel in sorted(fa | fb):
         if rel not in fa or rel not in fb:
             out.append(FileDiff(rel, "missing in a" if rel not in fa else "missing in b"))
             continue
         d = compare_file(a / rel, b / rel, rtol=rtol, atol=atol)
         out.append(replace(d, path=rel))
-    return out
+    return sorted(out, key=lambda d: d.path)
+
+
+def _manifests(root: Path) -> set[str]:
+    return {p.relative_to(root).as_posix() for p in root.rglob(MANIFEST) if p.is_file()}
+
+
+def _damaged(rel: str, a: Path, b: Path) -> FileDiff | None:
+    """A manifest is skipped (it holds times), unless it is damaged in either tree: then the
+    trees differ, since nothing says what that stage wrote."""
+    for side, root in (("a", a), ("b", b)):
+        why = damage((root / rel).parent)
+        if why:
+            return FileDiff(rel, "different", note=f"damaged manifest in {side}: {why.split(': ', 1)[1]}")
+    return None

@@ -42,6 +42,12 @@ class Params(BaseModel):
         -> its parameters) when a pipeline is loaded; raise :class:`~metasheet.errors.ConfigError`
         ``"table.field: value: what is allowed"`` (the loader adds the file). Nothing by default."""
 
+    def check_files(self, table: str, params: dict[str, Params], root: Path) -> None:
+        """Read and check the files this table names (a cell design) and what the stage will
+        check against them, when a pipeline is loaded (``metasheet validate`` too): an error
+        then costs no upstream stage. Raise :class:`~metasheet.errors.ConfigError` like
+        :meth:`check_pipeline`; ``root`` is the project root. Nothing by default."""
+
 
 @dataclass
 class StageContext:

@@ -44,12 +44,13 @@ from . import manifest as mf
 from .config import Pipeline, upstream
 from .debris import output_folder, remove_debris, remove_own_debris, remove_path, remove_unit_caches
 from .lock import Reporter, _quiet, output_lock, pid_alive  # noqa: F401 - pid_alive: the runner's API
+from .ownership import check_replaceable, name_files, not_ours
 from .registry import StageContext, stages
 from .schedule import run_graph
 from .staleness import closure, stage_key
 
 #: errno values of a write that failed because of the output folder, not of the stage's logic.
-WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS}
+WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS, errno.EFBIG}
 
 @dataclass(frozen=True)
 class StageOutcome:
@@ -77,8 +78,10 @@ def plan(pipeline: Pipeline, only: str | None) -> tuple[str, ...]:
 def clean(pipeline: Pipeline, *, out_root: Path | None = None, everything: bool = False, wait: bool = True,
           report: Reporter = _quiet) -> list[Path]:
     """Remove what killed runs left in ``pipeline``'s output folder (their temporary folders,
-    and resume caches that hold no unit); ``everything``: the whole folder (every stage's
-    outputs). Holds the folder's lock, so it never races a run; touches nothing outside
+    and resume caches that hold no unit); ``everything``: also every stage folder metasheet can
+    prove it wrote (:mod:`.ownership`) and the resume caches, then the folder itself when nothing
+    else is left in it. Files metasheet did not write, and the folders holding them, are kept and
+    named. Holds the folder's lock, so it never races a run; touches nothing outside
     :func:`output_folder`."""
     out_root = Path(out_root) if out_root else pipeline.root / "outputs"
     base = output_folder(out_root, pipeline.name)
@@ -91,18 +94,37 @@ def clean(pipeline: Pipeline, *, out_root: Path | None = None, everything: bool 
             if units and not everything:
                 report("clean", f"kept {cache}: {units} finished unit(s) a rerun resumes from (--all removes it)")
                 continue
-            if not everything:
-                remove_path(cache)
-                removed.append(cache)
-                report("clean", f"removed {cache} (an empty resume cache)")
-        if everything and base.exists():
-            try:
-                shutil.rmtree(base)
-            except OSError as exc:
-                raise output_error(exc, str(base)) from exc
-            removed.append(base)
-            report("clean", f"removed {base}")
+            _remove(cache, removed)
+            report("clean", f"removed {cache}" + ("" if units else " (an empty resume cache)"))
+        if everything:
+            _remove_stage_folders(base, removed, report)
     return removed
+
+
+def _remove_stage_folders(base: Path, removed: list[Path], report: Reporter) -> None:
+    """Remove the stage folders under ``base`` that metasheet wrote, then ``base`` when empty."""
+    kept = []
+    for entry in sorted(base.iterdir()):
+        why = not_ours(entry, entry.name) if entry.is_dir() and not entry.is_symlink() else "not a stage folder"
+        if why:
+            kept.append(entry.name)
+            report("clean", f"kept {entry}: {why}")
+            continue
+        _remove(entry, removed)
+        report("clean", f"removed {entry}")
+    if kept:
+        report("clean", f"kept {base}: it holds {name_files(kept)}, which metasheet did not write")
+        return
+    _remove(base, removed)
+    report("clean", f"removed {base}")
+
+
+def _remove(path: Path, removed: list[Path]) -> None:
+    try:
+        remove_path(path)
+    except OSError as exc:
+        raise output_error(exc, str(path)) from exc
+    removed.append(path)
 
 
 # ----------------------------------------------------------------------------------- run
@@ -112,7 +134,7 @@ def _os_failure(exc: OSError, name: str, roots: tuple[Path, ...]) -> MetasheetEr
     """A write failure in the outputs -> OutputError; any other OSError -> StageError."""
     target = Path(exc.filename).resolve() if isinstance(exc.filename, (str, os.PathLike)) else None
     in_outputs = target is None or any(target.is_relative_to(r.resolve()) for r in roots)
-    if exc.errno in WRITE_ERRNOS and (in_outputs or exc.errno in (errno.ENOSPC, errno.EDQUOT)):
+    if exc.errno in WRITE_ERRNOS and (in_outputs or exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)):
         return output_error(exc, f"stage {name!r}")
     return StageError(f"stage {name!r} failed: {type(exc).__name__}: {exc}")
 
@@ -127,6 +149,7 @@ def run_pipeline(
     report: Reporter = _quiet,
     progress_factory: Callable[[str], Callable[[str, int, int], None]] | None = None,
     wait: bool = True,
+    overwrite: bool = False,
 ) -> list[StageOutcome]:
     """Run ``pipeline``; return one :class:`StageOutcome` per visited stage.
 
@@ -136,7 +159,8 @@ def run_pipeline(
     ``only`` runs one stage (and what it needs, from cache when fresh); ``force``
     reruns the selected stage (or every stage when ``only`` is None). The output folder's
     lock is held for the whole run; ``wait=False`` raises :class:`~metasheet.errors.LockedError`
-    instead of waiting for another run (see the module docstring).
+    instead of waiting for another run (see the module docstring). A stage folder that holds
+    files metasheet did not write is not replaced unless ``overwrite`` (:mod:`.ownership`).
     """
     registry = stages()
     out_root = Path(out_root) if out_root else pipeline.root / "outputs"
@@ -157,7 +181,7 @@ def run_pipeline(
                                  lambda name: _run_stage(pipeline, registry[name], base,
                                                          force and (only is None or only == name),
                                                          replace(ex, priority=names.index(name)), report,
-                                                         progress_factory, cancel),
+                                                         progress_factory, cancel, overwrite),
                                  at_once=pipeline.section.stages_at_once,
                                  on_interrupt=lambda: _stop(cancel, ex))
         except BaseException as exc:
@@ -178,7 +202,7 @@ def _stop(cancel: threading.Event, executor: Executor) -> None:
 
 
 def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Executor, report: Reporter,
-               progress_factory, cancel: threading.Event | None = None) -> StageOutcome:
+               progress_factory, cancel: threading.Event | None = None, overwrite: bool = False) -> StageOutcome:
     name = stage.name
     inputs = {u: base / u for u in upstream(pipeline, name)}
     # one key computation for the runner and for readers of old outputs (serve, goto)
@@ -188,6 +212,7 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
     if not forced and mf.is_fresh(final, key):
         report(name, "up to date, skipped")
         return StageOutcome(name, "cached", final, 0.0, mf.read_manifest(final).get("summary", {}))
+    check_replaceable(final, name, overwrite)  # before the work: a refusal costs nothing
     report(name, "running")
     if forced:
         remove_unit_caches(base, name)
@@ -231,6 +256,7 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
                 "timings_s": dict(ctx.timings),
             },
         )
+        check_replaceable(final, name, overwrite)  # a file the user put there meanwhile
         _swap_into_place(work, final)
     except OutputError as err:
         shutil.rmtree(work, ignore_errors=True)
@@ -241,6 +267,10 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
     except OSError as err:
         shutil.rmtree(work, ignore_errors=True)
         raise _os_failure(err, name, (base,)) from err
+    except MemoryError as err:  # its message is empty: say what to change
+        shutil.rmtree(work, ignore_errors=True)
+        raise StageError(f"stage {name!r} ran out of memory (MemoryError): lower its sizes (mesh, voxels, "
+                         "realisations) or the workers, or raise the memory limit (ulimit -v)") from err
     except Exception as err:
         shutil.rmtree(work, ignore_errors=True)
         raise StageError(f"stage {name!r} failed: {type(err).__name__}: {err}") from err

@@ -75,10 +75,14 @@ def stale_stages(pipeline: Pipeline, base: Path, names=None) -> tuple[str, ...]:
     under ``base`` records another key than ``pipeline`` computes now, in run order.
 
     A stage without a manifest is not judged here (outputs written by hand, or none: the
-    reader's own check names a missing file); nor is one whose upstream has none.
+    reader's own check names a missing file); nor is one whose upstream has none. A stage
+    whose manifest is damaged (:func:`~.manifest.damage`) is stale.
     """
     stale = []
     for name in closure(pipeline, pipeline.order if names is None else names):
+        if mf.damage(base / name):
+            stale.append(name)
+            continue
         recorded = mf.read_manifest(base / name)
         if recorded is None:
             continue

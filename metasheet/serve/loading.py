@@ -91,13 +91,14 @@ def check_fresh(pipeline, directory: Path, run_command: str) -> None:
     """ConfigError naming the stages whose outputs in ``directory`` the pipeline file would
     not reuse (their manifests' cache keys differ from the ones it computes now: a scene, a
     mesh, a material edited under the same ``name``) among those the page and ``goto`` read
-    and their upstream stages. Outputs without manifests (written by hand) are not judged."""
+    and their upstream stages; a damaged manifest counts as stale. Outputs without manifests
+    (written by hand) are not judged."""
     from ..pipeline.staleness import stale_stages
 
     stale = stale_stages(pipeline, directory, (*REQUIRED, "reduce", "maze"))
     if stale:
         raise ConfigError(f"{directory}: the outputs of stage(s) {', '.join(stale)} do not match {pipeline.path} "
-                          f"(edited since they were written: their cache keys differ): run `{run_command}` first")
+                          f"(edited since they were written, or a manifest damaged): run `{run_command}` first")
 
 
 def check_outputs(outputs: Outputs) -> None:

@@ -116,6 +116,17 @@ def tripod_region(params: SheetParams | None = None, *, arc_segments: int = 16) 
     return SheetRegion(lo, hi, _TripodInside(params, poly), _TripodSolid(params), "tripod sheet")
 
 
+def voxel_grid(region: SheetRegion, voxel_mm: float, max_voxels: int) -> tuple[int, int, int]:
+    """The voxel grid's shape over ``region``'s box at ``voxel_mm`` [mm]; ConfigError naming
+    max_voxels when it has more voxels than that."""
+    shape = tuple(int(v) for v in np.maximum(1, np.round((region.hi - region.lo) / float(voxel_mm))))
+    count = int(np.prod(shape))
+    if count > max_voxels:
+        raise ConfigError(f"max_voxels: {max_voxels}: the grid {shape[0]} x {shape[1]} x {shape[2]} has "
+                          f"{count} voxels at voxel_mm {voxel_mm:g}; raise max_voxels or voxel_mm")
+    return shape
+
+
 @dataclass(frozen=True)
 class _Everywhere:
     def __call__(self, points):
@@ -252,11 +263,8 @@ def printed_foam(region: SheetRegion, fields: FoamFields, design: PolyfoamDesign
     check_range("tile", tile, 1, 256)
     rng_seed = design.seeds.seed if seed is None else int(check_range("seed", seed, 0, None))
     ext = region.hi - region.lo
-    shape = tuple(int(v) for v in np.maximum(1, np.round(ext / float(voxel_mm))))
+    shape = voxel_grid(region, voxel_mm, max_voxels)
     count = int(np.prod(shape))
-    if count > max_voxels:
-        raise ConfigError(f"max_voxels: {max_voxels}: the grid {shape[0]} x {shape[1]} x {shape[2]} has "
-                          f"{count} voxels at voxel_mm {voxel_mm:g}; raise max_voxels or voxel_mm")
     h = ext / np.array(shape)
     centres = region.lo + voxel_centres(ext, np.array(shape))  # (count, 3), x slowest
     inside = np.asarray(region.inside(centres), dtype=bool)

@@ -47,16 +47,17 @@ class CellParams(Params):
     tet_size: float | None = Field(None, gt=0, description="tet element size [mm] (default: the voxel size)")
     picture: bool = Field(True, description="write cell.png")
 
+    def check_files(self, table: str, params: dict, root: Path) -> None:
+        """The design file is read and validated with this table's overrides (as the stage will)."""
+        load_design(root, self)
+
 
 def load_design(root: Path, p: CellParams):
     """Read and validate the design file named by ``p.design`` with the overrides of ``p``."""
     path = (Path(root) / p.design).resolve()
     if not path.is_file():
         raise ConfigError(f"cell.design: {p.design!r}: no such file under {root}")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"cell.design: {p.design!r}: not valid TOML: {err}") from None
+    data = read_design_toml(path, f"cell.design: {p.design!r}")
     overrides = {"resolution": p.resolution, "seed": p.seed, "relative_density": p.relative_density,
                  "voxel_mm": p.voxel_mm}
     return parse_design(data, overrides=overrides, source=p.design), path
@@ -190,3 +191,16 @@ register(
         doc="periodic unit cell (foam, laminate, solid) -> cell.json, voxels.npz, cell.stl, cell.png",
     )
 )
+
+
+def read_design_toml(path: Path, field: str) -> dict:
+    """The parsed TOML of design file ``path``; ConfigError ``field: why`` for a file that is not
+    UTF-8 TOML (random bytes, a binary, a directory)."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8").removeprefix("\ufeff"))  # an editor's BOM
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{field}: not valid TOML: {err}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{field}: not a text file (not UTF-8): a TOML design file is expected") from None
+    except OSError as err:
+        raise ConfigError(f"{field}: cannot read: {err.strerror or err}") from None

@@ -13,7 +13,7 @@ were made). :func:`metasheet.homogenize.chart.lookup` inverts the chart.
 
 from __future__ import annotations
 
-import tomllib
+from pathlib import Path
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -23,6 +23,7 @@ from ...homogenize.chart import FAMILY_AXES, chart_points, evaluate_point, to_cs
 from ...homogenize.chart_bars import chart_bars
 from ...material import CONSTANT_NAMES
 from ..registry import Params, Stage, StageContext, register
+from .cell import read_design_toml
 
 
 class ChartParams(Params):
@@ -53,6 +54,10 @@ class ChartParams(Params):
             raise ValueError(f"stretch_max {self.stretch_max} must exceed stretch_min {self.stretch_min}")
         return self
 
+    def check_files(self, table: str, params: dict, root: Path) -> None:
+        """The base design is read and its family checked (as the stage will)."""
+        base_design(root, self)
+
 
 #: The default Polyfoam sweep: the authors' four measured densities (ICESL.md), their shrink
 #: 0.2 up to no shrink (isotropic in the print plane).
@@ -79,16 +84,22 @@ def sweep_values(p: ChartParams, family: str) -> tuple[list[float], list[float]]
     return out[0], out[1]
 
 
-def run(ctx: StageContext) -> dict:
-    p: ChartParams = ctx.params
-    path = (ctx.root / p.design).resolve()
-    if not path.exists():
-        raise ConfigError(f"chart.design: {p.design!r}: no such file under {ctx.root}")
-    design = tomllib.loads(path.read_text())
+def base_design(root: Path, p: ChartParams) -> tuple[dict, str]:
+    """The base design's table and its family; ConfigError naming chart.design."""
+    path = (root / p.design).resolve()
+    if not path.is_file():
+        raise ConfigError(f"chart.design: {p.design!r}: no such file under {root}")
+    design = read_design_toml(path, f"chart.design: {p.design!r}")
     family = design.get("kind", "foam")
     if family not in FAMILY_AXES:
         raise ConfigError(f"chart.design: {p.design!r}: kind {family!r}: the chart needs one of "
                           f"{', '.join(FAMILY_AXES)}")
+    return design, family
+
+
+def run(ctx: StageContext) -> dict:
+    p: ChartParams = ctx.params
+    design, family = base_design(ctx.root, p)
     first, second = sweep_values(p, family)
     if p.seed_count is not None:
         design["seeds"] = {**design.get("seeds", {}), "count": p.seed_count}
@@ -103,7 +114,7 @@ def run(ctx: StageContext) -> dict:
     from ...viz.homogenize import chart_picture
 
     grid = f"{p.resolution}^3 voxels" if family == "foam" else f"voxel {p.voxel_mm or design.get('voxel_mm')} mm"
-    title = (f"design chart of {design.get('name', path.stem)} ({grid}, {design.get('seeds', {}).get('count')} "
+    title = (f"design chart of {design.get('name', Path(p.design).stem)} ({grid}, {design.get('seeds', {}).get('count')} "
              f"cells, {p.seeds} realisation(s) per point" + (", bars: 95 % interval of the mean)" if p.seeds > 1 else ")"))
     ctx.path("chart.png").write_bytes(chart_picture(rows, title))
     out = {"points": len(rows), "E_t_range_MPa": [min(r["E_t"] for r in rows), max(r["E_t"] for r in rows)],

@@ -126,8 +126,11 @@ class DesignParams(Params):
     @model_validator(mode="after")
     def _check(self):
         ds.SearchSpace(tuple(self.pitch_deg), self.n_radial, self.radial_deg)  # ConfigError names the field
-        for v in self.strain_front:
-            StrainSettings(v, self.goal_deg, self.ks_rho)  # ConfigError: "strain_limit: ..."
+        for i, v in enumerate(self.strain_front):
+            try:
+                StrainSettings(v, self.goal_deg, self.ks_rho)
+            except ConfigError as err:  # it names strain_limit: say which entry of the front
+                raise ConfigError(f"strain_front[{i}]: {str(err).split(': ', 1)[1]}") from None
         check_settings(self.print_settings)  # an infeasible print is refused before anything runs
         if self.oat_points == 1:
             raise ConfigError("oat_points: 1: allowed values are 0 (none) or [2, 1000]")
@@ -146,6 +149,9 @@ class DesignParams(Params):
     def check_pipeline(self, table: str, params: dict) -> None:
         """The rest problem's limits on the orient table: a uniform sheet, fibres in the plane."""
         o = params["orient"]
+        if o.element != "p1":
+            raise ConfigError(f"orient.element: {o.element!r}: the {table} stage's rest problem is solved on linear "
+                              "tetrahedra only; allowed 'p1'")
         g = o.grading
         if g.table or g.density_expr or g.alpha_expr:
             raise ConfigError(f"orient.grading: a graded sheet: the {table} stage supports uniform sheets only")

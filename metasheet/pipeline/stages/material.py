@@ -23,6 +23,7 @@ from ...errors import ConfigError
 from ...material import Isotropic, TransverseIsotropic
 from ...material_model import model_stiffness
 from ..artefacts import constants_material, read_constants, write_material
+from ..bounds import MASS_DENSITY, MODULUS
 from ..registry import Params, Stage, StageContext, register
 
 _FOAM = paper.PAPER_FOAM
@@ -36,15 +37,15 @@ class MaterialParams(Params):
     sheet_file: str | None = Field(None, description="source = 'sheet': a sheet stage's sheet_dns.json (relative to "
                                    "the project root), whose apparent constants (mean over its realisations) are used")
     kind: Literal["transverse", "isotropic"] = Field("transverse", description="which constants below apply")
-    E_t: float = Field(_FOAM.E_t, gt=0, description="transverse Young's modulus [MPa]")
-    E_l: float = Field(_FOAM.E_l, gt=0, description="longitudinal Young's modulus [MPa]")
+    E_t: float = Field(_FOAM.E_t, **MODULUS, description="transverse Young's modulus [MPa]")
+    E_l: float = Field(_FOAM.E_l, **MODULUS, description="longitudinal Young's modulus [MPa]")
     nu_t: float = Field(_FOAM.nu_t, gt=-1, lt=1, description="transverse Poisson ratio [-]")
     nu_tl: float = Field(_FOAM.nu_tl, description="transverse-longitudinal Poisson ratio [-]; with the others "
                          "|nu_tl| < sqrt((1 - nu_t) E_t / (2 E_l)) (positive-definite stiffness)")
-    mu_l: float = Field(_FOAM.mu_l, gt=0, description="longitudinal shear modulus [MPa]")
-    E: float = Field(paper.SILICONE.E, gt=0, description="isotropic Young's modulus [MPa] (kind = 'isotropic')")
+    mu_l: float = Field(_FOAM.mu_l, **MODULUS, description="longitudinal shear modulus [MPa]")
+    E: float = Field(paper.SILICONE.E, **MODULUS, description="isotropic Young's modulus [MPa] (kind = 'isotropic')")
     nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="isotropic Poisson ratio [-] (kind = 'isotropic')")
-    density: float = Field(paper.FOAM_DENSITY, gt=0, description="mass density of the sheet [t/mm^3]")
+    density: float = Field(paper.FOAM_DENSITY, **MASS_DENSITY, description="mass density of the sheet [t/mm^3]")
     model: Literal["ours", "authors"] = Field(
         "ours", description="'ours': the tensor of all five constants; 'authors': the authors' SOFA force field's "
         "(longitudinal shear E_t / (2 (1 + nu_t)), mu_l unused; c13 as their code)")

@@ -19,6 +19,7 @@ from pydantic import Field
 from ...material import Isotropic
 from ...studies.maze import MazeSettings, solve_mazes
 from ..manifest import write_json_atomic
+from ..bounds import MASS_DENSITY, MODULUS
 from ..registry import Stage, StageContext, register
 from ._studies import (run_columns, CertifyParams, build_spec, certification, drop_cache, model_record, progress, scene_of,
                        study_reads, unit_cache, write_csv)
@@ -39,9 +40,9 @@ class MazeParams(CertifyParams):
     tol_deg: float = Field(1.0, gt=0, description="orientation tolerance of each command [deg]")
     max_steps: int = Field(60, ge=1, description="inverse control steps per command [-]")
     silicone: bool = Field(True, description="solve the maze with silicone sheets too (the paper's comparison)")
-    silicone_E: float = Field(0.25, gt=0, description="silicone Young's modulus [MPa]")
+    silicone_E: float = Field(0.25, **MODULUS, description="silicone Young's modulus [MPa]")
     silicone_nu: float = Field(0.45, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
-    silicone_density: float = Field(1.07e-9, gt=0, le=1e-7, description="silicone density [t/mm^3]")
+    silicone_density: float = Field(1.07e-9, **MASS_DENSITY, description="silicone density [t/mm^3]")
     strain_limit: float = Field(0.3, gt=0, description="the foam's largest principal strain within which its "
                                 "homogenised constants hold [-] (reported: the samples beyond it)")
 

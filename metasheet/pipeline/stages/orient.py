@@ -35,6 +35,7 @@ from ...sheet import geometry as geo
 from ...sheet import grading as gr
 from ..artefacts import SHEET_FILES, read_material, read_print_model, write_sheet
 from ..manifest import write_json_atomic
+from ..bounds import MODULUS
 from ..registry import Params, Stage, StageContext, register
 from .material import check_constants
 
@@ -44,11 +45,11 @@ _FOAM = paper.PAPER_FOAM
 class ConstantsParams(Params):
     """Fallback constants when the material stage is not in the pipeline (paper's foam)."""
 
-    E_t: float = Field(_FOAM.E_t, gt=0, description="transverse Young's modulus [MPa]")
-    E_l: float = Field(_FOAM.E_l, gt=0, description="longitudinal Young's modulus [MPa]")
+    E_t: float = Field(_FOAM.E_t, **MODULUS, description="transverse Young's modulus [MPa]")
+    E_l: float = Field(_FOAM.E_l, **MODULUS, description="longitudinal Young's modulus [MPa]")
     nu_t: float = Field(_FOAM.nu_t, gt=-1, lt=1, description="transverse Poisson ratio [-]")
     nu_tl: float = Field(_FOAM.nu_tl, gt=-1, lt=2, description="transverse-longitudinal Poisson ratio [-]")
-    mu_l: float = Field(_FOAM.mu_l, gt=0, description="longitudinal shear modulus [MPa]")
+    mu_l: float = Field(_FOAM.mu_l, **MODULUS, description="longitudinal shear modulus [MPa]")
 
     @model_validator(mode="after")
     def _stable(self):

@@ -45,6 +45,7 @@ from ...robot.convergence import Level
 from ...robot.compare import evaluate
 from ..artefacts import OrientFile, read_material, read_orient, write_jacobian, write_rest_vtu
 from ..manifest import write_json_atomic
+from ..bounds import MASS_DENSITY, MODULUS
 from ..registry import Params, Stage, StageContext, register
 
 
@@ -78,9 +79,9 @@ class RobotParams(Params):
     angle_max: float | None = Field(None, ge=-180, le=180, description="motor stroke maximum [deg] "
                                     "(90 = vertical horn)" + _SCENE)
     delta_deg: float = Field(-15.0, ge=-90, le=90, description="all-motors move for the pictures and finite test [deg]")
-    silicone_E: float = Field(paper.SILICONE.E, gt=0, le=1e4, description="silicone Young's modulus [MPa]")
+    silicone_E: float = Field(paper.SILICONE.E, **MODULUS, description="silicone Young's modulus [MPa]")
     silicone_nu: float = Field(paper.SILICONE.nu, gt=-1, lt=0.5, description="silicone Poisson ratio [-]")
-    silicone_density: float = Field(paper.SILICONE_DENSITY, gt=0, le=1e-7, description="silicone density [t/mm^3]")
+    silicone_density: float = Field(paper.SILICONE_DENSITY, **MASS_DENSITY, description="silicone density [t/mm^3]")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     compare_published: bool = Field(True, description="also evaluate the robot with the paper's published "
                                     "constants when the material differs from them")

@@ -18,6 +18,7 @@ iterations, the kept share of the solid and the times are recorded per sheet.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Literal
 
 from pydantic import Field
@@ -44,6 +45,32 @@ class SheetDnsParams(Params):
     max_voxels: int = Field(20_000_000, ge=1000, le=200_000_000, description="refuse larger voxel grids")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     picture: bool = Field(True, description="write sheet_dns.png and printed_sheet.png")
+
+    def check_files(self, table: str, params: dict, root: Path) -> None:
+        """What the stage checks against the cell's design and the sheet, when the pipeline is
+        loaded: a Polyfoam design, voxel_mm at most its bead, a grid within max_voxels."""
+        from ...cells.polyfoam import PolyfoamDesign
+        from ...sheet.printed_foam import tripod_region, voxel_grid
+        from .cell import load_design
+        from .orient import sheet_params
+
+        if "cell" not in params or "orient" not in params:
+            return  # the stage itself names the missing stage
+        design = load_design(root, params["cell"])[0]
+        if not isinstance(design, PolyfoamDesign):
+            raise ConfigError(f"cell.design: {params['cell'].design!r}: the printed sheet is modelled for Polyfoam "
+                              "cells only (the print map's foam): use a polyfoam design in the cell stage")
+        check_voxel(self.voxel_mm, design.bead_width)
+        try:
+            voxel_grid(tripod_region(sheet_params(params["orient"])), self.voxel_mm, self.max_voxels)
+        except ConfigError as err:
+            raise ConfigError(f"{table}.{err}") from None
+
+
+def check_voxel(voxel_mm: float, bead_width: float) -> None:
+    if voxel_mm > bead_width:
+        raise ConfigError(f"sheet.voxel_mm: {voxel_mm:g}: allowed range (0, bead_width = {bead_width:g}] mm "
+                          "(a wall must be at least one voxel)")
 
 
 def _design(ctx: StageContext):
@@ -73,9 +100,7 @@ def run(ctx: StageContext) -> dict:
 
     p: SheetDnsParams = ctx.params
     design = _design(ctx)
-    if p.voxel_mm > design.bead_width:
-        raise ConfigError(f"sheet.voxel_mm: {p.voxel_mm:g}: allowed range (0, bead_width = {design.bead_width:g}] mm "
-                          "(a wall must be at least one voxel)")
+    check_voxel(p.voxel_mm, design.bead_width)
     orient = read_orient(ctx.inputs["orient"])
     pair = orient.sheets()
     material = read_material(ctx.inputs["material"])

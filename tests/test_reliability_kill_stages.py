@@ -1,0 +1,66 @@
+"""A stop signal in any real stage of the quick pipeline unwinds: exit 128 + the signal, the
+message, no temporary folder, no lock file. Before: once the orient stage had meshed, gmsh's
+start had reset SIGTERM and SIGHUP to their default action, and a signal during printmap or
+robot killed the run outright (exit -15 / -1), leaving ``.printmap.tmp-<pid>`` and the lock's
+``.json`` (:mod:`metasheet.gmsh_start`).
+
+Each case copies the session's quick run, removes the stage (and orient, so that gmsh has
+started in the run before the stage when orient is upstream of it) and runs ``--stage`` it on
+two workers, signalling as soon as the stage's temporary folder appears. The material stage
+takes milliseconds, too short to be hit reliably: it is left out.
+"""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ORDER = ["cell", "homogenize", "material", "orient", "printmap", "robot"]
+
+
+def kill_in_stage(quick_outputs, tmp_path, stage: str, signum: int) -> None:
+    out = tmp_path / "out"
+    shutil.copytree(quick_outputs, out)
+    base = out / "quick"
+    again = {stage} | ({"orient"} if ORDER.index(stage) > ORDER.index("orient") else set())
+    for s in again:
+        shutil.rmtree(base / s, ignore_errors=True)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.Popen([sys.executable, "-m", "metasheet", "run", str(ROOT / "pipelines" / "quick.toml"),
+                             "--out", str(out), "--stage", stage, "--workers", "2"],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t0 = time.monotonic()
+        while not list(base.glob(f".{stage}.tmp-*")):
+            assert proc.poll() is None, f"the run ended before stage {stage} started: {proc.communicate()}"
+            assert time.monotonic() - t0 < 300, f"stage {stage} did not start"
+            time.sleep(0.01)
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 128 + signum, err
+    assert f"stopped by {signal.Signals(signum).name}" in err
+    assert sorted(p.name for p in base.iterdir() if p.name.startswith(".")) == []
+    assert not (out / ".quick.lock.json").exists()
+
+
+def test_sigterm_after_meshing_unwinds(quick_outputs, tmp_path):
+    """The case that failed: SIGTERM in printmap, after orient meshed in the same run."""
+    kill_in_stage(quick_outputs, tmp_path, "printmap", signal.SIGTERM)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("stage", [s for s in ORDER if s != "material"])
+def test_a_stop_signal_in_every_stage_unwinds(quick_outputs, tmp_path, stage, signum):
+    """Default sibling: :func:`test_sigterm_after_meshing_unwinds`."""
+    kill_in_stage(quick_outputs, tmp_path, stage, signum)
