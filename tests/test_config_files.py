@@ -88,3 +88,28 @@ def test_the_design_stage_refuses_p2_sheets_and_names_the_strain_fronts_entry(pr
     assert "orient.element: 'p2':" in msg and "allowed 'p1'" in msg
     msg = refused(project, base + '[orient]\nelement = "p1"\n[design]\nstrain_front = [0.2, -0.3]\n')
     assert "design.strain_front[1]: -0.3: allowed range is (0, 10]" in msg
+
+
+def test_a_byte_order_mark_is_read_past(project):
+    """Issue 60: an editor's UTF-8 BOM gave "Invalid statement (at line 1, column 1)"."""
+    (project / "cells" / "d.toml").write_bytes(b"\xef\xbb\xbf" + POLYFOAM.encode())
+    (project / "pipelines" / "q.toml").write_bytes(b"\xef\xbb\xbf" + CELL.encode())
+    assert load_pipeline(project / "pipelines" / "q.toml").order == ("cell",)
+
+
+def test_stage_given_twice_and_too_many_workers_are_refused(project, capsys):
+    """Issue 60: ``--stage robot --stage orient`` silently kept the last; ``--workers 10000`` was
+    accepted though the file caps workers at 256."""
+    (project / "pipelines" / "q.toml").write_text('[pipeline]\nname = "q"\nstages = ["material"]\n')
+    for argv, code, words in ((["--stage", "material", "--stage", "orient"], 2, "--stage: given 2 times"),
+                              (["--workers", "10000"], 2, "--workers")):
+        saved, sys.argv = sys.argv, ["metasheet", "run", str(project / "pipelines" / "q.toml"), *argv,
+                                     "--out", str(project / "out")]
+        try:
+            with pytest.raises(SystemExit) as exc:
+                main()
+        finally:
+            sys.argv = saved
+        assert exc.value.code == code
+        assert words in capsys.readouterr().err
+    assert not (project / "out").exists()

@@ -3,6 +3,7 @@ lists every file in it). Before: ``clean --all`` deleted a user's folder holding
 (no manifest), and ``run`` replaced a ``material/`` holding the user's ``notes.txt``."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -92,3 +93,26 @@ def test_the_cli_refuses_with_exit_2_and_a_sentence(tmp_path):
     assert r.returncode == 2, r.stderr
     assert "error:" in r.stderr and "notes.txt" in r.stderr and "--overwrite" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_a_file_size_limit_and_memory_are_named(tmp_path, monkeypatch):
+    """Issue 60: ``ulimit -f`` gave "File too large" without the stage, ``ulimit -v`` an empty
+    ``MemoryError:``."""
+    import errno
+    from dataclasses import replace
+
+    from metasheet.errors import StageError
+    from metasheet.pipeline.registry import _REGISTRY, stages
+
+    def efbig(ctx):
+        raise OSError(errno.EFBIG, "File too large")
+
+    def no_memory(ctx):
+        raise MemoryError()
+
+    for fail, words in ((efbig, "stage 'material': cannot write: file too large for this process's limit "
+                         "(ulimit -f)"), (no_memory, "stage 'material' ran out of memory (MemoryError)")):
+        monkeypatch.setitem(_REGISTRY, "material", replace(stages()["material"], run=fail))
+        with pytest.raises((OutputError, StageError), match=re.escape(words)):
+            run_pipeline(pipeline(tmp_path), out_root=tmp_path / "outputs", force=True)
+    assert [p.name for p in (tmp_path / "outputs" / "q").iterdir()] == []  # no temporary folder

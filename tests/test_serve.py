@@ -428,6 +428,11 @@ def test_the_page_refuses_bad_values_and_keeps_drawing(session, outputs, caplog)
         page._on_gizmo(click(object()))  # a malformed message: no pose at all
         assert "malformed" in page.notice
         assert len(caplog.records) == 1 and caplog.records[0].exc_info is None  # one line, no traceback
+        caplog.clear()
+        page.goal._impl.wxyz = np.array([1.0])  # as viser stores a client's 1-element quaternion (issue 60)
+        page._on_gizmo(click(page.goal))
+        assert page.notice.startswith("goal gizmo:") and page.goal.wxyz.shape == (4,)
+        assert caplog.records == []  # refused with a note, the gizmo put back: no traceback
         assert session.snapshot().version == rest.version  # nothing reached the session
         for f, v in zip(page.goal_fields, GOAL):  # a valid goal still moves the robot, and is drawn
             _from_a_tab(f, v)

@@ -86,6 +86,19 @@ def _pose_of_handle(handle) -> np.ndarray:
     return np.concatenate([p / SCALE, np.degrees(rotation_vector(R))])
 
 
+def _place(handle, position, wxyz) -> None:
+    """Set a transform handle's pose. viser (1.1.1, ``_scene_api.py``: the transform controls'
+    update) stores a client's position and quaternion unchecked, so one message with a
+    1-element ``wxyz`` left an array every later assignment failed to write into (a traceback
+    at each "Go to goal" until a valid drag): a malformed stored pose is replaced first."""
+    impl = getattr(handle, "_impl", None)
+    for name, size in (("position", 3), ("wxyz", 4)):
+        stored = getattr(impl, name, None)
+        if stored is not None and np.shape(stored) != (size,):
+            setattr(impl, name, np.zeros(size))
+    handle.position, handle.wxyz = position, wxyz
+
+
 def _from_page(handler):
     """A GUI callback on values from the page: a refused value (ConfigError) is a note on the
     page, anything else it raises (a malformed message) a note and one log line, never a
@@ -216,8 +229,7 @@ class Page:
     def _move_goal(self, pose) -> None:
         """The gizmo and the goal fields to ``pose`` (6,) [mm, deg]: the goal the session was last given."""
         self._goal_shown = np.array(pose, float)
-        self.goal.position = self._goal_shown[:3] * SCALE
-        self.goal.wxyz = _wxyz(rotation_matrix(np.radians(self._goal_shown[3:])))
+        _place(self.goal, self._goal_shown[:3] * SCALE, _wxyz(rotation_matrix(np.radians(self._goal_shown[3:]))))
         self._show_goal(self._goal_shown)
 
     def _refuse(self, message: str) -> None:
