@@ -397,6 +397,18 @@ def _from_a_tab(handle, value):
         cb(GuiEvent(client=object(), client_id=1, target=handle))
 
 
+def _from_the_browser(page, handle, value) -> None:
+    """The GUI update message the page sends when ``handle`` takes ``value``, through the
+    server's registered handler (where viser casts it)."""
+    import asyncio
+
+    from viser import _messages
+
+    handlers = page.server.gui._websock_interface._incoming_handlers[_messages.GuiUpdateMessage]
+    for h in handlers:
+        asyncio.run(h(1, _messages.GuiUpdateMessage(uuid=handle._impl.uuid, updates={"value": value})))
+
+
 def test_the_page_refuses_bad_values_and_keeps_drawing(session, outputs, caplog):
     """Before: "nonsense" in the colour menu raised at every redraw (no tab updated again),
     and a NaN goal moved the gizmo to NaN before the session refused it."""
@@ -433,6 +445,10 @@ def test_the_page_refuses_bad_values_and_keeps_drawing(session, outputs, caplog)
         page._on_gizmo(click(page.goal))
         assert page.notice.startswith("goal gizmo:") and page.goal.wxyz.shape == (4,)
         assert caplog.records == []  # refused with a note, the gizmo put back: no traceback
+        _from_the_browser(page, page.goal_fields[0], "abc")  # viser cast it, before any callback (issue 60)
+        assert page.notice == "goal X [mm]: 'abc': expected a number"
+        _from_the_browser(page, page.goal_fields[1], None)
+        assert page.notice == "goal Y [mm]: None: expected a number" and caplog.records == []
         assert session.snapshot().version == rest.version  # nothing reached the session
         for f, v in zip(page.goal_fields, GOAL):  # a valid goal still moves the robot, and is drawn
             _from_a_tab(f, v)

@@ -33,11 +33,12 @@ from collections import deque
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import rotation_matrix, rotation_vector
+from ..rotations import rotation_matrix
 from . import scene
 from .maze import maze_file, read_maze
 from .panel import MEASURED_RATE, RateMeter, status_markdown
 from .tracking import check_goal
+from .viser_guards import guard_gui_updates, place, pose_of_handle, wxyz
 
 log = logging.getLogger(__name__)
 
@@ -61,42 +62,6 @@ def check_port(host: str, port: int) -> None:
         except OSError as exc:
             raise ConfigError(f"--port: {port}: {host}:{port} is not available ({exc.strerror}): another "
                               "program (another metasheet serve?) is using it; choose another port with --port") from None
-
-
-def _wxyz(R) -> np.ndarray:
-    import viser.transforms as tf
-
-    return tf.SO3.from_matrix(np.asarray(R)).wxyz
-
-
-def _pose_of_handle(handle) -> np.ndarray:
-    """(6,) goal (mm, rotation vector deg) of a viser transform handle (metres, quaternion);
-    ConfigError unless it holds 3 finite coordinates and a finite, non-zero quaternion."""
-    import viser.transforms as tf
-
-    try:
-        p, q = (np.asarray(v, dtype=float).reshape(-1) for v in (handle.position, handle.wxyz))
-    except (TypeError, ValueError):
-        p, q = np.zeros(0), np.zeros(0)
-    n = np.linalg.norm(q) if q.shape == (4,) else 0.0
-    if p.shape != (3,) or not np.all(np.isfinite(p)) or not np.isfinite(n) or n < 1e-6:
-        raise ConfigError(f"goal gizmo: position {reprlib.repr(handle.position)}, orientation "
-                          f"{reprlib.repr(handle.wxyz)}: expected 3 finite numbers and a non-zero quaternion")
-    R = tf.SO3(q / n).as_matrix()
-    return np.concatenate([p / SCALE, np.degrees(rotation_vector(R))])
-
-
-def _place(handle, position, wxyz) -> None:
-    """Set a transform handle's pose. viser (1.1.1, ``_scene_api.py``: the transform controls'
-    update) stores a client's position and quaternion unchecked, so one message with a
-    1-element ``wxyz`` left an array every later assignment failed to write into (a traceback
-    at each "Go to goal" until a valid drag): a malformed stored pose is replaced first."""
-    impl = getattr(handle, "_impl", None)
-    for name, size in (("position", 3), ("wxyz", 4)):
-        stored = getattr(impl, name, None)
-        if stored is not None and np.shape(stored) != (size,):
-            setattr(impl, name, np.zeros(size))
-    handle.position, handle.wxyz = position, wxyz
 
 
 def _from_page(handler):
@@ -148,6 +113,7 @@ class Page:
         self.draw_times: deque = deque(maxlen=1000)  # [s] of the last draws (benchmarks/bench_serve.py)
         self._build_scene(snap)
         self._build_gui(snap)
+        guard_gui_updates(server, self._refuse)  # a value viser cannot cast: a note, not its traceback
         cam = server.initial_camera  # every tab's first view, and its "reset view"
         cam.position, cam.look_at, cam.up = CAMERA["position"], CAMERA["look_at"], (0.0, 0.0, 1.0)
         self._thread = threading.Thread(target=self._loop, name="metasheet-serve-draw", daemon=True)
@@ -229,7 +195,7 @@ class Page:
     def _move_goal(self, pose) -> None:
         """The gizmo and the goal fields to ``pose`` (6,) [mm, deg]: the goal the session was last given."""
         self._goal_shown = np.array(pose, float)
-        _place(self.goal, self._goal_shown[:3] * SCALE, _wxyz(rotation_matrix(np.radians(self._goal_shown[3:]))))
+        place(self.goal, self._goal_shown[:3] * SCALE, wxyz(rotation_matrix(np.radians(self._goal_shown[3:]))))
         self._show_goal(self._goal_shown)
 
     def _refuse(self, message: str) -> None:
@@ -246,7 +212,7 @@ class Page:
     # the session checks each value (ConfigError before anything changes): post, then move widgets
     @_from_page
     def _on_gizmo(self, event) -> None:
-        pose = _pose_of_handle(event.target)
+        pose = pose_of_handle(event.target, SCALE)
         self.session.set_goal(pose)
         self._goal_shown = pose
         self._show_goal(pose)
@@ -357,7 +323,7 @@ class Page:
                 h.opacity = 0.3 if fibers else None  # the fibres run inside the sheets
             self.horns.points = scene.horn_segments(geo, x) * SCALE
             self.rod.points = scene.rod_segment(geo, snap.state.p, snap.state.R) * SCALE
-            self.effector.position, self.effector.wxyz = snap.state.p * SCALE, _wxyz(snap.state.R)
+            self.effector.position, self.effector.wxyz = snap.state.p * SCALE, wxyz(snap.state.R)
             self.fibers.visible = fibers
             if fibers:
                 self.fibers.points = scene.fiber_segments(geo, x) * SCALE
