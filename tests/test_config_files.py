@@ -10,9 +10,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from pipeline_files import refused_at
 
 from metasheet.cli import main
-from metasheet.errors import ConfigError
 from metasheet.pipeline.config import load_pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,16 +33,7 @@ def refused(project: Path, pipeline: str, design: bytes | str | None = None) -> 
         (project / "cells" / "d.toml").write_bytes(design.encode() if isinstance(design, str) else design)
     path = project / "pipelines" / "q.toml"
     path.write_text(pipeline)
-    with pytest.raises(ConfigError) as err:
-        load_pipeline(path)
-    saved, sys.argv = sys.argv, ["metasheet", "validate", str(path)]
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main()
-    finally:
-        sys.argv = saved
-    assert exc.value.code == 2
-    return str(err.value)
+    return refused_at(path)
 
 
 CELL = '[pipeline]\nname = "q"\nstages = ["cell"]\n[cell]\ndesign = "cells/d.toml"\n'

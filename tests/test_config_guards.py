@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import get_args, get_origin
 
 import pytest
+from pipeline_files import refused_at
 from pydantic import BaseModel
 
 from metasheet.cli import main
@@ -50,18 +51,7 @@ def pipeline(stage_list: str, tables: str = "", name: str = '"p"') -> str:
 def refused(project: Path, text: str, capsys) -> str:
     """The ConfigError loading ``text`` raises, after checking ``metasheet validate`` prints it
     and exits 2."""
-    path = write(project, text)
-    with pytest.raises(ConfigError) as err:
-        load_pipeline(path)
-    saved, sys.argv = sys.argv, ["metasheet", "validate", str(path)]
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main()
-    finally:
-        sys.argv = saved
-    assert exc.value.code == 2 and capsys.readouterr().err == f"error: {err.value}\n"
-    assert str(err.value).startswith(f"{path}: ")
-    return str(err.value)
+    return refused_at(write(project, text), capsys)
 
 
 # 1. the run name ---------------------------------------------------------------------------------

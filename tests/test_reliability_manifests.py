@@ -5,10 +5,10 @@ pipeline answered from the stale outputs (an unreadable manifest skipped the sta
 import shutil
 
 import pytest
+from pipeline_files import material_pipeline
 
 from metasheet.errors import ConfigError
 from metasheet.pipeline import manifest as mf
-from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.outputs_diff import compare_trees
 from metasheet.pipeline.runner import run_pipeline
 from metasheet.pipeline.staleness import stale_stages
@@ -16,11 +16,7 @@ from metasheet.serve.loading import check_fresh
 
 
 def pipeline(tmp_path, E_t: float = 1.0):
-    (tmp_path / "cells").mkdir(exist_ok=True)
-    (tmp_path / "pipelines").mkdir(exist_ok=True)
-    toml = tmp_path / "pipelines" / "q.toml"
-    toml.write_text(f'[pipeline]\nname = "q"\nstages = ["material"]\n[material]\nsource = "config"\nE_t = {E_t}\n')
-    return load_pipeline(toml)
+    return material_pipeline(tmp_path, E_t)
 
 
 @pytest.fixture

@@ -8,19 +8,15 @@ import subprocess
 import sys
 
 import pytest
+from pipeline_files import material_pipeline
 
 from metasheet.errors import OutputError
-from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.ownership import foreign_files, name_files
 from metasheet.pipeline.runner import clean, run_pipeline
 
 
 def pipeline(tmp_path, E_t: float = 1.0):
-    (tmp_path / "cells").mkdir(exist_ok=True)
-    (tmp_path / "pipelines").mkdir(exist_ok=True)
-    toml = tmp_path / "pipelines" / "q.toml"
-    toml.write_text(f'[pipeline]\nname = "q"\nstages = ["material"]\n[material]\nsource = "config"\nE_t = {E_t}\n')
-    return load_pipeline(toml)
+    return material_pipeline(tmp_path, E_t)
 
 
 def test_a_run_does_not_replace_a_stage_folder_holding_a_users_file(tmp_path):
