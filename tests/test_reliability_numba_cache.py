@@ -26,8 +26,31 @@ def call(cache: Path) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=300)
 
 
+def test_a_truncated_index_or_data_file_is_removed_and_reads_as_absent(tmp_path, caplog):
+    """numba's own cache file object, guarded: what it writes loads back; truncated, it is
+    logged, removed and read as no entry (numba then compiles)."""
+    import numba.core.caching as caching
+
+    import metasheet  # noqa: F401  (the guard)
+
+    f = caching.IndexDataCacheFile(str(tmp_path), "k.f-1.py311", source_stamp=("stamp", 1))
+    f.save("key", ("some", "kernel"))
+    assert f.load("key") == ("some", "kernel")
+    data = sorted(tmp_path.glob("*.nbc"))[0]
+    data.write_bytes(data.read_bytes()[:5])
+    assert f.load("key") is None and not data.exists()
+    f.save("key", ("some", "kernel"))
+    index = tmp_path / "k.f-1.py311.nbi"
+    index.write_bytes(index.read_bytes()[:-7])
+    assert f.load("key") is None and not index.exists()
+    assert sum("is damaged" in r.getMessage() for r in caplog.records) == 2
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("damaged", ["nbi", "nbc"])
 def test_a_truncated_cache_file_is_compiled_again(tmp_path, damaged):
+    """Default sibling: :func:`test_a_truncated_index_or_data_file_is_removed_and_reads_as_absent`
+    (the same guard, in process)."""
     first = call(tmp_path)
     assert first.returncode == 0, first.stderr
     files = sorted(tmp_path.rglob(f"vectors.subtract-*.{damaged}"))
