@@ -36,3 +36,10 @@ def material_pipeline(project: Path, E_t: float = 1.0):
     toml = project / "pipelines" / "q.toml"
     toml.write_text(f'[pipeline]\nname = "q"\nstages = ["material"]\n[material]\nsource = "config"\nE_t = {E_t}\n')
     return load_pipeline(toml)
+
+
+def die(_) -> None:
+    """A work unit whose worker process dies under it (as one killed by the OOM killer)."""
+    import os
+
+    os._exit(3)

@@ -112,3 +112,23 @@ def test_a_file_size_limit_and_memory_are_named(tmp_path, monkeypatch):
         with pytest.raises((OutputError, StageError), match=re.escape(words)):
             run_pipeline(pipeline(tmp_path), out_root=tmp_path / "outputs", force=True)
     assert [p.name for p in (tmp_path / "outputs" / "q").iterdir()] == []  # no temporary folder
+
+
+def test_a_worker_that_dies_is_named(tmp_path, monkeypatch):
+    """A worker killed under a unit (the OOM killer, a crash in a native library) gave
+    "BrokenProcessPool: A process in the process pool was terminated abruptly ..."."""
+    from dataclasses import replace
+
+    from pipeline_files import die
+
+    from metasheet.errors import StageError
+    from metasheet.executor import Executor
+    from metasheet.pipeline.registry import _REGISTRY, stages
+
+    def run(ctx):
+        ctx.executor.map(die, [0, 1])
+
+    monkeypatch.setitem(_REGISTRY, "material", replace(stages()["material"], run=run))
+    with pytest.raises(StageError, match="stage 'material' failed: a worker process died while computing a unit"):
+        run_pipeline(pipeline(tmp_path), out_root=tmp_path / "outputs", executor=Executor(workers=2))
+    assert [p.name for p in (tmp_path / "outputs" / "q").iterdir()] == []

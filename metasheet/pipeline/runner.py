@@ -33,6 +33,7 @@ import shutil
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
@@ -267,6 +268,11 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
     except OSError as err:
         shutil.rmtree(work, ignore_errors=True)
         raise _os_failure(err, name, (base,)) from err
+    except BrokenExecutor as err:  # a worker died under a unit: its cause is not in this process
+        shutil.rmtree(work, ignore_errors=True)
+        raise StageError(f"stage {name!r} failed: a worker process died while computing a unit (killed by the "
+                         "system, e.g. out of memory, or crashed in a native library); rerun it, with fewer "
+                         "workers or a higher memory limit if it happens again") from err
     except MemoryError as err:  # its message is empty: say what to change
         shutil.rmtree(work, ignore_errors=True)
         raise StageError(f"stage {name!r} ran out of memory (MemoryError): lower its sizes (mesh, voxels, "
