@@ -35,7 +35,7 @@ warnings.filterwarnings("ignore", message="IProgress not found")
 # `metasheet.pipeline` is the pipeline layer's public face: `load_pipeline` reads and
 # validates a pipeline file, and `run_pipeline` runs it. Importing metasheet first, before
 # numpy, pins numpy and the BLAS to one code path, as `metasheet run` does (see
-# [Guarantees](../concepts/guarantees.md)).
+# [Guarantees](../../concepts/guarantees/)).
 
 # %%
 import json
@@ -153,7 +153,7 @@ Image(filename=str(quick / "robot" / "robot.png"), width=720)
 #
 # Each stage folder has a `manifest.json`: the cache key, the parameters, the hashes of
 # inputs and outputs, versions, timings and the code paths the stage computed with (see
-# [Caching and manifests](../concepts/caching.md)).
+# [Caching and manifests](../../concepts/caching/)).
 
 # %%
 manifest = json.loads((quick / "robot" / "manifest.json").read_text())
