@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import io
 import tomllib
+import sys
 from pathlib import Path
 
 import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
@@ -48,7 +49,7 @@ def main(small: bool = False, out: Path | None = None) -> dict:
     for key in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l", "alpha", "relative_density", "misfit"):
         print(f"  {key:17s} {numbers[key]:10.4f} {units.get(key, '-')}")
 
-    out = Path(out) if out is not None else ROOT / "docs" / "examples" / "cell_constants.png"
+    out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "cell_constants.png"
     picture(cell, numbers, f"{name}: {'x'.join(map(str, cell.shape))} voxels, {result.n_dof} dofs", out)
     return numbers
 
@@ -73,5 +74,5 @@ def picture(cell, numbers: dict, title: str, out: Path) -> None:
     write_bytes_atomic(out, figure_png(fig))  # never half a file
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)
+    main(out=Path(sys.argv[1]) if len(sys.argv) > 1 else None)

@@ -15,6 +15,7 @@ Run: python examples/chart_lookup.py
 from __future__ import annotations
 
 import tomllib
+import sys
 from pathlib import Path
 
 import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
@@ -60,7 +61,7 @@ def main(small: bool = False, out: Path | None = None) -> dict:
     for k in TARGET:
         print(f"  {k:4s} {TARGET[k]:8.3f} {found[k]:8.3f} {check[k]:8.3f} {numbers[k + '_error']:14.1%}")
 
-    out = Path(out) if out is not None else ROOT / "docs" / "examples" / "chart_lookup.png"
+    out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "chart_lookup.png"
     picture(chart, rows, settings, out)
     return numbers
 
@@ -86,5 +87,5 @@ def picture(chart: ChartInterpolant, rows: list[dict], settings: dict, out: Path
     write_bytes_atomic(out, figure_png(fig))  # never half a file
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)
+    main(out=Path(sys.argv[1]) if len(sys.argv) > 1 else None)

@@ -15,6 +15,7 @@ Run: python examples/goto.py
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
@@ -54,12 +55,12 @@ def main(small: bool = False, out: Path | None = None) -> dict:
         angles = " ".join(f"{a:6.2f}" for a in r["angles_deg"])
         print(f"  {name:9s} {r['status']:8s} {r['steps']:5d}  {angles}  {r['pos_error_mm']:7.3f} {r['rot_error_deg']:7.3f}")
 
-    out = Path(out) if out is not None else ROOT / "docs" / "examples" / "goto.png"
+    out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "goto.png"
     from metasheet.viz.robot import robot_picture  # pyvista, off screen; rest in grey, deformed coloured
 
     write_bytes_atomic(out, robot_picture(shown, window=(1400, 1000)))  # never half a file
     return {"tolerance_mm": settings.pos_tol, "tolerance_deg": settings.rot_tol_deg, **numbers}
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)
+    main(out=Path(sys.argv[1]) if len(sys.argv) > 1 else None)

@@ -16,6 +16,7 @@ Run: python examples/jacobian_silicone_vs_foam.py
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
@@ -56,7 +57,7 @@ def main(small: bool = False, out: Path | None = None) -> dict:
         ("singular_values", c.kin.singular_values.tolist()), ("roll_per_degree", c.rod_rotation_per_degree),
         ("roll_finite", c.rod_rotation_finite), ("lateral_mm_per_degree", c.lateral_finite))}
 
-    out = Path(out) if out is not None else ROOT / "docs" / "examples" / "jacobian_silicone_vs_foam.png"
+    out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "jacobian_silicone_vs_foam.png"
     picture(cases, f"{len(sheets.sheet.tets)} {element} tets a sheet", out)
     return numbers
 
@@ -81,5 +82,5 @@ def picture(cases: dict, mesh: str, out: Path) -> None:
     write_bytes_atomic(out, figure_png(fig))  # never half a file
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)
+    main(out=Path(sys.argv[1]) if len(sys.argv) > 1 else None)

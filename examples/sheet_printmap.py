@@ -14,6 +14,7 @@ Run: python examples/sheet_printmap.py
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
@@ -79,7 +80,7 @@ def main(small: bool = False, out: Path | None = None) -> dict:
           f"{numbers['max_rel_difference']:.2%}, soft axis within {report.angle.max:.2f} deg "
           f"({'ok' if report.ok else 'FAILS'})")
 
-    out = Path(out) if out is not None else ROOT / "docs" / "examples" / "sheet_printmap.png"
+    out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "sheet_printmap.png"
     picture(fields, out)
     return numbers
 
@@ -110,5 +111,5 @@ def picture(fields, out: Path) -> None:
     write_bytes_atomic(out, figure_png(fig))  # never half a file
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)
+    main(out=Path(sys.argv[1]) if len(sys.argv) > 1 else None)

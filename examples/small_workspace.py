@@ -16,6 +16,7 @@ Run: python examples/small_workspace.py
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
@@ -63,7 +64,7 @@ def main(small: bool = False, out: Path | None = None) -> dict:
     print(f"  strain of reached points {np.nanmin(r.strain):.3f} .. {numbers['max_strain']:.3f}; "
           f"smallest singular value {numbers['min_sigma']:.2f} .. {np.nanmax(r.sigma_min):.2f} mm/rad")
 
-    out = Path(out) if out is not None else ROOT / "docs" / "examples" / "small_workspace.png"
+    out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "small_workspace.png"
     picture(ws, grid, settings.strain_limit, out)
     return numbers
 
@@ -93,5 +94,5 @@ def picture(ws, grid, strain_limit: float, out: Path) -> None:
     write_bytes_atomic(out, figure_png(fig))  # never half a file
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)
+    main(out=Path(sys.argv[1]) if len(sys.argv) > 1 else None)

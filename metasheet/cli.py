@@ -45,7 +45,8 @@ from .stop_signals import Stopped, exit_now, stop_on_signals
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
 # panels that wrap long messages); pretty_exceptions off: a bug prints a plain traceback.
-_TYPER = dict(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False)
+_TYPER = dict(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False,
+              context_settings={"help_option_names": ["-h", "--help"]})
 #: Where each command is documented: the site's CLI page (``mkdocs serve`` shows it), one
 #: section per command.
 DOCS_PAGE = "docs/cli.md"
@@ -135,15 +136,18 @@ def _log_progress_factory(target: Console, every_s: float = 30.0, clock=None):
         seen: dict[str, tuple] = {}  # label -> (start, last line time, last tenth)
 
         def update(desc: str, done: int, total: int) -> None:
+            desc = desc.removeprefix(f"{stage}: ")  # a stage that names itself: "cell: voxels", once
             label, now = f"{stage}: {desc}", clock()
             start, last, tenth = seen.get(label, (now, None, -1))
             t = int(10 * done / total) if total else 10
             if last is not None and done < total and t == tenth and now - last < every_s:
                 return
             seen[label] = (start, now, t)
-            left = (now - start) * (total - done) / done if 0 < done < total else None
-            eta = "" if left is None else f", ~{left:.0f} s left"
-            target.print(f"{label} {done}/{total} ({now - start:.0f} s{eta})", soft_wrap=True, markup=False)
+            took = now - start
+            left = took * (total - done) / done if 0 < done < total and took >= 5.0 else None
+            eta = "" if left is None or left < 1.0 else f", ~{left:.0f} s left"  # estimates from 5 s on
+            times = f" ({took:.0f} s{eta})" if took >= 1.0 else ""
+            target.print(f"{label} {done}/{total}{times}", soft_wrap=True, markup=False)
 
         return update
 
@@ -157,10 +161,11 @@ def _reporter(target: Console):
     return report
 
 
-@app.command(epilog=docs("run"))
+@app.command(epilog=docs("run"), short_help="Run a pipeline's stages, skipping those whose inputs did not change.")
 def run(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
-    stage: Annotated[Optional[list[str]], typer.Option("--stage", help="run only this stage (and what it needs)")] = None,
+    stage: Annotated[Optional[list[str]], typer.Option("--stage", help="run only this stage (and what it "
+                                                       "needs)")] = None,
     force: Annotated[bool, typer.Option("--force", help="rerun even when outputs are up to date")] = False,
     workers: Annotated[Optional[int], typer.Option("--workers", min=1, max=MAX_WORKERS,
                                                    help="local worker processes")] = None,
@@ -186,7 +191,8 @@ def run(
                           "needs) at a time, or the whole pipeline without --stage")
     p = load_pipeline(pipeline)
     ex = Executor(workers or p.section.workers, scheduler or p.section.scheduler)
-    options = dict(out_root=out, only=stage[0] if stage else None, force=force, executor=ex, wait=not no_wait, overwrite=overwrite)
+    options = dict(out_root=out, only=stage[0] if stage else None, force=force, executor=ex, wait=not no_wait,
+                   overwrite=overwrite)
     if console.is_terminal:  # progress bars on a terminal; plain lines in a log
         columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn())
@@ -201,7 +207,7 @@ def run(
                           o.directory) for o in outcomes]))
 
 
-@app.command(epilog=docs("clean"))
+@app.command(epilog=docs("clean"), short_help="Remove what killed runs left (--all: the outputs metasheet wrote).")
 def clean(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
     everything: Annotated[bool, typer.Option("--all", help="also remove the stage folders metasheet wrote (files "
@@ -223,7 +229,7 @@ def clean(
     say(f"{p.name}: removed {len(removed)} item(s)" if removed else f"{p.name}: nothing to remove", err=False)
 
 
-@app.command("stages", epilog=docs("stages"))
+@app.command("stages", epilog=docs("stages"), short_help="List the stages, what each reads and writes.")
 def list_stages() -> None:
     """List the stages, what they read and what they write."""
     from .pipeline.registry import stages
@@ -233,7 +239,7 @@ def list_stages() -> None:
     stdout.print(_table("metasheet stages", ("stage", "reads", "writes", "what"), rows))
 
 
-@app.command(epilog=docs("validate"))
+@app.command(epilog=docs("validate"), short_help="Check a pipeline file and the files it names, without running it.")
 def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")]) -> None:
     """Check a pipeline file without running it (fields, stages, files it names)."""
     from .pipeline.config import load_pipeline
@@ -242,7 +248,7 @@ def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")
     say(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}", err=False)
 
 
-@app.command(epilog=docs("diff"))
+@app.command(epilog=docs("diff"), short_help="Compare two output trees, file by file, number by number.")
 def diff(
     a: Annotated[Path, typer.Argument(help="an output directory (e.g. outputs/quick)")],
     b: Annotated[Path, typer.Argument(help="the output directory to compare it with")],
@@ -277,7 +283,8 @@ def diff(
         raise typer.Exit(1)
 
 
-@robot_app.command("goto", epilog=docs("robot goto"))
+@robot_app.command("goto", epilog=docs("robot goto"),
+                   short_help="Motor angles that bring the rod to a pose (the inverse model, paper eq. 8).")
 def robot_goto(
     pose: Annotated[list[str], typer.Argument(
         metavar="POSE", help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
@@ -343,7 +350,7 @@ def robot_goto(
         )
 
 
-@app.command(epilog=docs("serve"))
+@app.command(epilog=docs("serve"), short_help="Drive the pipeline's robot from a browser.")
 def serve(
     pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file whose robot to drive, e.g. pipelines/quick.toml")],
     host: Annotated[str, typer.Option("--host", help="address to serve on (127.0.0.1: this machine only)")] = "127.0.0.1",

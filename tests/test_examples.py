@@ -153,3 +153,10 @@ def test_small_workspace(tmp_path):
     # the two points beyond the foam's strain limit are far ends of lateral rays (the outer step, 8 mm)
     assert n["valid"] == 8
     assert sum(n[k] for k in ("3 rotations", "2 rotations", "1 rotation", "reachable only", "unreachable")) == 10
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_an_example_run_as_is_writes_under_outputs(name):
+    """Issue 61: each example wrote its picture into docs/examples/ (tracked files) by default."""
+    source = (EXAMPLES / f"{name}.py").read_text()
+    assert 'ROOT / "outputs" / "examples" /' in source and '"docs" / "examples"' not in source

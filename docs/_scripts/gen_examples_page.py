@@ -3,6 +3,9 @@
 is one, and its source. A new example appears without touching this script or mkdocs.yml.
 
 A hand-written ``docs/examples/index.md`` takes precedence: then nothing is generated.
+
+An example writes its picture to ``outputs/examples/`` (untracked) unless given a path:
+``python examples/NAME.py docs/examples/NAME.png`` refreshes the page's.
 """
 
 import ast
