@@ -229,6 +229,27 @@ def clean(
     say(f"{p.name}: removed {len(removed)} item(s)" if removed else f"{p.name}: nothing to remove", err=False)
 
 
+@app.command("status", epilog=docs("status"), short_help="Which stages are up to date, and why the others are not.")
+def status(
+    pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
+    out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
+) -> None:
+    """Each stage of PIPELINE: up to date, stale (and what changed since it ran: parameters,
+    files, an upstream stage's outputs, the code), not run, or waiting for an upstream stage.
+    Exit status 0 when every stage is up to date, 1 otherwise."""
+    from .pipeline.config import load_pipeline
+    from .pipeline.debris import output_folder
+    from .pipeline.status import pipeline_status
+
+    p = load_pipeline(pipeline)
+    rows = pipeline_status(p, output_folder(Path(out) if out else p.root / "outputs", p.name))
+    stdout.print(_table(f"pipeline {p.name}", ("stage", "state", "why"),
+                        [(r.name, Text(r.state, style="" if r.state == "up to date" else "yellow"), "; ".join(r.why))
+                         for r in rows]))
+    if any(r.state != "up to date" for r in rows):
+        raise typer.Exit(1)
+
+
 @app.command("stages", epilog=docs("stages"), short_help="List the stages, what each reads and writes.")
 def list_stages() -> None:
     """List the stages, what they read and what they write."""
