@@ -250,6 +250,25 @@ def status(
         raise typer.Exit(1)
 
 
+@app.command("schema", epilog=docs("schema"), short_help="Write the JSON schema of a pipeline file, for editors.")
+def schema(
+    out: Annotated[Optional[Path], typer.Option("--out", help="file to write (default: print it)")] = None,
+) -> None:
+    """The JSON schema of a pipeline file (every table and key, with its type, default and
+    allowed range), for an editor that completes and checks TOML against a schema."""
+    import json
+
+    from .pipeline.manifest import write_bytes_atomic
+    from .pipeline.schema import pipeline_schema
+
+    text = json.dumps(pipeline_schema(), indent=2) + "\n"
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        write_bytes_atomic(Path(out), text.encode())
+        say(f"wrote {out}", err=False)
+
+
 @app.command("stages", epilog=docs("stages"), short_help="List the stages, what each reads and writes.")
 def list_stages() -> None:
     """List the stages, what they read and what they write."""
