@@ -57,6 +57,11 @@ def docs(command: str) -> str:
     return f"Documentation: {DOCS_PAGE}#{command.replace(' ', '-')} (browse the site: mkdocs serve)"
 
 
+#: --set's help (run, validate).
+SET_HELP = ("override a value of the file, as TOML (orient.mesh_size=8; a bare word is a string: "
+            "orient.element=p1); repeat for more")
+
+
 app = typer.Typer(
     help="metasheet: soft robots from 3D-printed anisotropic foam, cell to controller.",
     epilog=docs("metasheet"),
@@ -175,6 +180,8 @@ def run(
                                           "run holds the output folder")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="replace stage folders even when they hold files "
                                             "metasheet did not write")] = False,
+    assignments: Annotated[Optional[list[str]], typer.Option("--set", metavar="TABLE.KEY=VALUE",
+                                                             help=SET_HELP)] = None,
 ) -> None:
     """Run the stages of PIPELINE in dependency order; up-to-date stages are skipped.
 
@@ -189,7 +196,7 @@ def run(
     if stage and len(stage) > 1:
         raise ConfigError(f"--stage: given {len(stage)} times ({', '.join(stage)}): run one stage (and what it "
                           "needs) at a time, or the whole pipeline without --stage")
-    p = load_pipeline(pipeline)
+    p = load_pipeline(pipeline, assignments or ())
     ex = Executor(workers or p.section.workers, scheduler or p.section.scheduler)
     options = dict(out_root=out, only=stage[0] if stage else None, force=force, executor=ex, wait=not no_wait,
                    overwrite=overwrite)
@@ -280,11 +287,15 @@ def list_stages() -> None:
 
 
 @app.command(epilog=docs("validate"), short_help="Check a pipeline file and the files it names, without running it.")
-def validate(pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")]) -> None:
+def validate(
+    pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file")],
+    assignments: Annotated[Optional[list[str]], typer.Option("--set", metavar="TABLE.KEY=VALUE",
+                                                             help=SET_HELP)] = None,
+) -> None:
     """Check a pipeline file without running it (fields, stages, files it names)."""
     from .pipeline.config import load_pipeline
 
-    p = load_pipeline(pipeline)
+    p = load_pipeline(pipeline, assignments or ())
     say(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}", err=False)
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import re
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import UnionType
@@ -30,6 +31,7 @@ from typing import Annotated, Any, Union, get_args, get_origin, get_type_hints
 from pydantic import BaseModel, Field, ValidationError, field_validator
 
 from ..errors import TYPE_WORDS, ConfigError
+from .overrides import apply_overrides
 from .registry import Params, Stage, stages
 
 
@@ -192,8 +194,9 @@ def validate_table(source: str, table: str, model: type[Params], data: Any) -> P
         raise ConfigError(format_validation(source, table, err, data, model)) from None
 
 
-def load_pipeline(path: str | Path) -> Pipeline:
-    """Read and validate a pipeline TOML file.
+def load_pipeline(path: str | Path, overrides: Sequence[str] = ()) -> Pipeline:
+    """Read and validate a pipeline TOML file, with ``overrides`` ``TABLE.KEY=VALUE`` set
+    (:mod:`.overrides`: ``--set`` on the command line).
 
     Raises :class:`ConfigError` for a missing file, a TOML syntax error, an unknown
     stage or table, a wrong type or a value out of range.
@@ -207,6 +210,8 @@ def load_pipeline(path: str | Path) -> Pipeline:
         raise ConfigError(f"{path}: invalid TOML: {err}") from None
     except (OSError, UnicodeDecodeError) as err:
         raise ConfigError(f"{path}: cannot read: {getattr(err, 'strerror', None) or err}") from None
+    if overrides:
+        data = apply_overrides(data, overrides)
     registry = stages()
     if "pipeline" not in data:
         raise ConfigError(f"{path}: pipeline: <missing>: a [pipeline] table with name and stages is required")
