@@ -21,6 +21,7 @@ Anything else is a bug and keeps its traceback.
 
 from __future__ import annotations
 
+import os
 import sys
 import traceback
 from pathlib import Path
@@ -234,6 +235,37 @@ def clean(
     p = load_pipeline(pipeline)
     removed = clean_outputs(p, out_root=out, everything=everything, wait=not no_wait, report=_reporter(console))
     say(f"{p.name}: removed {len(removed)} item(s)" if removed else f"{p.name}: nothing to remove", err=False)
+
+
+@app.command("init", epilog=docs("init"), short_help="Write a pipeline file to start from, every key documented.")
+def init(
+    path: Annotated[Path, typer.Argument(help="pipeline file to write, e.g. pipelines/mine.toml")],
+    stage_list: Annotated[str, typer.Option("--stages", help="comma-separated stages")] =
+        "cell,homogenize,material,orient,printmap,robot",
+    force: Annotated[bool, typer.Option("--force", help="replace an existing file")] = False,
+) -> None:
+    """Write PATH: a pipeline of the stages named, each key at its default under its
+    description, commented out. It validates as written (checked before it is written)."""
+    from .pipeline.config import load_pipeline
+    from .pipeline.manifest import write_bytes_atomic
+    from .pipeline.template import pipeline_template
+
+    if path.exists() and not force:
+        raise ConfigError(f"{path}: exists; choose another name, or pass --force to replace it")
+    names = [s.strip() for s in stage_list.split(",") if s.strip()]
+    text = pipeline_template(path.stem, names)
+    staging = path.with_name(f".{path.name}.init-{os.getpid()}")
+    write_bytes_atomic(staging, text.encode())
+    try:
+        load_pipeline(staging)  # a combination of stages the defaults do not serve: nothing is written
+    except BaseException as err:
+        staging.unlink(missing_ok=True)
+        if isinstance(err, ConfigError):
+            raise ConfigError(str(err).replace(str(staging), str(path))) from None
+        raise
+    os.replace(staging, path)
+    say(f"wrote {path}: stages {' -> '.join(load_pipeline(path).order)}; "
+        f"`metasheet validate {path}` after editing", err=False)
 
 
 @app.command("status", epilog=docs("status"), short_help="Which stages are up to date, and why the others are not.")
