@@ -12,6 +12,7 @@ from __future__ import annotations
 import ast
 import importlib.util
 import inspect
+import re
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +53,8 @@ def test_every_example_is_listed_documented_and_has_main():
         doc = ast.get_docstring(ast.parse(source))
         title, blank, paragraph = (doc.splitlines() + ["", ""])[:3]
         assert title and not blank and paragraph, f"{name}: docstring is a title line, a blank line, a paragraph"
-        assert 'if __name__ == "__main__":\n    main()' in source
+        assert re.search(r'^if __name__ == "__main__":.*\n    main\(out=Path\(sys.argv\[1\]\) if len\(sys.argv\) > 1 else None\)$',
+                         source, re.M)
         assert len(source.splitlines()) <= 130, f"{name}: keep an example short"
         params = inspect.signature(load(name).main).parameters
         assert list(params) == ["small", "out"] and params["small"].default is False and params["out"].default is None
