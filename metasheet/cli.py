@@ -21,7 +21,6 @@ Anything else is a bug and keeps its traceback.
 
 from __future__ import annotations
 
-import os
 import sys
 import traceback
 from pathlib import Path
@@ -36,28 +35,19 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
-from rich.table import Table
 from rich.text import Text
 
 from .errors import ConfigError, MetasheetError
 from .goto import format_result, goto_robot, goto_tolerances, parse_pose, pipeline_robot, pose_text, stall_text
 from .pipeline.config import MAX_WORKERS
+from .cli_files import FILE_COMMANDS
+from .cli_output import console, docs, say, stdout, table
 from .stop_signals import Stopped, exit_now, stop_on_signals
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
 # panels that wrap long messages); pretty_exceptions off: a bug prints a plain traceback.
 _TYPER = dict(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False,
               context_settings={"help_option_names": ["-h", "--help"]})
-#: Where each command is documented: the site's CLI page (``mkdocs serve`` shows it), one
-#: section per command.
-DOCS_PAGE = "docs/cli.md"
-
-
-def docs(command: str) -> str:
-    """The ``--help`` epilog pointing at ``command``'s section of the documentation."""
-    return f"Documentation: {DOCS_PAGE}#{command.replace(' ', '-')} (browse the site: mkdocs serve)"
-
-
 #: --set's help (run, validate).
 SET_HELP = ("override a value of the file, as TOML (orient.mesh_size=8; a bare word is a string: "
             "orient.element=p1); repeat for more")
@@ -71,30 +61,7 @@ app = typer.Typer(
 )
 robot_app = typer.Typer(help="Drive the robot model.", epilog=docs("robot"), no_args_is_help=True, **_TYPER)
 app.add_typer(robot_app, name="robot")
-# markup=False, highlight=False, emoji=False: a string prints as given
-console = Console(stderr=True, markup=False, highlight=False, emoji=False)
-stdout = Console(markup=False, highlight=False, emoji=False)
 _STATE = {"debug": False}
-
-
-def say(message: str, *, err: bool = True, prefix: str = "", style: str = "") -> None:
-    """Print ``message`` verbatim (no markup, no highlighting, no wrapping), after an
-    optional styled ``prefix``."""
-    text = Text()
-    if prefix:
-        text.append(prefix, style=style)
-    text.append(str(message))
-    (console if err else stdout).print(text, soft_wrap=True)
-
-
-def _table(title: str, columns, rows) -> Table:
-    """A rich table whose title, headers and cells are plain text (``time [s]`` stays)."""
-    table = Table(title=Text(title) if title else None)
-    for col in columns:
-        table.add_column(Text(col), overflow="fold")
-    for row in rows:
-        table.add_row(*(c if isinstance(c, Text) else Text(str(c)) for c in row))
-    return table
 
 
 @app.callback()
@@ -210,7 +177,7 @@ def run(
     else:
         outcomes = run_pipeline(p, report=_reporter(console), progress_factory=_log_progress_factory(console),
                                 **options)
-    stdout.print(_table(f"pipeline {p.name}", ("stage", "status", "time [s]", "CPU [s]", "outputs"),
+    stdout.print(table(f"pipeline {p.name}", ("stage", "status", "time [s]", "CPU [s]", "outputs"),
                         [(o.name, o.status, f"{o.wall_time:.1f}", "" if o.cpu_time is None else f"{o.cpu_time:.0f}",
                           o.directory) for o in outcomes]))
 
@@ -237,75 +204,8 @@ def clean(
     say(f"{p.name}: removed {len(removed)} item(s)" if removed else f"{p.name}: nothing to remove", err=False)
 
 
-@app.command("init", epilog=docs("init"), short_help="Write a pipeline file to start from, every key documented.")
-def init(
-    path: Annotated[Path, typer.Argument(help="pipeline file to write, e.g. pipelines/mine.toml")],
-    stage_list: Annotated[str, typer.Option("--stages", help="comma-separated stages")] =
-        "cell,homogenize,material,orient,printmap,robot",
-    force: Annotated[bool, typer.Option("--force", help="replace an existing file")] = False,
-) -> None:
-    """Write PATH: a pipeline of the stages named, each key at its default under its
-    description, commented out. It validates as written (checked before it is written)."""
-    from .pipeline.config import load_pipeline
-    from .pipeline.manifest import write_bytes_atomic
-    from .pipeline.template import pipeline_template
-
-    if path.exists() and not force:
-        raise ConfigError(f"{path}: exists; choose another name, or pass --force to replace it")
-    names = [s.strip() for s in stage_list.split(",") if s.strip()]
-    text = pipeline_template(path.stem, names)
-    staging = path.with_name(f".{path.name}.init-{os.getpid()}")
-    write_bytes_atomic(staging, text.encode())
-    try:
-        load_pipeline(staging)  # a combination of stages the defaults do not serve: nothing is written
-    except BaseException as err:
-        staging.unlink(missing_ok=True)
-        if isinstance(err, ConfigError):
-            raise ConfigError(str(err).replace(str(staging), str(path))) from None
-        raise
-    os.replace(staging, path)
-    say(f"wrote {path}: stages {' -> '.join(load_pipeline(path).order)}; "
-        f"`metasheet validate {path}` after editing", err=False)
-
-
-@app.command("status", epilog=docs("status"), short_help="Which stages are up to date, and why the others are not.")
-def status(
-    pipeline: Annotated[Path, typer.Argument(help="pipeline TOML file, e.g. pipelines/quick.toml")],
-    out: Annotated[Optional[Path], typer.Option("--out", help="output root (default: outputs/ of the project)")] = None,
-) -> None:
-    """Each stage of PIPELINE: up to date, stale (and what changed since it ran: parameters,
-    files, an upstream stage's outputs, the code), not run, or waiting for an upstream stage.
-    Exit status 0 when every stage is up to date, 1 otherwise."""
-    from .pipeline.config import load_pipeline
-    from .pipeline.debris import output_folder
-    from .pipeline.status import pipeline_status
-
-    p = load_pipeline(pipeline)
-    rows = pipeline_status(p, output_folder(Path(out) if out else p.root / "outputs", p.name))
-    stdout.print(_table(f"pipeline {p.name}", ("stage", "state", "why"),
-                        [(r.name, Text(r.state, style="" if r.state == "up to date" else "yellow"), "; ".join(r.why))
-                         for r in rows]))
-    if any(r.state != "up to date" for r in rows):
-        raise typer.Exit(1)
-
-
-@app.command("schema", epilog=docs("schema"), short_help="Write the JSON schema of a pipeline file, for editors.")
-def schema(
-    out: Annotated[Optional[Path], typer.Option("--out", help="file to write (default: print it)")] = None,
-) -> None:
-    """The JSON schema of a pipeline file (every table and key, with its type, default and
-    allowed range), for an editor that completes and checks TOML against a schema."""
-    import json
-
-    from .pipeline.manifest import write_bytes_atomic
-    from .pipeline.schema import pipeline_schema
-
-    text = json.dumps(pipeline_schema(), indent=2) + "\n"
-    if out is None:
-        sys.stdout.write(text)
-    else:
-        write_bytes_atomic(Path(out), text.encode())
-        say(f"wrote {out}", err=False)
+for _name, _command, _short in FILE_COMMANDS:  # init, status, schema: the pipeline file's commands
+    app.command(_name, epilog=docs(_name), short_help=_short)(_command)
 
 
 @app.command("stages", epilog=docs("stages"), short_help="List the stages, what each reads and writes.")
@@ -315,7 +215,7 @@ def list_stages() -> None:
 
     rows = [(s.name, ", ".join([*s.requires, *(f"({o})" for o in s.optional)]) or "-", ", ".join(s.outputs), s.doc)
             for s in stages().values()]
-    stdout.print(_table("metasheet stages", ("stage", "reads", "writes", "what"), rows))
+    stdout.print(table("metasheet stages", ("stage", "reads", "writes", "what"), rows))
 
 
 @app.command(epilog=docs("validate"), short_help="Check a pipeline file and the files it names, without running it.")
@@ -359,7 +259,7 @@ def diff(
         numbers = r.status == "numbers"
         out.append((r.path, Text(r.status, style="" if r.within else "red"), f"{r.max_rel:.2e}" if numbers else "",
                     f"{r.max_abs:.2e}" if numbers else "", r.note))
-    stdout.print(_table("", ("file", "result", "max relative difference", "max absolute difference", "note"), out))
+    stdout.print(table("", ("file", "result", "max relative difference", "max absolute difference", "note"), out))
     bad = sum(not r.within for r in rows)
     say(f"{len(rows) - bad} of {len(rows)} files identical or within rtol {rtol:g}, atol {atol:g}", err=False)
     if bad:

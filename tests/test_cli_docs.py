@@ -9,7 +9,8 @@ from pathlib import Path
 import typer.main
 
 from metasheet import __version__
-from metasheet.cli import DOCS_PAGE, app
+from metasheet.cli import app
+from metasheet.cli_output import DOCS_PAGE
 
 ROOT = Path(__file__).resolve().parents[1]
 
