@@ -43,3 +43,14 @@ def die(_) -> None:
     import os
 
     os._exit(3)
+
+
+def run_cli(*argv: str) -> int:
+    """The exit status of ``metasheet ARGV`` run in this process."""
+    saved, sys.argv = sys.argv, ["metasheet", *argv]
+    try:
+        with pytest.raises(SystemExit) as exc:
+            main()
+    finally:
+        sys.argv = saved
+    return exc.value.code or 0

@@ -4,12 +4,11 @@ parameters (the TOML writer is faithful)."""
 
 import re
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
+from pipeline_files import run_cli
 
-from metasheet.cli import main
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.registry import stages
 from metasheet.pipeline.template import pipeline_template
@@ -23,16 +22,6 @@ def project(tmp_path):
     shutil.copytree(ROOT / "cells", tmp_path / "cells")
     (tmp_path / "pipelines").mkdir()
     return tmp_path
-
-
-def cli(*argv: str) -> int:
-    saved, sys.argv = sys.argv, ["metasheet", *argv]
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main()
-    finally:
-        sys.argv = saved
-    return exc.value.code or 0
 
 
 def uncommented(text: str) -> str:
@@ -49,14 +38,14 @@ def uncommented(text: str) -> str:
 
 def test_init_writes_a_file_that_validates_with_every_key(project, capsys):
     path = project / "pipelines" / "mine.toml"
-    assert cli("init", str(path)) == 0
+    assert run_cli("init", str(path)) == 0
     p = load_pipeline(path)
     assert p.order == ("cell", "homogenize", "material", "orient", "printmap", "robot")
     text = path.read_text()
     for name in p.order:
         for key in stages()[name].params.model_fields:
             assert re.search(rf"^(# )?{key} = ", text, re.M), (name, key)
-    assert cli("init", str(path)) == 2 and "exists" in capsys.readouterr().err
+    assert run_cli("init", str(path)) == 2 and "exists" in capsys.readouterr().err
 
 
 def test_every_default_uncommented_loads_the_defaults(project):
@@ -72,11 +61,11 @@ def test_every_default_uncommented_loads_the_defaults(project):
 
 
 def test_a_combination_the_defaults_do_not_serve_is_named_and_nothing_written(project, capsys):
-    assert cli("init", str(project / "pipelines" / "r.toml"), "--stages", "robot") == 2
+    assert run_cli("init", str(project / "pipelines" / "r.toml"), "--stages", "robot") == 2
     assert "stage 'robot' needs stage 'orient'" in capsys.readouterr().err
-    assert cli("init", str(project / "pipelines" / "b.toml"), "--stages", "banana") == 2
+    assert run_cli("init", str(project / "pipelines" / "b.toml"), "--stages", "banana") == 2
     assert list((project / "pipelines").iterdir()) == []
 
 
 def test_all_stages_at_once_validate(project):
-    assert cli("init", str(project / "pipelines" / "all.toml"), "--stages", ALL) == 0
+    assert run_cli("init", str(project / "pipelines" / "all.toml"), "--stages", ALL) == 0

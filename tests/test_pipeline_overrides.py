@@ -1,12 +1,10 @@
 """``--set TABLE.KEY=VALUE`` on ``run`` and ``validate``: values of the file, with its checks."""
 
 import json
-import sys
 
 import pytest
-from pipeline_files import material_pipeline
+from pipeline_files import material_pipeline, run_cli
 
-from metasheet.cli import main
 from metasheet.errors import ConfigError
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.overrides import apply_overrides, parse_value
@@ -40,12 +38,6 @@ def test_an_override_is_checked_as_the_file_is(tmp_path):
 
 def test_run_with_set_writes_the_overridden_value(tmp_path):
     material_pipeline(tmp_path)
-    saved, sys.argv = sys.argv, ["metasheet", "run", str(tmp_path / "pipelines" / "q.toml"), "--set",
-                                 "material.E_t=3.5", "--out", str(tmp_path / "out")]
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main()
-    finally:
-        sys.argv = saved
-    assert (exc.value.code or 0) == 0
+    assert run_cli("run", str(tmp_path / "pipelines" / "q.toml"), "--set", "material.E_t=3.5",
+                   "--out", str(tmp_path / "out")) == 0
     assert json.loads((tmp_path / "out" / "q" / "material" / "material.json").read_text())["constants"]["E_t"] == 3.5

@@ -1,13 +1,12 @@
 """``metasheet schema``: the JSON schema of a pipeline file, from the parameter models."""
 
 import json
-import sys
 import tomllib
 from pathlib import Path
 
 import pytest
+from pipeline_files import run_cli
 
-from metasheet.cli import main
 from metasheet.pipeline.registry import stages
 from metasheet.pipeline.schema import pipeline_schema
 
@@ -42,11 +41,5 @@ def test_the_shipped_pipelines_validate_against_it(path):
 
 
 def test_the_cli_writes_it(tmp_path, capsys):
-    saved, sys.argv = sys.argv, ["metasheet", "schema", "--out", str(tmp_path / "s.json")]
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main()
-    finally:
-        sys.argv = saved
-    assert (exc.value.code or 0) == 0
+    assert run_cli("schema", "--out", str(tmp_path / "s.json")) == 0
     assert json.loads((tmp_path / "s.json").read_text()) == json.loads(json.dumps(pipeline_schema()))

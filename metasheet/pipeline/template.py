@@ -8,11 +8,11 @@ validates as written.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 from pydantic_core import PydanticUndefined
 
+from ..design.outputs import toml_value as design_toml_value
 from ..errors import ConfigError
 from .config import resolve_order
 from .registry import stages
@@ -26,23 +26,8 @@ WITH_SHEET = {("cell", "design"): "cells/quick_polyfoam.toml"}
 
 
 def toml_value(v) -> str:
-    """``v`` (a parameter default: number, bool, string, list, table) written as TOML."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else "nan"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):  # TOML has no null: a None entry is left out (its default)
-        items = [f"{k} = {toml_value(x)}" for k, x in v.items() if x is not None]
-        return "{ " + ", ".join(items) + " }" if items else "{}"
-    if hasattr(v, "model_dump"):
-        return toml_value(v.model_dump(mode="json"))
-    raise TypeError(f"no TOML for {v!r}")
+    """``v`` (a parameter default: number, bool, string, list, table or a parameter model) as TOML."""
+    return design_toml_value(v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
 
 
 def pipeline_template(name: str, stage_names: Sequence[str]) -> str:
