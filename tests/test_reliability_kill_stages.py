@@ -24,7 +24,10 @@ ROOT = Path(__file__).resolve().parents[1]
 ORDER = ["cell", "homogenize", "material", "orient", "printmap", "robot"]
 
 
-def kill_in_stage(quick_outputs, tmp_path, stage: str, signum: int, workers: int = 2) -> None:
+def kill_in_stage(quick_outputs, tmp_path, stage: str, signum: int, workers: int = 2, *, child: bool = False) -> str:
+    """Send ``signum`` to ``metasheet run`` (``child``: to the supervised process computing the
+    stage, as a native crash or the out-of-memory killer would) once ``stage`` has started;
+    check that nothing is left; the run's stderr."""
     out = tmp_path / "out"
     shutil.copytree(quick_outputs, out)
     base = out / "quick"
@@ -41,22 +44,35 @@ def kill_in_stage(quick_outputs, tmp_path, stage: str, signum: int, workers: int
             assert proc.poll() is None, f"the run ended before stage {stage} started: {proc.communicate()}"
             assert time.monotonic() - t0 < 300, f"stage {stage} did not start"
             time.sleep(0.01)
-        proc.send_signal(signum)
+        if child:
+            os.kill(int(next(base.glob(f".{stage}.tmp-*")).name.rsplit("-", 1)[1]), signum)
+        else:
+            proc.send_signal(signum)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
     assert proc.returncode == 128 + signum, err
-    assert f"stopped by {signal.Signals(signum).name}" in err
+    if not child:
+        assert f"stopped by {signal.Signals(signum).name}" in err
     assert sorted(p.name for p in base.iterdir() if p.name.startswith(".")) == []
     assert not (out / ".quick.lock.json").exists()
+    return err
 
 
 def test_sigterm_after_meshing_unwinds(quick_outputs, tmp_path):
     """The case that failed: SIGTERM in printmap, after orient meshed in the same run (one
     worker: the bug was in this process; the slow tier runs two)."""
     kill_in_stage(quick_outputs, tmp_path, "printmap", signal.SIGTERM, workers=1)
+
+
+def test_a_native_crash_in_a_stage_ends_in_a_sentence(quick_outputs, tmp_path):
+    """The process computing the cell stage dies of SIGSEGV (as in VTK under ``ulimit -v``):
+    ``metasheet run`` says so and leaves no temporary folder and no lock side file."""
+    err = kill_in_stage(quick_outputs, tmp_path, "cell", signal.SIGSEGV, workers=1, child=True)
+    assert [line for line in err.splitlines() if line.startswith("error: ")] == [err.strip().splitlines()[-1]]
+    assert "died of SIGSEGV" in err and "stage(s) under way: cell" in err
 
 
 @pytest.mark.slow

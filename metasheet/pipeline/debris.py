@@ -55,11 +55,15 @@ def remove_debris(base: Path, report: Reporter | None = None) -> list[Path]:
             report("clean", f"kept {path}: process {pid} is alive")
             continue
         try:
-            remove_path(path)
+            gone = _restore_or_remove(base, path)
         except OSError as exc:
             raise output_error(exc, str(path)) from exc
-        removed.append(path)
-        report("clean", f"removed {path} (left by process {pid}, which is gone)")
+        if gone:
+            removed.append(path)
+            report("clean", f"removed {path} (left by process {pid}, which is gone)")
+        else:
+            report("clean", f"put back {base / DEBRIS.match(path.name)['stage']} from {path.name} (a swap cut "
+                            f"by process {pid}, which is gone)")
     return removed
 
 
@@ -89,23 +93,35 @@ def remove_unit_caches(base: Path, stage: str) -> None:
 
 
 def remove_own_debris(base: Path) -> list[Path]:
-    """Remove this process's temporary folders under ``base`` and the stages' resume caches
-    that hold no unit (an interrupted run's); the previous outputs (``.old-``) are put back
+    """Remove this process's temporary folders under ``base`` (:func:`remove_debris_of`)."""
+    return remove_debris_of(base, os.getpid())
+
+
+def remove_debris_of(base: Path, pid: int) -> list[Path]:
+    """Remove process ``pid``'s temporary folders under ``base`` and the stages' resume caches
+    that hold no unit (an interrupted run's: this one's, or a crashed child's seen by its
+    supervisor, :mod:`metasheet.supervise`); the previous outputs (``.old-``) are put back
     when a swap was cut between its two renames."""
     removed = []
-    for path, pid in find_debris(base):
-        if pid != os.getpid():
-            continue
-        final = base / DEBRIS.match(path.name)["stage"]
-        if path.name.startswith(f".{final.name}.old-") and not final.exists():
-            with contextlib.suppress(OSError):
-                os.replace(path, final)
+    for path, owner in find_debris(base):
+        if owner != pid:
             continue
         with contextlib.suppress(OSError):
-            remove_path(path)
-            removed.append(path)
+            if _restore_or_remove(base, path):
+                removed.append(path)
     for cache in base.glob(".*.units"):
         with contextlib.suppress(OSError):
             cache.rmdir()  # only when empty: the units a run finished are kept for its resume
             removed.append(cache)
     return removed
+
+
+def _restore_or_remove(base: Path, path: Path) -> bool:
+    """Put a swap's previous outputs (``.<stage>.old-<pid>``) back when the stage folder is
+    missing (the swap was cut between its renames), else remove ``path``; True if removed."""
+    final = base / DEBRIS.match(path.name)["stage"]
+    if path.name.startswith(f".{final.name}.old-") and not final.exists():
+        os.replace(path, final)
+        return False
+    remove_path(path)
+    return True

@@ -41,6 +41,7 @@ from pathlib import Path
 from ..errors import ConfigError, Interrupted, MetasheetError, OutputError, StageError, output_error
 from ..cpu import code_paths
 from ..executor import CpuMeter, Executor, own_threads
+from ..supervise import tell as tell_supervisor
 from . import manifest as mf
 from .config import Pipeline, upstream
 from .debris import output_folder, remove_debris, remove_own_debris, remove_path, remove_unit_caches
@@ -175,6 +176,7 @@ def run_pipeline(
         except OSError as exc:
             raise output_error(exc, str(base)) from exc
         remove_debris(base, report)
+        tell_supervisor(out_root, pipeline.name)
         try:
             # one pool of workers for the whole run; this process computes with a unit's threads
             with own_threads(executor.threads), executor.session() as ex:
