@@ -43,3 +43,24 @@ def test_version_and_module_entry_point():
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == f"metasheet {__version__}"
     assert re.fullmatch(r"\d+\.\d+\.\d+", __version__)
+
+
+def synopsis(page: str, name: str) -> str:
+    """The first code block of section ``## name`` of the CLI page (the command's synopsis)."""
+    section = re.split(r"^## ", page, flags=re.M)
+    body = next(s for s in section if s.split("\n", 1)[0].strip() == name)
+    block = re.search(r"```[a-z]*\n(.*?)```", body, re.S)
+    assert block, f"docs/cli.md: section {name!r} has no synopsis block"
+    return block.group(1)
+
+
+def test_every_option_of_every_command_is_in_its_synopsis_and_no_other():
+    page = (ROOT / DOCS_PAGE).read_text()
+    for name, cmd in commands():
+        if hasattr(cmd, "commands"):  # a group: its commands have the options
+            continue
+        text = synopsis(page, name)
+        cli = {o for p in cmd.params for o in getattr(p, "opts", []) if o.startswith("--")} - {"--help"}
+        documented = set(re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", text)) - {"--help"}
+        assert cli <= documented, f"{name}: options missing from docs/cli.md's synopsis: {sorted(cli - documented)}"
+        assert documented <= cli, f"{name}: docs/cli.md names options the command lacks: {sorted(documented - cli)}"

@@ -80,10 +80,12 @@ def coarse_run(tmp_path_factory):
     return root / "out" / "c"
 
 
+@pytest.mark.slow
 @pytest.mark.bytes
 def test_the_levels_on_two_workers_give_the_same_study(coarse_run):
     """The levels run as work units, the slowest first: on a pool the study is the serial one's,
-    byte for byte, its levels in the configured order. The pooled run starts from copies of the
+    byte for byte, its levels in the configured order (default sibling:
+    :func:`test_two_levels_on_two_workers_give_the_serial_study`). The pooled run starts from copies of the
     serial run's material and orient outputs, which its runner finds up to date (the orient
     stage's sheet.png alone cost 4 CPU s): only the robot stage runs again."""
     import shutil
@@ -99,6 +101,32 @@ def test_the_levels_on_two_workers_give_the_same_study(coarse_run):
     assert (root / "pooled" / "c" / "robot" / name).read_bytes() == (coarse_run / "robot" / name).read_bytes()
     cpu = json.loads((root / "pooled" / "c" / "robot" / "manifest.json").read_text())["cpu_s"]
     assert cpu["by_unit"]["_level_unit"][1] == 6  # the five levels and the orient mesh
+
+
+@pytest.mark.bytes
+def test_two_levels_on_two_workers_give_the_serial_study(coarse_run):
+    """The same check on a study of two coarse P1 levels, run serially then on a pool of two,
+    each from copies of the module run's material and orient outputs (cached: the robot stage
+    alone runs)."""
+    import shutil
+
+    from metasheet.executor import Executor
+
+    root = coarse_run.parent.parent
+    text = (root / "pipelines" / "c.toml").read_text()
+    two = root / "pipelines" / "c2.toml"
+    two.write_text(text[:text.index("convergence = ")] + 'convergence = [["p1", 14.0, 0, 0.0], ["p1", 12.0, 0, 0.0]]\n'
+                   'uncertainty = false\n')
+    for run in ("serial2", "pooled2"):
+        for stage in ("material", "orient"):
+            shutil.copytree(coarse_run / stage, root / run / "c" / stage)
+        ran = run_pipeline(load_pipeline(two), out_root=root / run, only="robot",
+                           executor=Executor(workers=2 if run == "pooled2" else 1))
+        assert [o.status for o in ran] == ["cached", "cached", "ran"]
+    name = "robot/convergence.json"
+    assert (root / "pooled2" / "c" / name).read_bytes() == (root / "serial2" / "c" / name).read_bytes()
+    cpu = json.loads((root / "pooled2" / "c" / "robot" / "manifest.json").read_text())["cpu_s"]
+    assert cpu["by_unit"]["_level_unit"][1] == 3  # the two levels and the orient mesh
 
 
 def test_robot_stage_writes_convergence_json(coarse_run):

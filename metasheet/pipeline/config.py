@@ -22,7 +22,7 @@ from __future__ import annotations
 import json
 import re
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import UnionType
@@ -48,12 +48,12 @@ MAX_WORKERS = 256
 
 
 class PipelineSection(Params):
-    """The ``[pipeline]`` table."""
+    """The ``[pipeline]`` table: the run's name, its stages, and the processes they run on."""
 
     name: str = Field(description="run name: outputs/<name>/, one folder name (letters, digits, _ - .; not "
                       f"starting or ending with '.'; at most {NAME_MAX} characters)")
     stages: list[str] = Field(min_length=1, description="stages to run")
-    description: str = ""
+    description: str = Field("", description="free text about the run (not used by any stage)")
     workers: int = Field(1, ge=1, le=MAX_WORKERS, description="local worker processes for sweeps")
     scheduler: str | None = Field(None, description="dask.distributed scheduler address")
     stages_at_once: int = Field(1, ge=1, le=16, description="stages whose inputs are ready that run at once "
@@ -194,22 +194,27 @@ def validate_table(source: str, table: str, model: type[Params], data: Any) -> P
         raise ConfigError(format_validation(source, table, err, data, model)) from None
 
 
-def load_pipeline(path: str | Path, overrides: Sequence[str] = ()) -> Pipeline:
-    """Read and validate a pipeline TOML file, with ``overrides`` ``TABLE.KEY=VALUE`` set
-    (:mod:`.overrides`: ``--set`` on the command line).
+def load_pipeline(source: str | Path | Mapping, overrides: Sequence[str] = (), *,
+                  root: str | Path | None = None) -> Pipeline:
+    """Read and validate a pipeline: a TOML file's path, or its tables as a mapping
+    (``{"pipeline": {"name": ..., "stages": [...]}, "cell": {...}}``), with ``overrides``
+    ``TABLE.KEY=VALUE`` set (:mod:`.overrides`: ``--set`` on the command line).
+
+    ``root``: the project directory that relative file names (the cell's design) are read
+    from; by default the file's (:func:`find_root`), or the working directory for a mapping.
+    Messages about a mapping name it ``<dict>``.
 
     Raises :class:`ConfigError` for a missing file, a TOML syntax error, an unknown
     stage or table, a wrong type or a value out of range.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: pipeline file not found")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8").removeprefix("\ufeff"))  # an editor's BOM
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{path}: invalid TOML: {err}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{path}: cannot read: {getattr(err, 'strerror', None) or err}") from None
+    if isinstance(source, Mapping):
+        path = Path("<dict>")
+        data = _plain(source)
+        root = Path(root).resolve() if root is not None else Path.cwd()
+    else:
+        path = Path(source)
+        data = _read_toml(path)
+        root = Path(root).resolve() if root is not None else find_root(path)
     if overrides:
         data = apply_overrides(data, overrides)
     registry = stages()
@@ -231,7 +236,6 @@ def load_pipeline(path: str | Path, overrides: Sequence[str] = ()) -> Pipeline:
         for name in section.stages
     }
     order = resolve_order(section.stages, registry, str(path))
-    root = find_root(path)
     for name in section.stages:
         check_project_files(str(path), name, params[name], root)
         try:
@@ -240,6 +244,28 @@ def load_pipeline(path: str | Path, overrides: Sequence[str] = ()) -> Pipeline:
         except ConfigError as err:  # "table.field: value: what"
             raise ConfigError(f"{path}: {err}") from None
     return Pipeline(path, root, section, order, params)
+
+
+def _read_toml(path: Path) -> dict:
+    if not path.is_file():
+        raise ConfigError(f"{path}: pipeline file not found")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8").removeprefix("\ufeff"))  # an editor's BOM
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: invalid TOML: {err}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: cannot read: {getattr(err, 'strerror', None) or err}") from None
+
+
+def _plain(source: Mapping) -> dict:
+    """A mapping of tables as the TOML reader gives them (dicts all the way down), so that the
+    same strict checks apply: a table that is not a mapping is refused by name."""
+    data = {}
+    for table, value in source.items():
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"<dict>: {table}: {value!r}: must be a table (a mapping of keys to values)")
+        data[str(table)] = {str(k): v for k, v in value.items()}
+    return data
 
 
 #: Words in a parameter's description that mark it as a project file (see :class:`.registry.Params`).
