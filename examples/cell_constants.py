@@ -18,7 +18,7 @@ import tomllib
 import sys
 from pathlib import Path
 
-import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
+import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import matplotlib
 
 matplotlib.use("Agg")  # off screen: no display needed
@@ -26,7 +26,6 @@ import matplotlib.pyplot as plt
 
 from metasheet.cells import design_cell, parse_design
 from metasheet.homogenize import homogenize_voxels
-from metasheet.pipeline.manifest import write_bytes_atomic
 from metasheet.viz import figure_png
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,7 +70,7 @@ def picture(cell, numbers: dict, title: str, out: Path) -> None:
     for ax, keys in ((a1, moduli), (a2, ratios)):
         for i, k in enumerate(keys):
             ax.annotate(f"{numbers[k]:.3g}", (i, numbers[k]), ha="center", va="bottom")
-    write_bytes_atomic(out, figure_png(fig))  # never half a file
+    metasheet.write_file(out, figure_png(fig))  # never half a file
 
 
 if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)

@@ -18,7 +18,7 @@ import tomllib
 import sys
 from pathlib import Path
 
-import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
+import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import matplotlib
 
 matplotlib.use("Agg")  # off screen: no display needed
@@ -27,7 +27,6 @@ import numpy as np
 
 from metasheet.executor import Executor
 from metasheet.homogenize.chart import ChartInterpolant, chart_points, evaluate_point, lookup
-from metasheet.pipeline.manifest import write_bytes_atomic
 from metasheet.viz import figure_png
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,7 +83,7 @@ def picture(chart: ChartInterpolant, rows: list[dict], settings: dict, out: Path
     ax.set(xlabel=f"{a} [%]", ylabel=f"{b} [-]",
            title=f"IceSL Polyfoam design chart: {a} {settings[a]:.1f} %, {b} {settings[b]:.2f}")
     ax.legend(loc="lower right")
-    write_bytes_atomic(out, figure_png(fig))  # never half a file
+    metasheet.write_file(out, figure_png(fig))  # never half a file
 
 
 if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)

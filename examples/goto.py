@@ -18,13 +18,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
+import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import numpy as np
 
 from metasheet import paper
 from metasheet.robot import InverseController, InverseSettings, SheetPair, six_dof_robot, solve_equilibrium
 from metasheet.sheet import SheetParams
-from metasheet.pipeline.manifest import write_bytes_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 # X Y Z [mm] of the rod centre (at the origin at rest, up to gravity's sag), RX RY RZ [deg]
@@ -58,7 +57,7 @@ def main(small: bool = False, out: Path | None = None) -> dict:
     out = Path(out) if out is not None else ROOT / "outputs" / "examples" / "goto.png"
     from metasheet.viz.robot import robot_picture  # pyvista, off screen; rest in grey, deformed coloured
 
-    write_bytes_atomic(out, robot_picture(shown, window=(1400, 1000)))  # never half a file
+    metasheet.write_file(out, robot_picture(shown, window=(1400, 1000)))  # never half a file
     return {"tolerance_mm": settings.pos_tol, "tolerance_deg": settings.rot_tol_deg, **numbers}
 
 

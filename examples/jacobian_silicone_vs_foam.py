@@ -19,7 +19,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
+import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import matplotlib
 
 matplotlib.use("Agg")  # off screen: no display needed
@@ -29,7 +29,6 @@ import numpy as np
 from metasheet import paper
 from metasheet.robot import SheetPair, evaluate, six_dof_robot
 from metasheet.sheet import SheetParams
-from metasheet.pipeline.manifest import write_bytes_atomic
 from metasheet.viz import figure_png
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,7 +78,7 @@ def picture(cases: dict, mesh: str, out: Path) -> None:
     for i, v in enumerate(roll):
         a1.annotate(f"{v:.2g}", (i, v), ha="center", va="bottom")
     a1.set(yscale="log", ylim=(1e-4, 3.0), ylabel="|rod roll| per degree of all motors [deg/deg]", title="roll about the rod (from J)")
-    write_bytes_atomic(out, figure_png(fig))  # never half a file
+    metasheet.write_file(out, figure_png(fig))  # never half a file
 
 
 if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)

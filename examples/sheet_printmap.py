@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
+import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import matplotlib
 
 matplotlib.use("Agg")  # off screen: no display needed
@@ -30,7 +30,6 @@ from metasheet.sheet import SheetParams, grade, spiral_fibers, tripod_sheet
 from metasheet.sheet import icesl
 from metasheet.sheet.consistency import round_trip
 from metasheet.sheet.grading import element_constants, scaling_lookup
-from metasheet.pipeline.manifest import write_bytes_atomic
 from metasheet.viz import figure_png
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -108,7 +107,7 @@ def picture(fields, out: Path) -> None:
     U, V = (np.where(inside, fib[..., i], np.nan).T for i in (0, 1))
     axes[0].streamplot(x, y, U, V, density=1.6, color="k", linewidth=0.7, arrowstyle="-")
     fig.suptitle("IceSL print map of the tripod sheet, mid-plane (grey: solid parts, brush 1)")
-    write_bytes_atomic(out, figure_png(fig))  # never half a file
+    metasheet.write_file(out, figure_png(fig))  # never half a file
 
 
 if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)

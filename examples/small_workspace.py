@@ -19,7 +19,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import metasheet  # noqa: F401  (first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
+import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import matplotlib
 
 matplotlib.use("Agg")  # off screen: no display needed
@@ -30,7 +30,6 @@ from metasheet.executor import Executor
 from metasheet.studies.adapter import paper_robot_spec
 from metasheet.studies.grid import star_grid
 from metasheet.studies.workspace import WorkspaceSettings, explore_workspace
-from metasheet.pipeline.manifest import write_bytes_atomic
 from metasheet.viz import figure_png
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,7 +90,7 @@ def picture(ws, grid, strain_limit: float, out: Path) -> None:
         ax.margins(0.15)
     axes[1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5))
     fig.suptitle("workspace of the foam robot: rotations +-10 deg passed at each reached point")
-    write_bytes_atomic(out, figure_png(fig))  # never half a file
+    metasheet.write_file(out, figure_png(fig))  # never half a file
 
 
 if __name__ == "__main__":  # python examples/NAME.py [PICTURE] (default: outputs/examples/NAME.png)

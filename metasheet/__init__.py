@@ -1,4 +1,8 @@
-"""metasheet: design soft robots made of 3D-printed anisotropic foam."""
+"""metasheet: design soft robots made of 3D-printed anisotropic foam.
+
+The Python API is at the top level (:mod:`metasheet.api`): ``metasheet.run(path)``,
+``metasheet.load_pipeline``, ``metasheet.read_constants``, ``read_jacobian``, ``read_study``.
+"""
 
 from .cpu import pin_code_paths as _pin
 
@@ -11,3 +15,21 @@ from .numba_cache import install as _guard_numba_cache  # noqa: E402
 _guard_numba_cache()
 
 __version__ = "0.1.0"
+
+#: The Python API (:mod:`metasheet.api`), imported when first used: ``import metasheet`` stays
+#: light for the command line's supervising process.
+_API = ("Constants", "Jacobian", "Run", "load_pipeline", "read_constants", "read_jacobian", "read_study",
+        "run", "write_file")
+__all__ = [*_API, "__version__"]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'metasheet' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_API})

@@ -32,8 +32,10 @@ warnings.filterwarnings("ignore", message="IProgress not found")
 # %% [markdown]
 # ## Load a pipeline
 #
-# `metasheet.pipeline` is the pipeline layer's public face: `load_pipeline` reads and
-# validates a pipeline file, and `run_pipeline` runs it. Importing metasheet first, before
+# The Python API is at the top level of the package: `metasheet.load_pipeline` reads and
+# validates a pipeline (a file, or its tables as a dict), `metasheet.run` runs it, and the
+# readers (`read_constants`, `read_jacobian`, `read_study`) give its results as typed values.
+# Importing metasheet first, before
 # numpy, pins numpy and the BLAS to one code path, as `metasheet run` does (see
 # [Guarantees](../../concepts/guarantees/)).
 
@@ -43,10 +45,9 @@ import tempfile
 from pathlib import Path
 
 import metasheet
-from metasheet.pipeline import load_pipeline, run_pipeline
 
 ROOT = Path(metasheet.__file__).resolve().parents[1]  # the checkout (pip install -e .)
-pipeline = load_pipeline(ROOT / "pipelines" / "quick.toml")
+pipeline = metasheet.load_pipeline(ROOT / "pipelines" / "quick.toml")
 print(pipeline.name, "runs", " -> ".join(pipeline.order))
 
 # %% [markdown]
@@ -59,29 +60,31 @@ print(pipeline.params["orient"])
 # %% [markdown]
 # ## Run it into a temporary folder
 #
-# `out_root` plays the part of `metasheet run --out DIR`: the stages write into
-# `DIR/<pipeline name>/<stage>/`. The run returns one `StageOutcome` per stage.
+# `out` plays the part of `metasheet run --out DIR`: the stages write into
+# `DIR/<pipeline name>/<stage>/`. The run returns a `metasheet.Run`: its folder and one
+# outcome per stage (`overrides=["cell.seed=7"]` would change a key as `--set` does).
 
 # %%
 workdir = tempfile.TemporaryDirectory(prefix="metasheet-tutorial-")
 out_root = Path(workdir.name)
-outcomes = run_pipeline(pipeline, out_root=out_root)
-for o in outcomes:
+run = metasheet.run(pipeline, out=out_root)
+for o in run.stages:
     print(f"{o.name:11s} {o.status:7s} {o.wall_time:6.1f} s  {o.directory.relative_to(out_root)}")
 
 # %% [markdown]
 # ## The homogenised constants
 #
-# `homogenize/constants.json` holds the five transverse-isotropic constants [MPa], the full
-# (6, 6) stiffness `C` in Voigt order 11, 22, 33, 23, 13, 12, and the fit's relative misfit.
+# `metasheet.read_constants` reads `homogenize/constants.json`: the five transverse-isotropic
+# constants [MPa, -], the full (6, 6) stiffness `C` in Voigt order 11, 22, 33, 23, 13, 12, the
+# axis l, and (in `.data`) everything else the stage wrote, such as the fit's relative misfit.
 
 # %%
-quick = out_root / pipeline.name
-constants = json.loads((quick / "homogenize" / "constants.json").read_text())
-for key in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l"):
-    print(f"{key:6s} {constants[key]:8.4f} {constants['units'][key]}")
-print(f"relative density {constants['relative_density']:.3f}, misfit {constants['misfit']:.1%}, "
-      f"soft axis l = {constants['axis']}, solver {constants['solver']}")
+quick = run.folder
+constants = metasheet.read_constants(quick)
+for key, value in constants.to_dict().items():
+    print(f"{key:6s} {value:8.4f} {constants.data['units'][key]}")
+print(f"relative density {constants.relative_density:.3f}, misfit {constants.data['misfit']:.1%}, "
+      f"soft axis l = {constants.axis}, solver {constants.data['solver']}")
 
 # %% [markdown]
 # The library makes the same fit: `TransverseIsotropic.fit` returns the closest
@@ -94,7 +97,7 @@ import numpy as np
 
 from metasheet.material import TransverseIsotropic
 
-fit = TransverseIsotropic.fit(np.array(constants["C"]))
+fit = TransverseIsotropic.fit(constants.C)
 print(fit.material)
 print("axis", np.round(fit.axis, 3), f"misfit {fit.misfit:.1%}")
 
@@ -103,16 +106,16 @@ print("axis", np.round(fit.axis, 3), f"misfit {fit.misfit:.1%}")
 #
 # `robot/jacobian.json` describes the 6-DOF robot built from those sheets, for several
 # materials: the pipeline's foam, the paper's published constants, silicone, and each foam
-# under the authors' material model. For each material it holds the rest pose, the Jacobian
-# per degree of motor travel and its singular values. A singular value near zero is a
-# direction the motors cannot drive.
+# under the authors' material model. `metasheet.read_jacobian(folder, material)` gives one
+# case: the Jacobian `J` (rows x, y, z [mm/rad] and rx, ry, rz [rad/rad]) and its singular
+# values. A singular value near zero is a direction the motors cannot drive.
 
 # %%
-robot = json.loads((quick / "robot" / "jacobian.json").read_text())
-print(robot["frame"])
-for name, case in robot["materials"].items():
-    sv = ", ".join(f"{s:.3g}" for s in case["singular_values"])
-    print(f"{name:18s} singular values {sv};  rod roll {case['rod_rotation_deg_per_deg']:+.3f} deg per motor deg")
+names = ["foam", "published", "silicone"]
+jacobians = {name: metasheet.read_jacobian(quick, name) for name in names}
+for name, j in jacobians.items():
+    sv = ", ".join(f"{s:.3g}" for s in j.singular_values)
+    print(f"{name:10s} singular values {sv};  rod roll {j.rod_rotation_deg_per_deg:+.3f} deg per motor deg")
 
 # %% [markdown]
 # The foam's smallest singular value is of the same order as its largest, while silicone's is
@@ -123,10 +126,9 @@ for name, case in robot["materials"].items():
 # %matplotlib inline
 import matplotlib.pyplot as plt
 
-names = ["foam", "published", "silicone"]
 fig, ax = plt.subplots(figsize=(7, 3))
 for k, name in enumerate(names):
-    sv = robot["materials"][name]["singular_values"]
+    sv = jacobians[name].singular_values
     ax.bar(np.arange(1, 7) + 0.27 * (k - 1), sv, width=0.27, label=name)
 ax.set_yscale("log")
 ax.set_xlabel("singular value number")
@@ -165,7 +167,7 @@ print("inputs from", sorted(manifest["inputs"]))
 # A second run finds every stage up to date:
 
 # %%
-print({o.name: o.status for o in run_pipeline(pipeline, out_root=out_root)})
+print({o.name: o.status for o in metasheet.run(pipeline, out=out_root).stages})
 
 # %%
 workdir.cleanup()  # the temporary folder and everything the run wrote
