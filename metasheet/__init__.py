@@ -14,7 +14,7 @@ from .numba_cache import install as _guard_numba_cache  # noqa: E402
 # a damaged compiled-kernel cache file is removed and compiled again, not a raw traceback
 _guard_numba_cache()
 
-__version__ = "0.1.0"
+from .version import __version__  # noqa: E402
 
 #: The Python API (:mod:`metasheet.api`), imported when first used: ``import metasheet`` stays
 #: light for the command line's supervising process.

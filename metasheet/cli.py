@@ -76,7 +76,7 @@ def _options(
 
 def _print_version(asked: bool) -> None:
     if asked:
-        from . import __version__
+        from .version import __version__
 
         say(f"metasheet {__version__}", err=False)
         raise typer.Exit()

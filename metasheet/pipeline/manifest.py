@@ -22,7 +22,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
+from ..version import __version__
 from ..provenance import code_digest
 
 MANIFEST = "manifest.json"
