@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from metasheet.pipeline.outputs_diff import compare_trees
 
@@ -55,3 +56,23 @@ def test_cli_exit_status(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "metasheet.cli", "diff", str(a), str(tmp_path / "nope")],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "not a directory" in bad.stderr
+
+
+def test_equal_infinities_are_equal_and_nan_against_a_number_is_not():
+    """Before: ``inf - inf`` is NaN, so two files holding the same ``inf`` (a JSON ``Infinity``)
+    differed by an infinite amount, with a RuntimeWarning printed."""
+    import warnings
+
+    import numpy as np
+
+    from metasheet.pipeline.outputs_diff import _gap
+
+    inf, nan = np.inf, np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _gap(np.array([1.0, inf, -inf, nan]), np.array([1.0, inf, -inf, nan])).diff == 0.0
+        assert _gap(np.array([1.0, inf]), np.array([1.0, -inf])).diff == inf
+        assert _gap(np.array([1.0, nan]), np.array([1.0, 2.0])).diff == inf
+        assert _gap(np.array([1.0, 2.0]), np.array([1.5, 2.0])).diff == 0.5
+        gap = _gap(np.array([2.0, inf]), np.array([3.0, inf]))
+        assert gap.scale == 3.0 and gap.rel == pytest.approx(1 / 3) and not gap.within(0.1, 0.0)

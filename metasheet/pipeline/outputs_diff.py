@@ -124,11 +124,15 @@ class _Gap:
 
 
 def _gap(a: np.ndarray, b: np.ndarray) -> _Gap:
-    """The :class:`_Gap` of one quantity (NaN where both are NaN counts as equal; NaN against
-    a number, or an infinite difference, is an infinite one)."""
-    same_nan = np.isnan(a) & np.isnan(b)
-    d = np.where(same_nan, 0.0, np.abs(a - b))
-    scale = max(float(np.nanmax(np.abs(a), initial=0.0)), float(np.nanmax(np.abs(b), initial=0.0)))
+    """The :class:`_Gap` of one quantity (NaN where both are NaN, and equal infinities, count as
+    equal; NaN against a number, or an infinite difference, is an infinite one)."""
+    same = (a == b) | (np.isnan(a) & np.isnan(b))
+    with np.errstate(invalid="ignore"):  # inf - inf where they are equal: masked by ``same``
+        d = np.where(same, 0.0, np.abs(a - b))
+    d = np.where(np.isnan(d), np.inf, d)
+    # the scale of the finite values: an infinity elsewhere in the file must not make every
+    # difference relatively zero (and within any rtol)
+    scale = max(float(np.max(np.abs(x[np.isfinite(x)]), initial=0.0)) for x in (a, b))
     worst = float(np.max(d, initial=0.0))
     return _Gap(worst if np.isfinite(worst) else np.inf, scale)
 
