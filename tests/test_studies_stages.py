@@ -296,7 +296,7 @@ def test_study_mesh_size_remeshes_the_orient_sheet(tmp_path, monkeypatch):
     and the per-element constants carried over from the orient mesh."""
     skip_pictures(monkeypatch, "orient")  # sheet.png: most of this test's time, not read
     from metasheet.pipeline.artefacts import read_orient
-    from metasheet.pipeline.stages._studies import remesh
+    from metasheet.pipeline.remesh import remesh
 
     text = '[pipeline]\nname = "om"\nstages = ["material", "orient"]\n[material]\nsource = "config"\n[orient]\nmesh_size = 10\n'
     run_pipeline(load_pipeline(project(tmp_path, text, "om")))

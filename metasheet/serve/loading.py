@@ -293,14 +293,13 @@ def _full_robot(outputs: Outputs, material: str):
         robot = six_dof_robot(orient.sheets(), model=mat.model, **mass, **scene)
         what = f"foam: the sheets' own constants along their fibres ({mat.source or 'material stage'}, model {mat.model})"
     elif material == PUBLISHED:
-        from ..pipeline.stages._studies import remesh
+        from ..pipeline.remesh import column_sheets
         from ..studies.columns import REPRODUCTION_MESH, column_material
 
         col, m = column_material("reproduction"), REPRODUCTION_MESH
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": paper.FOAM_DENSITY}
-        sheets = remesh(orient, m["mesh_size"], element=m["element"], grip_size=m["grip_size"])
-        robot = six_dof_robot(replace(sheets, constants=None, constants_mirrored=None), col.material, model=col.model,
-                              **mass, **scene)
+        sheets = column_sheets(orient, True, m["mesh_size"], element=m["element"], grip_size=m["grip_size"])
+        robot = six_dof_robot(sheets, col.material, model=col.model, **mass, **scene)
         what = (f"published constants (the paper's), model {col.model}, {m['element']} {m['mesh_size']:g} mm sheets: "
                 "the reproduction column")
         fibers, element = (sheets.fibers, sheets.fibers_mirrored), m["element"]

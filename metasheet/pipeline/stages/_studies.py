@@ -28,6 +28,7 @@ from ...robot.validity import GRIP_BAND_MM
 from ...studies.resume import UnitCache, keep_only_used
 from ..artefacts import OrientFile, RobotScene, read_material, read_orient, read_robot_scene
 from ..registry import Params, StageContext
+from ..remesh import column_sheets
 
 #: The scene a study runs on when no robot stage ran (the paper's, :mod:`metasheet.paper`).
 DEFAULT_SCENE = RobotScene(paper.ROD_LENGTH, paper.REST_ANGLE, paper.HORN_LENGTH, paper.ANGLE_MIN, paper.ANGLE_MAX)
@@ -157,12 +158,7 @@ def build_spec(ctx: StageContext):
     material, model = (mat.material, mat.model) if col.material is None else (col.material, col.model)
     sc = up.with_overrides(rod_length=p.rod_length, rest_angle=p.rest_angle, horn_length=p.horn_length)
     scene = {k: getattr(sc, k) for k in ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth")}
-    sheets = orient.sheets(need_constants=orient.graded)
-    if any(v is not None for v in (p.mesh_size, p.layers, p.grip_size, p.element)):
-        sheets = remesh(orient, orient.sheet_params.mesh_size if p.mesh_size is None else p.mesh_size,
-                        p.layers, p.element, p.grip_size)
-    if col.material is not None or not (orient.graded and sheets.has_constants):  # one material for all elements
-        sheets = replace(sheets, constants=None, constants_mirrored=None)
+    sheets = column_sheets(orient, col.material is not None, p.mesh_size, p.layers, p.element, p.grip_size)
     mat_density = mat.density if col.material is None else paper.FOAM_DENSITY
     density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat_density, sc.sheet_mass_g)
     spec = RobotSpec.from_sheets(sheets, material, motor_range=(lo, hi), density=density,
@@ -262,31 +258,6 @@ def scene_of(ctx: StageContext) -> RobotScene:
     return DEFAULT_SCENE
 
 
-def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, element: str | None = None,
-           grip_size: float | None = None):
-    """The orient sheet pair re-meshed at ``mesh_size`` [mm] (``layers`` through the thickness,
-    ``element`` and ``grip_size`` [mm], None: orient's) with the same geometry and fibre law;
-    per-element constants (when the sheets carry them) carried over by nearest centroid."""
-    from scipy.spatial import cKDTree
-
-    from ...robot.builder import SheetPair
-
-    sp = replace(orient.sheet_params, mesh_size=float(mesh_size),
-                 **({} if layers is None else {"layers": int(layers)}),
-                 **({} if grip_size is None else {"grip_size": float(grip_size)}))
-    element = orient.element if element is None else element
-    fresh = SheetPair.spiral(sp, element, **orient.fiber_settings)
-    meshes, consts = [], []
-    for new, old in ((fresh.sheet, orient.normal), (fresh.mirrored, orient.mirrored)):
-        c = old.constants
-        if c is not None:
-            c = c[cKDTree(old.mesh.centroids()).query(new.centroids())[1]]
-        consts.append(c)
-        # the arm directions as the orient stage recorded them (degrees in sheet.json)
-        meshes.append(replace(new, arm_angles=old.mesh.arm_angles))
-    fibers = (fresh.fibers, fresh.fibers_mirrored) if orient.fibre_field is None else \
-        (orient.fibers_at(meshes[0].centroids(), False), orient.fibers_at(meshes[1].centroids(), True))
-    return SheetPair(*meshes, *fibers, *consts, element)
 
 
 def unit_cache(ctx: StageContext) -> UnitCache:

@@ -292,7 +292,7 @@ def _case_unit(task: _CaseTask):
 def _level_unit(task: _LevelTask):
     """Work unit: the :class:`~metasheet.robot.convergence.LevelResult` of one level."""
     from ...robot.convergence import build_and_measure
-    from ._studies import remesh
+    from ..remesh import remesh
 
     def build(lev):
         sheets = task.orient.sheets() if task.own else remesh(task.orient, lev.mesh_size, lev.layers, lev.element,
