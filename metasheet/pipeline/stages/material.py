@@ -132,6 +132,8 @@ register(
         params=MaterialParams,
         run=run,
         optional=("homogenize",),
+        # given constants (or a sheet's file) do not wait for a homogenisation they do not read
+        reads=lambda p: () if p.source in ("config", "sheet") else ("homogenize",),
         outputs=("material.json",),
         doc="constitutive constants (given, or from homogenize) -> material.json",
     )
