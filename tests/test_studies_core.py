@@ -71,6 +71,40 @@ def test_model_cache_builds_once_per_spec_and_is_bounded():
         ModelCache(max_size=0)
 
 
+def test_threads_asking_for_one_spec_wait_for_one_build():
+    """Two stage threads of a run built the same reduced model side by side (8 CPU s twice):
+    now the second waits for the first's build, while another spec builds meanwhile."""
+    import threading
+    import time
+
+    builds, started = [], threading.Barrier(4)
+
+    class SlowSpec:
+        def __init__(self, key):
+            self.key = key
+
+        def build(self):
+            builds.append(self.key)
+            time.sleep(0.5)
+            return object()
+
+    cache, got = ModelCache(max_size=4), {}
+
+    def ask(i, key):
+        started.wait()
+        got[i] = cache.get(SlowSpec(key))
+
+    threads = [threading.Thread(target=ask, args=(i, "a" if i < 3 else "b")) for i in range(4)]
+    t0 = time.monotonic()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(builds) == ["a", "b"]  # one build per spec
+    assert got[0] is got[1] is got[2] and got[3] is not got[0]
+    assert time.monotonic() - t0 < 0.9  # "b" built beside "a" (0.5 s), not after it (1 s)
+
+
 def test_classes_consistent_with_recorded_errors(ws):
     r, s = ws.records, ws.settings
     reached = r.error_mm <= s.tol_mm

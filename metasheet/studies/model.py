@@ -11,6 +11,7 @@ rotation vector relative to the rest orientation [rad]. Motor angles are degrees
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -134,22 +135,44 @@ class ModelCache:
         if int(max_size) < 1:
             raise ConfigError(f"max_size: {max_size!r}: allowed range is [1, inf)")
         self.max_size = int(max_size)
-        self._models: dict[str, RobotModel] = {}  # by spec.key, in build order
+        self._models: dict[str, RobotModel] = {}  # by spec.key, the least recently used first
+        self._lock = threading.Lock()  # guards the two dicts: a run's stage threads share the cache
+        self._building: dict[str, threading.Lock] = {}  # one lock per spec being built
 
     def get(self, spec: ModelSpec) -> RobotModel:
-        """The model of ``spec``, built on the first call and kept by ``spec.key``."""
+        """The model of ``spec``, built on the first call and kept by ``spec.key``. Threads
+        asking for the same spec at once wait for one build (two stage threads of a run built
+        the same reduced model side by side: 8 CPU s twice); other specs build meanwhile."""
         k = spec.key
-        m = self._models.pop(k, None)
-        if m is None:
-            if len(self._models) >= self.max_size:
-                self._models.pop(next(iter(self._models)))
+        with self._lock:
+            m = self._touch(k)
+            if m is not None:
+                return m
+            building = self._building.setdefault(k, threading.Lock())
+        with building:
+            with self._lock:
+                m = self._touch(k)
+            if m is not None:  # built by the thread this one waited for
+                return m
             m = spec.build()
-        self._models[k] = m  # the most recently used last: the one dropped is the least recently used
+            with self._lock:
+                if len(self._models) >= self.max_size:
+                    self._models.pop(next(iter(self._models)))
+                self._models[k] = m
+                self._building.pop(k, None)
+        return m
+
+    def _touch(self, k: str) -> RobotModel | None:
+        """The model kept under ``k``, moved to the most recently used end (None: not kept)."""
+        m = self._models.pop(k, None)
+        if m is not None:
+            self._models[k] = m
         return m
 
     def clear(self) -> None:
         """Drop every model (the next :meth:`get` of each spec builds it again)."""
-        self._models.clear()
+        with self._lock:
+            self._models.clear()
 
     def __len__(self) -> int:
         return len(self._models)
