@@ -181,7 +181,7 @@ def test_a_radially_corrected_trial_round_trips(tmp_path):
 def test_print_maps_and_remeshes_follow_the_field(runs):
     """The print map and the studies' re-meshes take their fibres from ``OrientFile.fibers_at``:
     on orient's own elements it gives the sheets' fibres (the field, not the plain spiral)."""
-    from metasheet.pipeline.stages._studies import remesh
+    from metasheet.pipeline.remesh import remesh
     from metasheet.sheet.fibers import spiral_fibers
 
     _, c, _ = runs
