@@ -92,7 +92,11 @@ def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping
         return []
     out = ["## The paper, reproduced and predicted", "",
            "The **reproduction** runs each study as the paper's figures were made: the published constants under "
-           "the authors' force field, no strain stop (`metasheet/studies/columns.py`). The **prediction** runs it "
+           "the authors' force field, no strain stop, on the authors' kind of mesh (uniform P1, 5 mm; "
+           "`metasheet/studies/columns.py`). Its counts are that mesh's: how far it is from the converged mesh "
+           "(the Jacobian, the rod's compliance) is in the section \"Mesh convergence of the robot\" when "
+           "`pipelines/convergence.toml` ran beside this pipeline, and docs/paper.md (\"Which results rest on "
+           "the coarse mesh\") gives the rest-pose test on the converged mesh. The **prediction** runs it "
            "on the printed foam's homogenised constants, within the homogenisation's strain limit.", "",
            "| figure | the paper | reproduction | prediction | verdict |", "|---|---|---|---|---|"]
     for k in studies:
