@@ -66,14 +66,13 @@ def _from_pipeline(pipeline: str, out: str | None, column: str):
     import json
 
     from metasheet.rom.surface_robot import load_surface
-    from metasheet.serve.loading import PUBLISHED, find_outputs, load_robot
+    from metasheet.serve.loading import find_outputs, load_robot
     from metasheet.studies.columns import column_folder
 
     outputs = find_outputs(pipeline, out)
-    material = PUBLISHED if column == "reproduction" else "foam"
     folder = column_folder(outputs.directory / "reduce", column, "reduce")
-    rob, _ = load_robot(outputs, "full", material)
-    red, _ = load_robot(outputs, "reduced", material)
+    rob, _ = load_robot(outputs, "full", "foam", column)
+    red, _ = load_robot(outputs, "reduced", "foam", column)
     surf = load_surface(folder / "surface.npz", red)
     lz = rob.linearizer()
     rest = solve_equilibrium(rob, rob.coupling.rest_angles, linearizer=lz).state

@@ -55,13 +55,8 @@ def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full",
     from .pipeline.artefacts import read_material
     from .serve.loading import find_outputs, load_robot
 
-    from .serve.loading import PUBLISHED
-    from .studies.columns import COLUMNS
-
-    if column not in COLUMNS:
-        raise ConfigError(f"--column: {column!r}: allowed values are {', '.join(COLUMNS)}")
     outputs = find_outputs(pipeline, out)
-    robot, info = load_robot(outputs, model, PUBLISHED if column == "reproduction" else "foam")
+    robot, info = load_robot(outputs, model, "foam", column)
     if material_model is not None and column == "reproduction":
         raise ConfigError("--material-model: the reproduction column's model is the authors' force field; "
                           "drop --material-model")

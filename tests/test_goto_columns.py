@@ -26,7 +26,7 @@ def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_fi
 
     toml, out = outputs
     outs = find_outputs(toml, out)
-    robot, info = load_robot(outs, "full", "published")
+    robot, info = load_robot(outs, "full", "foam", "reproduction")
     assert "published" in info.description and "authors" in info.description and "p1 5 mm" in info.description
     # built independently: the authors' mesh kind (P1, 5 mm, uniform), the published set, their force field
     pair = SheetPair.spiral(SheetParams(mesh_size=5.0), "p1")
@@ -37,6 +37,11 @@ def test_the_reproduction_robot_is_the_published_foam_under_the_authors_force_fi
     b = solve_equilibrium(direct, direct.coupling.rest_angles + np.radians(5.0)).state
     np.testing.assert_allclose(a.x, b.x, atol=1e-9)
     np.testing.assert_allclose(a.p, b.p, atol=1e-9)
+    assert info.column == "reproduction" and info.material == "foam"
+    with pytest.raises(ConfigError, match="the reproduction column is the paper's published foam"):
+        load_robot(outs, "full", "silicone", "reproduction")
+    with pytest.raises(ConfigError, match="--column: 'nope': allowed values are prediction, reproduction"):
+        load_robot(outs, "full", "foam", "nope")
 
 
 def _goto(capsys, toml, out, *args):

@@ -45,9 +45,6 @@ MODELS = ("full", "reduced")
 GOTO_MODELS = MODELS + ("surface",)
 #: the sheet materials the page switches between
 MATERIALS = ("foam", "silicone")
-#: The reproduction column's sheets (metasheet/studies/columns.py): the published constants
-#: under the authors' force field, on the pipeline's own mesh and scene.
-PUBLISHED = "published"
 #: the artefacts the page needs, per stage
 REQUIRED = {
     "orient": ("sheet.json", "sheet.vtu", "sheet_mirrored.vtu"),
@@ -145,14 +142,16 @@ class RobotGeometry:
 class RobotInfo:
     """A loaded robot's description: ``model`` ("full" / "reduced": the robot returned),
     ``material`` ("foam" / "silicone"), what it is made of (``description``, for the page),
-    its :class:`RobotGeometry`, and ``note``: why the model differs from the one asked for
-    ("" when it does not)."""
+    its :class:`RobotGeometry`, ``note``: why the model differs from the one asked for
+    ("" when it does not), and the study ``column`` whose foam it is
+    (:mod:`metasheet.studies.columns`)."""
 
     model: str
     material: str
     description: str
     geometry: RobotGeometry
     note: str = ""
+    column: str = "prediction"
 
 
 def robot_geometry(robot, fibers_local: tuple[np.ndarray, np.ndarray]) -> RobotGeometry:
@@ -177,25 +176,31 @@ def robot_geometry(robot, fibers_local: tuple[np.ndarray, np.ndarray]) -> RobotG
                          float(np.linalg.norm(centres[1] - centres[0])))
 
 
-def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
+def load_robot(outputs: Outputs, model: str = "full", material: str = "foam", column: str = "prediction"):
     """The robot of ``outputs`` as the robot stage built it: ``(robot, RobotInfo)``.
 
     ``model`` : "full" (the FEM robot), "reduced" (the reduce stage's
     :class:`~metasheet.rom.model.ReducedRobot` on it) or "surface" (the reduce stage's
     :class:`~metasheet.rom.surface_robot.SurfaceRobot`); silicone: the full robot, with
     ``info.note`` saying why; ``material`` : "foam" (the sheets' own constants) or
-    "silicone" (the robot stage's silicone case). Raises :class:`ConfigError` for a missing
-    artefact (see :func:`check_outputs`), an unknown model or material, a basis trained on
-    another robot.
+    "silicone" (the robot stage's silicone case); ``column`` : "prediction" (the pipeline's
+    foam) or "reproduction" (the paper's published foam under the authors' force field, on the
+    authors' kind of mesh: :mod:`metasheet.studies.columns`). Raises :class:`ConfigError` for
+    a missing artefact (see :func:`check_outputs`), an unknown model, material or column, a
+    basis trained on another robot.
     """
     if model not in GOTO_MODELS:
         raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(GOTO_MODELS)}")
-    if material not in (*MATERIALS, PUBLISHED):
-        raise ConfigError(f"material: {material!r}: allowed values are {', '.join((*MATERIALS, PUBLISHED))}")
-    check_outputs(outputs)
-    from ..studies.columns import column_folder
+    if material not in MATERIALS:
+        raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
+    from ..studies.columns import COLUMNS, column_folder
 
-    column = "reproduction" if material == PUBLISHED else "prediction"
+    if column not in COLUMNS:
+        raise ConfigError(f"--column: {column!r}: allowed values are {', '.join(COLUMNS)}")
+    if column == "reproduction" and material != "foam":
+        raise ConfigError(f"material: {material!r}: the reproduction column is the paper's published foam; "
+                          "silicone is the prediction column's comparison")
+    check_outputs(outputs)
     basis_file = column_folder(outputs.directory / "reduce", column, "reduce") / "basis.npz"
     needs = {"reduced": basis_file, "surface": basis_file.with_name("surface.npz")}.get(model)
     if needs is not None and not needs.is_file():
@@ -203,7 +208,7 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam"):
                else "run a pipeline with the reduce stage")
         raise ConfigError(f"--model {model}: needs the reduce stage's outputs for the {column} column ({needs}), "
                           f"which are missing: {fix}, or use --model full")
-    robot, info = _full_robot(outputs, material)
+    robot, info = _full_robot(outputs, material, column)
     if model == "full":
         return robot, info
     if material == "silicone":
@@ -277,8 +282,8 @@ def certificate(reduce_dir: Path) -> str:
             f"Jacobian {100 * jac:.2g} %")
 
 
-def _full_robot(outputs: Outputs, material: str):
-    """The FEM robot of ``outputs`` for ``material`` and its :class:`RobotInfo`."""
+def _full_robot(outputs: Outputs, material: str, column: str):
+    """The FEM robot of ``outputs`` for ``material`` in ``column`` and its :class:`RobotInfo`."""
     from .. import paper
     from ..material import Isotropic
     from ..pipeline.artefacts import read_material, read_orient, read_robot_scene
@@ -288,11 +293,11 @@ def _full_robot(outputs: Outputs, material: str):
     orient, mat, sc = read_orient(d / "orient"), read_material(d / "material"), read_robot_scene(d / "robot")
     scene = {"rod_length": sc.rod_length, "geometry": sc.servo_geometry(), "gravity": sc.gravity}
     fibers, element = (orient.normal.fibers, orient.mirrored.fibers), orient.element
-    if material == "foam":
+    if material == "foam" and column == "prediction":
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": mat.density}
         robot = six_dof_robot(orient.sheets(), model=mat.model, **mass, **scene)
         what = f"foam: the sheets' own constants along their fibres ({mat.source or 'material stage'}, model {mat.model})"
-    elif material == PUBLISHED:
+    elif material == "foam":  # the reproduction column
         from ..pipeline.remesh import column_sheets
         from ..studies.columns import REPRODUCTION_MESH, column_material
 
@@ -311,4 +316,4 @@ def _full_robot(outputs: Outputs, material: str):
     geometry = robot_geometry(robot, fibers)
     description = (f"{what}; scene {sc.scene}, rod {sc.rod_length:g} mm, stroke "
                    f"[{sc.angle_min:g}, {sc.angle_max:g}] deg; {len(geometry.tets)} {element} elements")
-    return robot, RobotInfo("full", material, description, geometry)
+    return robot, RobotInfo("full", material, description, geometry, column=column)
