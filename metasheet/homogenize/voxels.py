@@ -23,6 +23,7 @@ from ..errors import ConfigError
 from ..fem.assembly import SparsityPattern, element_dofs
 from ..fem.solvers import GRID_SOLVERS, VOXEL_AUTO_DOFS, solve_voxel_correctors
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices
+from ..fem.voxel.element import check_phases
 from .corrector import check_and_fit, material_stiffness, solve_correctors, symmetry_error
 from .localisation import localisation
 from .percolation import percolating_solid
@@ -30,24 +31,7 @@ from .result import LOAD_CASES, HomogenizationResult, LoadCase
 
 
 def _validate(phases, size, materials, rtol):
-    ph = np.asarray(phases)
-    if ph.ndim != 3:
-        raise ConfigError(f"phases: shape is {ph.shape} and should be (nx, ny, nz)")
-    if min(ph.shape) < 2:
-        raise ConfigError(f"phases: shape {ph.shape}: every dimension must be >= 2 voxels")
-    if not np.issubdtype(ph.dtype, np.integer):
-        if not np.all(np.mod(ph, 1) == 0):
-            raise ConfigError("phases: must hold integers (0 = void, k > 0 = material k)")
-        ph = ph.astype(np.int64)
-    if ph.min() < 0:
-        raise ConfigError(f"phases: {int(ph.min())}: allowed values are 0 (void) and keys of materials")
-    s = np.asarray(size, float).reshape(-1)
-    if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ConfigError(f"size: {size!r}: must be three finite lengths > 0 [mm]")
-    present = [int(p) for p in np.unique(ph) if p != 0]
-    missing = [p for p in present if p not in materials]
-    if missing:
-        raise ConfigError(f"materials: phases {missing} have no material (given: {sorted(materials)})")
+    ph, s, present = check_phases(phases, size, materials, name="materials", item="material", integral_floats=True)
     if not (0 < float(rtol) < 1e-3):
         raise ConfigError(f"rtol: {rtol!r}: allowed range is (0, 1e-3)")
     return ph, s, present

@@ -80,3 +80,34 @@ def phase_table(stiffnesses, h) -> PhaseTable:
     K = np.ascontiguousarray([m[0] for m in mats])
     F = np.ascontiguousarray([m[1] for m in mats])
     return PhaseTable(K=K, F=F, C=C, h=h)
+
+
+def check_phases(phases, size, given, *, name: str = "stiffnesses", item: str = "stiffness",
+                 integral_floats: bool = False) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """A voxel phase grid checked at the boundary, for every voxel problem and homogenisation.
+
+    ``phases`` (nx, ny, nz) integers, 0 = void, k > 0 = phase k (``integral_floats``: other
+    numbers holding integers accepted and converted); ``size`` (3,) [mm] the box; ``given`` the keys
+    the phases must be among (a mapping named ``name``, whose values are each an ``item``).
+    Returns (phases as integers, size (3,) [mm], the phases present, sorted). Raises
+    :class:`ConfigError` naming the field and what is allowed.
+    """
+    ph = np.asarray(phases)
+    if ph.ndim != 3:
+        raise ConfigError(f"phases: shape is {ph.shape} and should be (nx, ny, nz)")
+    if min(ph.shape) < 2:
+        raise ConfigError(f"phases: shape {ph.shape}: every dimension must be >= 2 voxels")
+    if not np.issubdtype(ph.dtype, np.integer):
+        if not (integral_floats and np.all(np.mod(ph, 1) == 0)):
+            raise ConfigError(f"phases: dtype {ph.dtype}: must hold integers (0 = void, k > 0 = phase k)")
+        ph = ph.astype(np.int64)
+    if ph.min() < 0:
+        raise ConfigError(f"phases: {int(ph.min())}: allowed values are 0 (void) and keys of {name}")
+    s = np.asarray(size, float).reshape(-1)
+    if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise ConfigError(f"size: {size!r}: must be three finite lengths > 0 [mm]")
+    present = [int(p) for p in np.unique(ph) if p != 0]
+    missing = [p for p in present if p not in given]
+    if missing:
+        raise ConfigError(f"{name}: phases {missing} have no {item} (given: {sorted(given)})")
+    return ph, s, present

@@ -23,7 +23,7 @@ from threadpoolctl import threadpool_limits
 
 from ...errors import ConfigError, ConvergenceError
 from .components import components
-from .element import phase_table
+from .element import check_phases, phase_table
 from .multigrid import build_hierarchy
 from .operator import VoxelOperator, node_shape, scatter_compact, touched_nodes
 from .pcg import pcg, translation_projector
@@ -66,24 +66,9 @@ class VoxelHomogenization:
 def validate_grid(phases, size, stiffnesses: dict):
     """Check the grid and the phase map; returns (index (nx, ny, nz) int64 with -1 void,
     table :class:`~.element.PhaseTable`, h (3,) [mm], present phases)."""
-    ph = np.asarray(phases)
-    if ph.ndim != 3:
-        raise ConfigError(f"phases: shape is {ph.shape} and should be (nx, ny, nz)")
-    if min(ph.shape) < 2:
-        raise ConfigError(f"phases: shape {ph.shape}: every dimension must be >= 2 voxels")
-    if not np.issubdtype(ph.dtype, np.integer):
-        raise ConfigError(f"phases: dtype {ph.dtype}: must be integers (0 = void, k > 0 = phase k)")
-    if ph.min() < 0:
-        raise ConfigError(f"phases: {int(ph.min())}: allowed values are 0 (void) and keys of stiffnesses")
-    s = np.asarray(size, float).reshape(-1)
-    if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ConfigError(f"size: {size!r}: must be three finite lengths > 0 [mm]")
-    present = [int(p) for p in np.unique(ph) if p != 0]
+    ph, s, present = check_phases(phases, size, stiffnesses)
     if not present:
         raise ConfigError("phases: no solid voxel (all 0 = void)")
-    missing = [p for p in present if p not in stiffnesses]
-    if missing:
-        raise ConfigError(f"stiffnesses: phases {missing} have no stiffness (given: {sorted(stiffnesses)})")
     h = s / np.array(ph.shape)
     table = phase_table([stiffnesses[p] for p in present], h)
     lut = np.full(int(ph.max()) + 1, -1, np.int64)
