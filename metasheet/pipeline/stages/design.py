@@ -63,7 +63,7 @@ from ...errors import ConfigError
 from ..artefacts import read_material, read_orient
 from ..manifest import read_manifest, write_bytes_atomic, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
-from .design_trials import JOURNAL, cache_dir, evaluate_designs, search
+from ..design_trials import JOURNAL, cache_dir, evaluate_designs, search
 
 
 class PitchBounds(NamedTuple):

@@ -15,10 +15,10 @@ import shutil
 
 import numpy as np
 
-from ...design import search as ds
-from ..artefacts import SHEET_FILES
-from ..manifest import sha256_file
-from ..registry import StageContext
+from ..design import search as ds
+from .artefacts import SHEET_FILES
+from .manifest import sha256_file
+from .registry import StageContext
 
 JOURNAL = "study.journal"
 
