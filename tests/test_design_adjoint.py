@@ -21,7 +21,7 @@ from metasheet.design.adjoint import (
     roll_sensitivity,
     solve_rest,
 )
-from metasheet.design.fibre_field import PolarBSpline, rotate_points
+from metasheet.sheet.fibre_field import PolarBSpline, rotate_points
 from metasheet.errors import ConfigError
 from metasheet.material import Isotropic
 from metasheet.robot.builder import SheetPair, six_dof_robot

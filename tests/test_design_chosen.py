@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from metasheet.design import search as ds
-from metasheet.design.fibre_field import FibreField, PolarBSpline
+from metasheet.sheet.fibre_field import FibreField, PolarBSpline
 from metasheet.errors import ConfigError
 from metasheet.pipeline.artefacts import read_material, read_orient
 from metasheet.pipeline.config import load_pipeline

@@ -22,7 +22,7 @@ from metasheet.design.constraints import (
     principal_max,
     strain_sensitivity,
 )
-from metasheet.design.fibre_field import PolarBSpline
+from metasheet.sheet.fibre_field import PolarBSpline
 from metasheet.design.optimise import StrainSettings, free_form, reach_at_limit
 from metasheet.design.search import other_five_min
 from metasheet.design.strain import goal_strain, principal_strains

@@ -1,4 +1,4 @@
-"""The designable fibre field (metasheet.design.fibre_field) and the turned tensor
+"""The designable fibre field (metasheet.sheet.fibre_field) and the turned tensor
 (metasheet.design.tensor): no robot, milliseconds each."""
 
 import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from metasheet import paper
-from metasheet.design.fibre_field import (
+from metasheet.sheet.fibre_field import (
     FibreField,
     PolarBSpline,
     check_coefficients,

@@ -16,7 +16,7 @@ from metasheet.design import objectives as obj
 from metasheet.design import printability as pr
 from metasheet.design import strain as st
 from metasheet.design.adjoint import rest_problem, solve_rest
-from metasheet.design.fibre_field import PolarBSpline
+from metasheet.sheet.fibre_field import PolarBSpline
 from metasheet.errors import ConfigError
 from metasheet.robot.builder import SheetPair
 from metasheet.sheet.geometry import SheetParams

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from metasheet.design import printability as pr
-from metasheet.design.fibre_field import PolarBSpline, fibres_at
+from metasheet.sheet.fibre_field import PolarBSpline, fibres_at
 from metasheet.design.print_constraint import QUANTUM_DEG, foam_centroids, print_constraint, read_back_errors
 from metasheet.design.search import spiral_angles
 from metasheet.errors import ConfigError

@@ -57,7 +57,7 @@ from ..robot.kinematics import jacobian_from_schur
 from ..robot.robots import Q_A, Q_B, ServoGeometry
 from ..sheet.fibers import MIRROR
 from . import objectives as obj
-from .fibre_field import FibreField, PolarBSpline
+from ..sheet.fibre_field import FibreField, PolarBSpline
 from .tensor import inplane_mandel, to_frame_mandel, to_voigt
 
 

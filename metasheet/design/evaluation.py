@@ -26,7 +26,7 @@ from . import objectives as obj
 from . import printability as pr
 from . import strain as st
 from .adjoint import solve_rest
-from .fibre_field import fibres_at
+from ..sheet.fibre_field import fibres_at
 from .search import design_angles, design_problem, other_five_min
 
 #: relative size below which a parasitic motion is round-off: with sheet B the mirror of sheet A

@@ -27,7 +27,7 @@ from ..errors import ConfigError, check_range
 from . import outputs as out
 from .adjoint import rest_problem, roll_sensitivity, solve_rest
 from .constraints import KS_RHO, other_min_sensitivity, other_singular_sensitivities, strain_sensitivity
-from .fibre_field import PolarBSpline
+from ..sheet.fibre_field import PolarBSpline
 from .search import scores
 from .strain import GOAL_DEG, STRAIN_LIMIT
 

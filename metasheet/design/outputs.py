@@ -126,7 +126,7 @@ def pictures(orient, record, pareto, cands: Sequence[Candidate], chosen: Candida
     ``record``, ``pareto``: the search's trials and front; ``cands[0]``: the spiral."""
     from ..sheet import geometry as geo
     from ..viz.design import field_picture, pareto_picture
-    from .fibre_field import fibres_at
+    from ..sheet.fibre_field import fibres_at
     from .search import design_angles
 
     marks = [("spiral (start)", abs(cands[0].roll), cands[0].other_min, "s")]
@@ -184,7 +184,7 @@ def chosen_pipeline(name: str, material: dict, orient: dict, chosen: Candidate) 
     design with coefficients, ``fibre_field`` set to its basis and coefficients [rad] (floats
     written with ``repr``: they read back bit for bit, so the orient stage rebuilds the field the
     design was evaluated with)."""
-    from .fibre_field import PolarBSpline, basis_record
+    from ..sheet.fibre_field import PolarBSpline, basis_record
 
     d = chosen.design
     o = {k: v for k, v in orient.items() if k != "fibre_field"}

@@ -103,7 +103,7 @@ def read_back_errors(points, tets, params, angles_of: Callable[[np.ndarray], np.
                      branch=None):
     """The unrounded round trip of the field ``angles_of`` (points -> (q,) [rad]) at ``cent`` (e, 3):
     (signed errors (e,) [deg] in [-90, 90), on the seam (e,) bool, the texture's box)."""
-    from .fibre_field import fibres_at
+    from ..sheet.fibre_field import fibres_at
 
     pf = icesl.print_fields(points, tets, element_settings={}, params=params, branch=branch,
                             fiber_fn=lambda q: fibres_at(angles_of(q)))

@@ -39,7 +39,7 @@ from ..errors import ConfigError
 from ..sheet import fibers as fb
 from . import objectives as obj
 from .adjoint import RestProblem, rest_problem, roll_sensitivity, solve_rest  # noqa: F401  (the stage's API)
-from .fibre_field import PolarBSpline
+from ..sheet.fibre_field import PolarBSpline
 
 SAMPLERS = ("nsga2", "tpe")
 OBJECTIVES = ("roll", "other_min")  # both maximised

@@ -331,7 +331,7 @@ class OrientFile:
         fs, rec = self.fiber_settings, self.fibre_field
         if rec is None:
             return spiral_fibers(points, mirrored=mirrored, **fs)
-        from ..design.fibre_field import PolarBSpline, field_at
+        from ..sheet.fibre_field import PolarBSpline, field_at
 
         basis = PolarBSpline(n_radial=int(rec["n_radial"]), n_angular=int(rec["n_angular"]),
                              degree=int(rec["degree"]), r_max=float(rec["r_max"]), symmetric=bool(rec["symmetric"]))

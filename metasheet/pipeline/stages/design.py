@@ -55,7 +55,7 @@ from ... import paper
 from ...design import evaluation as ev
 from ...design import outputs as out
 from ...design import search as ds
-from ...design.fibre_field import PolarBSpline
+from ...sheet.fibre_field import PolarBSpline
 from ...design.optimise import StrainSettings, free_form, reach_at_limit, strain_front
 from ...design.optimise import basis_dict as _basis_dict
 from ...design.printability import check_settings

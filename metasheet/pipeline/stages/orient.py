@@ -12,7 +12,7 @@ study stages take: rod, servos, sheet mass, gravity) and
 
 ``fibre_field`` (optional) adds a free-form correction to the spiral: sheet A's fibre angle is
 ``theta = theta_spiral + sum_j c_j N_j(x)`` on a polar B-spline
-(:mod:`metasheet.design.fibre_field`), sheet B's its mirror ``-theta``, computed by the
+(:mod:`metasheet.sheet.fibre_field`), sheet B's its mirror ``-theta``, computed by the
 functions the design stage evaluates a design with, so the design stage's ``chosen.toml``
 builds the chosen design's sheets with the bytes its evaluation had. ``sheet.json``'s
 ``fibers`` then records it as ``fibre_field``.
@@ -73,7 +73,7 @@ _SCENE = " None: the scene's"
 class FibreFieldParams(Params):
     """``[orient] fibre_field``: a free-form correction of the spiral's fibre angle,
     ``theta = theta_spiral + sum_j c_j N_j(x)`` on sheet A (sheet B: the mirror), the basis
-    :class:`metasheet.design.fibre_field.PolarBSpline`; the design stage writes it into
+    :class:`metasheet.sheet.fibre_field.PolarBSpline`; the design stage writes it into
     ``design/chosen.toml``."""
 
     basis: Literal["polar_bspline"] = Field("polar_bspline", description="the basis: a tensor B-spline in "
@@ -101,9 +101,9 @@ class FibreFieldParams(Params):
         return self
 
     def spline(self, r_max: float):
-        """The :class:`~metasheet.design.fibre_field.PolarBSpline`, of outer radius ``self.r_max``
+        """The :class:`~metasheet.sheet.fibre_field.PolarBSpline`, of outer radius ``self.r_max``
         or else ``r_max`` [mm]."""
-        from ...design.fibre_field import PolarBSpline
+        from ...sheet.fibre_field import PolarBSpline
 
         return PolarBSpline(n_radial=self.n_radial, n_angular=self.n_angular, degree=self.degree,
                             r_max=float(self.r_max if self.r_max is not None else r_max), symmetric=self.symmetric)
@@ -234,7 +234,7 @@ def fibre_field_record(p: OrientParams, r_max: float) -> dict | None:
     coefficients [rad], as the ``[orient] fibre_field`` key takes them; None without one."""
     if p.fibre_field is None:
         return None
-    from ...design.fibre_field import basis_record
+    from ...sheet.fibre_field import basis_record
 
     return {**basis_record(p.fibre_field.spline(r_max)), "coefficients": list(p.fibre_field.coefficients)}
 
@@ -252,7 +252,7 @@ def _fibres(p: OrientParams, normal: geo.SheetMesh, mirrored: geo.SheetMesh, fs:
     fib_m = fb.spiral_fibers(mirrored.centroids(), mirrored=True, **fs)
     if p.fibre_field is None:
         return fib, fib_m, lambda q, m: fb.spiral_fibers(q, mirrored=m, **fs)
-    from ...design import fibre_field as ff
+    from ...sheet import fibre_field as ff
 
     basis, c = p.fibre_field.spline(sheet_radius(normal)), np.asarray(p.fibre_field.coefficients, float)
     fib, fib_m = ff.field_on_sheet(normal.centroids(), fib, basis, c)

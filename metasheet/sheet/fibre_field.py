@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from ..sheet.fibers import MIRROR
+from .fibers import MIRROR
 
 
 @dataclass(frozen=True)
