@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from homogenize_samples import cubic_lattice, edge_foam
 
 from metasheet.errors import ConfigError
-from metasheet.fem import solvers
+from metasheet.homogenize.voxel_correctors import solve_voxel_correctors
 from metasheet.fem.voxel import periodic_stiffness
 from metasheet.fem.voxel.blocks import csr_apply
 from metasheet.fem.voxel.device import (
@@ -206,7 +206,7 @@ def test_without_a_gpu_the_gpu_path_says_so():
     with pytest.raises(ConfigError, match="voxel-gpu.*CuPy"):
         periodic_stiffness_device(ph, UNIT, {1: TPU})
     with pytest.raises(ConfigError, match="voxel-gpu.*CuPy"):
-        solvers.solve_voxel_correctors(ph, UNIT, {1: TPU}, solver="voxel-gpu")
+        solve_voxel_correctors(ph, UNIT, {1: TPU}, solver="voxel-gpu")
 
 
 def test_bad_backend_and_tolerance_are_refused():

@@ -15,6 +15,7 @@ from homogenize_samples import cubic_lattice, edge_foam, laminate
 
 from metasheet.errors import ConfigError
 from metasheet.fem import solvers
+from metasheet.homogenize.voxel_correctors import solve_voxel_correctors
 from metasheet.fem.voxel import periodic_stiffness
 from metasheet.homogenize import homogenize_voxels
 from metasheet.homogenize.percolation import percolating_solid
@@ -151,13 +152,13 @@ def test_same_bits_twice():
 
 def test_solver_layer_names_voxel():
     ph = _percolating(edge_foam(10, 0.3, seeds=4))
-    _C, _C_raw, U, report = solvers.solve_voxel_correctors(ph, (1.0, 1.0, 1.0), {1: TPU.stiffness()})
+    _C, _C_raw, U, report = solve_voxel_correctors(ph, (1.0, 1.0, 1.0), {1: TPU.stiffness()})
     assert report.solver == "voxel" and len(report.iterations) == 6 and U.shape == (3 * ph.size, 6)
     assert "voxel" in solvers.HOMOGENIZE_SOLVERS and "voxel" not in solvers.SPD_SOLVERS
     with pytest.raises(ConfigError, match="solver: 'voxel': matrix-free"):
         solvers.choose_solver("voxel", 100)
     with pytest.raises(ConfigError, match="solver: 'amg': allowed values are voxel"):
-        solvers.solve_voxel_correctors(ph, (1.0, 1.0, 1.0), {1: TPU.stiffness()}, solver="amg")
+        solve_voxel_correctors(ph, (1.0, 1.0, 1.0), {1: TPU.stiffness()}, solver="amg")
 
 
 @pytest.mark.parametrize("kwargs, match", [

@@ -161,7 +161,7 @@ def test_hierarchy_levels_shrink_to_the_direct_limit():
 
 def test_solve_voxel_correctors_passes_the_coarsening():
     from metasheet.errors import ConfigError
-    from metasheet.fem.solvers import solve_voxel_correctors
+    from metasheet.homogenize.voxel_correctors import solve_voxel_correctors
 
     ph = _percolating(edge_foam(12, 0.25, seeds=6, rng_seed=0))
     C_split, _, _, rep_split = solve_voxel_correctors(ph, UNIT, {1: TPU.stiffness()}, rtol=1e-10)

@@ -9,7 +9,8 @@ Names, everywhere (reports, settings, statistics):
 - ``"superlu"``: scipy's SuperLU (always there).
 - ``"amg-cg"``: smoothed-aggregation AMG (pyamg) preconditioning CG, SPD only (:mod:`.amg`).
 - ``"voxel"``: matrix-free geometric-multigrid CG on the voxel grid itself (:mod:`.voxel`), for the
-  periodic homogenisation of voxel cells only (:func:`solve_voxel_correctors`); named, never "auto".
+  periodic homogenisation of voxel cells only
+  (:func:`metasheet.homogenize.voxel_correctors.solve_voxel_correctors`); named, never "auto".
 
 The direct back-ends are the entries of :data:`BACKENDS`, best first, each probed once at
 import (:func:`available`); adding one (e.g. PARDISO through pypardiso) is one more entry.
@@ -236,14 +237,8 @@ HAVE_CHOLMOD = available("cholmod")
 #: What :func:`solve_spd` accepts: a policy, or one back-end by name (benchmarks, comparisons).
 SPD_SOLVERS = ("auto", "direct", "amg", *BACKENDS)
 #: Matrix-free solvers of voxel grids (:mod:`metasheet.fem.voxel`): they never see an assembled
-#: matrix, so they are chosen before assembly (:func:`solve_voxel_correctors`).
+#: matrix, so they are chosen before assembly (:func:`metasheet.homogenize.voxel_correctors.solve_voxel_correctors`).
 GRID_SOLVERS = ("voxel", "voxel-gpu")
-#: "auto" homogenises a voxel cell matrix-free from this many unknowns (3 per grid node the
-#: solid touches). Measured against PARDISO in the same run (docs/voxel.md, benchmarks/results/
-#: bench_voxel_solver.md): a tie at 67k unknowns, 0.55 of its time at 154k, 0.36-0.52 at 754k
-#: (the paper's cell), with 0.15-0.5 of its memory; PARDISO's fill grows as n^(4/3) and no
-#: longer fits 24 GB at a few million.
-VOXEL_AUTO_DOFS = 150_000
 #: What the voxel homogenisation accepts: the SPD solvers and the grid solvers.
 HOMOGENIZE_SOLVERS = (*SPD_SOLVERS, *GRID_SOLVERS)
 
@@ -301,7 +296,7 @@ def choose_solver(solver: str, n_dof: int, free_gb: float | None = None) -> str:
     and a system size; ``free_gb``: the memory to plan with (default: what is available now)."""
     if solver in GRID_SOLVERS:
         raise ConfigError(f"solver: {solver!r}: matrix-free on a voxel grid, not for an assembled matrix "
-                          f"(use solve_voxel_correctors); allowed here: {', '.join(SPD_SOLVERS)}")
+                          f"(a voxel cell's homogenisation takes them); allowed here: {', '.join(SPD_SOLVERS)}")
     if solver not in SPD_SOLVERS:
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(SPD_SOLVERS)}")
     if solver == "amg":
@@ -365,40 +360,3 @@ def solve_spd(A: sp.spmatrix, B: np.ndarray, *, solver: str = "auto", rtol: floa
             history=res.tolist(),
         )
     return X, report
-
-
-def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solver: str = "voxel",
-                           rtol: float = 1e-8, maxiter: int = 500, coarsening: str = "split"):
-    """The six periodic corrector problems of a voxel cell, matrix-free (:mod:`metasheet.fem.voxel`).
-
-    Parameters
-    ----------
-    phases : (nx, ny, nz) int, 0 = void, k > 0 = phase k; the percolating solid only.
-    size : (3,) float [mm]; stiffnesses : dict phase -> (6, 6) Voigt stiffness [MPa].
-    solver : a name in :data:`GRID_SOLVERS`: "voxel" (CPU) or "voxel-gpu" (the same split multigrid CG
-        on a CUDA GPU through CuPy, :mod:`metasheet.fem.voxel.device_solve`; a ConfigError when CuPy or
-        the GPU is missing; never chosen by "auto"); rtol : relative residual per load case.
-    coarsening : the multigrid's coarse spaces, "split" (default) or "trilinear"
-        (:func:`metasheet.fem.voxel.periodic_stiffness`; a ConfigError names the allowed values).
-
-    Returns
-    -------
-    C (6, 6) [MPa], C_raw (6, 6) [MPa], U (nx ny nz * 3, 6) corrector displacements on every
-    grid node (flat dof ``3 ((i ny + j) nz + k) + c``, zero on nodes without solid), and the
-    :class:`SolveReport` (solver "voxel", CG iterations per load case).
-    """
-    if solver not in GRID_SOLVERS:
-        raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(GRID_SOLVERS)}")
-    # imported here: its numba kernels are compiled (or loaded from cache) on first use only
-    if solver == "voxel-gpu":
-        from .voxel.device_solve import periodic_stiffness_device
-
-        if coarsening != "split":
-            raise ConfigError(f"coarsening: {coarsening!r}: solver 'voxel-gpu' runs the split hierarchy only")
-        r = periodic_stiffness_device(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter)
-    else:
-        from .voxel import periodic_stiffness
-
-        r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter, coarsening=coarsening)
-    report = SolveReport(solver, r.iterations, r.residuals, r.setup_seconds, r.solve_seconds, r.n_dof)
-    return r.C, r.C_raw, r.U.reshape(-1, 6), report

@@ -21,13 +21,14 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..fem.assembly import SparsityPattern, element_dofs
-from ..fem.solvers import GRID_SOLVERS, VOXEL_AUTO_DOFS, solve_voxel_correctors
+from ..fem.solvers import GRID_SOLVERS
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices
 from ..fem.voxel.element import check_phases
 from .corrector import check_and_fit, material_stiffness, solve_correctors, symmetry_error
 from .localisation import localisation
 from .percolation import percolating_solid
 from .result import LOAD_CASES, HomogenizationResult, LoadCase
+from .voxel_correctors import VOXEL_AUTO_DOFS, solve_voxel_correctors
 
 
 def _validate(phases, size, materials, rtol):
@@ -70,8 +71,8 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     materials : dict phase -> :class:`~metasheet.material.Isotropic` or
         :class:`~metasheet.material.TransverseIsotropic` (its axis 3 = global z).
     solver : "auto", "direct" or "amg" (:func:`metasheet.fem.solvers.solve_spd`), or "voxel"
-        (matrix-free multigrid CG, :func:`metasheet.fem.solvers.solve_voxel_correctors`);
-        "auto" takes "voxel" from :data:`~metasheet.fem.solvers.VOXEL_AUTO_DOFS` unknowns.
+        (matrix-free multigrid CG, :func:`metasheet.homogenize.voxel_correctors.solve_voxel_correctors`);
+        "auto" takes "voxel" from :data:`~metasheet.homogenize.voxel_correctors.VOXEL_AUTO_DOFS` unknowns.
     rtol : relative residual asked of the linear solver; ``C`` is computed in energy
         form, so its relative error is of the order of rtol squared times the condition.
     axis : (3,) the transverse-isotropic fit's axis, or None to search the best one.
