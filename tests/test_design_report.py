@@ -1,12 +1,12 @@
-"""The report's design section (metasheet.studies.design_report) on a hand-made comparison:
+"""The report's design section (metasheet.report.design) on a hand-made comparison:
 its verdict against issue 45's targets, computed from the numbers."""
 
 import metasheet  # noqa: F401  (pins numpy's code paths before numpy is imported)
 
 # isort: split
 from metasheet.design.evaluation import comparison
-from metasheet.studies.design_report import design_section, targets
-from metasheet.studies.report import build_report
+from metasheet.report.design import design_section, targets
+from metasheet.report.build import build_report
 
 
 def _eval(roll, sv, strain):

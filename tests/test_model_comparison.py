@@ -15,8 +15,8 @@ from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import anisotropy
 from metasheet.pipeline.stages import robot as robot_stage
 from metasheet.studies.grid import star_grid
-from metasheet.studies.model_report import model_section
-from metasheet.studies.report import build_report
+from metasheet.report.model import model_section
+from metasheet.report.build import build_report
 from metasheet.studies.standin import StandInSpec
 from metasheet.studies.workspace import (
     ROTATION_TESTS,

@@ -40,7 +40,7 @@ def test_no_witness_for_a_range_that_excludes_rest():
 
 
 def test_ranges_verdict_needs_nested_and_strictly_smaller():
-    from metasheet.studies.columns_report import _ranges
+    from metasheet.report.columns import _ranges
 
     deg = [[0, 90], [10, 80], [20, 70]]
     ok = {"reachable": {"0-90": 317, "10-80": 119, "20-70": 74}, "nested": True, "ranges_deg": deg,
@@ -56,7 +56,7 @@ def test_ranges_verdict_needs_nested_and_strictly_smaller():
 
 
 def test_report_says_which_points_came_from_a_narrower_path():
-    from metasheet.studies.report import build_report
+    from metasheet.report.build import build_report
 
     ranges = {"reachable": {"0-90": 317, "10-80": 119, "20-70": 74}, "nested": True, "violations": [],
               "via_narrower": {"0-90": 4, "10-80": 14, "20-70": 0}, "model": "robot"}
@@ -68,7 +68,7 @@ def test_report_says_which_points_came_from_a_narrower_path():
 
 
 def test_report_says_when_the_stroke_does_not_bound_the_workspace():
-    from metasheet.studies.report import build_report
+    from metasheet.report.build import build_report
 
     base = {"ranges_deg": [[0, 90], [10, 80], [20, 70]], "nested": True, "violations": [], "model": "robot",
             "strain_limit": 0.3, "stop_beyond_strain": True}

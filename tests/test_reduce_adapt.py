@@ -21,7 +21,7 @@ from metasheet.errors import ConfigError
 from metasheet.rom.adapt import (STOP_REASONS, Budget, Settings, chosen, miss_ratio, missed, next_round, out_of_time,
                                  round_record, shortfall, shortfall_text)
 from metasheet.rom.certificate import TARGETS
-from metasheet.studies.reduce_report import reduce_section
+from metasheet.report.reduce import reduce_section
 
 BUDGET = Budget(rounds=3, max_snapshots=100, growth=2.0, max_elements=500)
 FIRST = Settings(snapshots=24, tangent_tol=0.02, fit_tol_mm=0.02, fit_jacobian_tol=0.01)

@@ -1,8 +1,8 @@
 """The report's section on the reduced model: the certificate's numbers as reduce.json has them."""
 
 from metasheet.rom.certificate import Comparison, summarize
-from metasheet.studies.report import build_report
-from metasheet.studies.reduce_report import reduce_section
+from metasheet.report.build import build_report
+from metasheet.report.reduce import reduce_section
 
 
 def _reduce_json(rows, limit=0.3):

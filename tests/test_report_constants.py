@@ -5,7 +5,7 @@ import pytest
 
 from metasheet.literature import E_S, authors_constants, authors_table
 from metasheet.paper import PAPER_FOAM
-from metasheet.studies.constants_report import constants_section
+from metasheet.report.constants import constants_section
 
 
 def test_the_published_constants_are_the_authors_table_at_15_percent():

@@ -13,7 +13,7 @@ from metasheet.pipeline import manifest as mf
 from metasheet.pipeline.config import load_pipeline, siblings
 from metasheet.pipeline.runner import run_pipeline
 from metasheet.robot.convergence import FIT_LEVELS, Level, LevelResult, convergence_summary, family
-from metasheet.studies.report import build_report
+from metasheet.report.build import build_report
 
 ROOT = Path(__file__).resolve().parents[1]
 

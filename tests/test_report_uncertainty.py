@@ -6,7 +6,7 @@ import pytest
 
 from metasheet.paper import PAPER_FOAM
 from metasheet.sheet.consistency import against_uncertainty
-from metasheet.studies.uncertainty_report import print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
+from metasheet.report.uncertainty import print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
 
 P = PAPER_FOAM.to_dict()
 

@@ -386,7 +386,7 @@ def test_the_surface_box_must_lie_in_the_training_box():
 
 
 def test_report_lists_points_the_full_model_misses():
-    from metasheet.studies.report import build_report
+    from metasheet.report.build import build_report
 
     cert = {"reachable": 40, "requested": 10, "seed": 0, "certified": 10, "disagree": 1, "rate": 0.1,
             "points": [{"point": 7, "goal": [0] * 6, "motors_deg": [60] * 6, "reduced_error_mm": 0.9,

@@ -276,7 +276,7 @@ def test_bad_study_params_name_the_field(tmp_path):
 
 
 def test_report_lists_differences_from_the_numbers():
-    from metasheet.studies.report import build_report
+    from metasheet.report.build import build_report
 
     ranges = {"reachable": {"0-90": 10, "20-70": 12}, "nested": False,
               "violations": [{"wide": "0-90", "narrow": "20-70", "points": 2}], "model": "robot"}

@@ -239,7 +239,7 @@ def test_rest_rotations_are_the_papers_test_at_rest(cols_run):
 
 
 def test_scene_facts_section_judges_each_fact_from_the_numbers():
-    from metasheet.studies.columns_report import scene_facts_section
+    from metasheet.report.columns import scene_facts_section
 
     scene = {"name": "authors", "values": {"angle_min": 0.0, "angle_max": 90.0}}
     robot = {"rest_angles_deg": [73.3] * 6}
@@ -274,7 +274,7 @@ def test_near_rest_control_counts_the_reachable_points_within_the_radius():
     ({"x": True, "y": False, "z": True}, 62, "not reproduced"),  # the rest pose itself fails one axis
 ])
 def test_the_fig5_verdict_needs_the_rest_pose_and_most_points_near_it(rest_ok, full, verdict):
-    from metasheet.studies.columns_report import columns_section
+    from metasheet.report.columns import columns_section
 
     ws = {"counts": {"3 rotations": 47}, "reachable": 609, "rest_rotations": {"ok": rest_ok},
           "near_rest": {"radius_mm": 3.0, "reachable": 62, "full_control": full, "share": full / 62}}

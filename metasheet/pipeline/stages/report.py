@@ -20,7 +20,7 @@ from pathlib import Path
 
 from pydantic import Field, field_validator
 
-from ...studies.report import build_report
+from ...report.build import build_report
 from ..artefacts import read_cell_design, read_cell_info, read_chart, read_constants, read_material, read_summary
 from ..config import check_run_name
 from ..manifest import read_manifest

@@ -10,15 +10,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..material import CONSTANT_NAMES
-from .columns_report import columns_section, scene_facts_section
-from .constants_report import constants_section
-from .convergence_report import HEADING as CONVERGENCE_HEADING, convergence_section
-from .design_report import design_section
-from .model_report import model_section
-from .reduce_report import reduce_section
-from .sheet_report import sheet_dns_section
-from .siblings_report import missing_lines, source_lines
-from .uncertainty_report import SIZE_HEADING, print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
+from .columns import columns_section, scene_facts_section
+from .constants import constants_section
+from .convergence import HEADING as CONVERGENCE_HEADING, convergence_section
+from .design import design_section
+from .model import model_section
+from .reduce import reduce_section
+from .sheet import sheet_dns_section
+from .siblings import missing_lines, source_lines
+from .uncertainty import SIZE_HEADING, print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
 
 
 def _maze_strain_rows(z: dict) -> list:
