@@ -1,4 +1,4 @@
-"""The package's import graph has no circles (issue 40).
+"""The package's import graph has no circles (issue 40), and its packages import only downwards (issue 61).
 
 A circle (module A imports B and B imports A, directly or through others) makes the import
 order matter and hides which module is the lower one. The graph is read from the source with
@@ -150,3 +150,49 @@ def test_no_two_modules_import_each_other(package_graph):
 
 def test_no_circle_at_all(package_graph):
     assert circles(package_graph) == []
+
+
+#: The allowed order between metasheet's packages and root modules, lowest first: a module may
+#: import from its own layer and the layers below it, never from above (issue 61). A new
+#: package or root module must be placed here.
+LAYERS = (
+    ("errors", "conventions", "version", "cpu", "provenance", "npz", "numba_cache", "gmsh_start", "stop_signals",
+     "rotations", "voigt"),                                           # the basics
+    ("material", "material_model", "paper", "literature"),            # materials and reference data
+    ("fem", "executor", "priority_pool", "cells"),                    # elements and solvers, work units, cells
+    ("homogenize", "sheet"),                                          # homogenisation, the sheet
+    ("robot", "viz"),                                                 # the robot FEM, the pictures
+    ("rom", "design"),                                                # the reduced robot, the sheet's design
+    ("studies", "report"),                                            # the paper's studies, the report
+    ("pipeline", "supervise"),                                        # stages, files, the watched run
+    ("api", "serve", "goto", "cli_output", "cli_files"),              # what users call
+    ("cli", "__main__", "(root)"),                                    # the command, the top level
+)
+
+
+def package_of(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "(root)"
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """The edges ``(a, b)`` of ``graph`` whose target lies in a higher layer than its source;
+    ValueError naming the packages :data:`LAYERS` does not place."""
+    layer = {name: i for i, names in enumerate(LAYERS) for name in names}
+    unplaced = sorted({package_of(m) for m in graph} - set(layer))
+    if unplaced:
+        raise ValueError(f"place these in LAYERS: {unplaced}")
+    return sorted((a, b) for a, bs in graph.items() for b in bs if layer[package_of(b)] > layer[package_of(a)])
+
+
+def test_every_import_goes_down_the_layers(package_graph):
+    up = upward_imports(package_graph)
+    assert up == [], "imports that go up the layers:\n" + "\n".join(f"{a} -> {b}" for a, b in up)
+
+
+def test_the_layer_check_sees_an_upward_import_and_an_unplaced_package():
+    graph = {"metasheet.robot.statics": {"metasheet.pipeline.runner", "metasheet.fem.tet4"},
+             "metasheet.pipeline.runner": {"metasheet.robot.statics"}, "metasheet.fem.tet4": set()}
+    assert upward_imports(graph) == [("metasheet.robot.statics", "metasheet.pipeline.runner")]
+    with pytest.raises(ValueError, match=r"place these in LAYERS: \['newpkg'\]"):
+        upward_imports({**graph, "metasheet.newpkg.x": set()})
