@@ -43,6 +43,7 @@ from .pipeline.config import MAX_WORKERS
 from .cli_files import FILE_COMMANDS
 from .cli_output import console, docs, say, stdout, table
 from .stop_signals import Stopped, exit_now, stop_on_signals
+from . import supervise
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
 # panels that wrap long messages); pretty_exceptions off: a bug prints a plain traceback.
@@ -384,6 +385,7 @@ def main(argv: list[str] | None = None) -> None:
         with stop_on_signals():
             app(args=args, prog_name="metasheet")
     except Stopped as stop:
+        supervise.said()  # exit_now skips atexit: tell a supervising parent the stop was said
         exit_now(stop.code, lambda text: say(text, prefix="interrupted: "))
     except MetasheetError as err:
         if _STATE["debug"]:

@@ -11,15 +11,18 @@ child process that this one waits for. The parent imports nothing heavy, forward
 signals (SIGINT, SIGTERM, SIGHUP: the child unwinds as it always did) and exits with the child's
 code. The child dies with it (``PR_SET_PDEATHSIG``: a SIGKILLed parent gives the child a
 SIGTERM, which it unwinds). When the child ends without having said why (killed by a signal it
-did not handle, or an exit code metasheet never uses), the parent says so in a sentence naming
+did not handle, or an exit the interpreter did not make: a native library's ``exit``, whatever its
+code, e.g. MKL's fatal error), the parent says so in a sentence naming
 the signal or code and the stages under way, and removes what the child left: its temporary
 folders (putting back previous outputs cut mid-swap, :func:`~.pipeline.debris.remove_debris_of`)
 and the lock's side file when it names the child. The child tells the parent where its output
-folder is (:func:`tell`) through the file named in :data:`ENV`.
+folder is (:func:`tell`) through the file named in :data:`ENV`, and that it ended saying why
+(:func:`said`: Python's ``atexit``, which a native ``exit`` skips, and the stop-signal exit).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import json
 import os
@@ -32,10 +35,6 @@ from pathlib import Path
 #: ``"<parent pid>:<note file>"`` in a supervised child's environment.
 ENV = "METASHEET_SUPERVISOR"
 
-#: Exit codes ``metasheet run`` ends with after saying why (success, an ``error:`` line, the
-#: output folder locked; 128 + a stop signal is said too). 1 is not among them: it is Python's
-#: own exit on an uncaught exception (a bug: a traceback) and a native library's fatal exit.
-SAID_CODES = frozenset({0, 2, 3})
 
 #: What a signal that Python does not handle usually means here.
 CAUSES = {
@@ -71,7 +70,10 @@ def _parent_note() -> Path | None:
 
 
 def become_child() -> None:
-    """In a supervised child: die with the parent (SIGTERM, which :mod:`.stop_signals` unwinds)."""
+    """In a supervised child: die with the parent (SIGTERM, which :mod:`.stop_signals` unwinds),
+    and mark the note :func:`said` when the interpreter ends the process."""
+    if _parent_note() is not None:
+        atexit.register(said)
     value = os.environ.get(ENV, "")
     pid = value.partition(":")[0]
     if not pid.isdigit() or not sys.platform.startswith("linux"):
@@ -86,12 +88,23 @@ def become_child() -> None:
 
 def tell(out_root: Path, name: str) -> None:
     """Tell a supervising parent (if any) the run's output root and pipeline name."""
+    _write_note(out_root=str(Path(out_root).resolve()), name=name)
+
+
+def said() -> None:
+    """Tell a supervising parent (if any) that this process ends having said why (its exit is
+    Python's: a result, an ``error:`` line, a traceback, "stopped by")."""
+    _write_note(said=True)
+
+
+def _write_note(**fields) -> None:
     note = _parent_note()
     if note is None:
         return
-    with contextlib.suppress(OSError):
+    with contextlib.suppress(OSError, ValueError):
+        known = json.loads(note.read_text() or "{}") if note.is_file() else {}
         tmp = note.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"out_root": str(Path(out_root).resolve()), "name": name}))
+        tmp.write_text(json.dumps({**known, **fields}))
         os.replace(tmp, note)
 
 
@@ -122,9 +135,9 @@ def supervise(args: list[str], command: list[str] | None = None) -> int:
 
 def _after(code: int, pid: int, note: Path) -> int:
     """Clean what child ``pid`` left and say why it ended when it did not; the code to exit with."""
-    said = code in SAID_CODES or code - 128 in _stop_signals()
-    left = _clean(note, pid)
-    if said:
+    told = _read_note(note)
+    left = _clean(told, pid)
+    if told.get("said") or code == 0:
         return code
     if code < 0:
         name = signal.Signals(-code).name
@@ -132,12 +145,9 @@ def _after(code: int, pid: int, note: Path) -> int:
                  else CAUSES.get(name, "a native library ended it"))
         why = f"the run's process (pid {pid}) died of {name}: {cause}"
         code = 128 - code
-    elif code == 1:
-        why = (f"the run's process (pid {pid}) ended with exit code 1: an error metasheet did not expect (a "
-               "traceback above is a bug: please report it) or a native library's fatal error")
     else:
-        why = (f"the run's process (pid {pid}) ended with exit code {code} without a message (a native "
-               "library's fatal error)")
+        why = (f"the run's process (pid {pid}) ended with exit code {code} without a message: a native "
+               "library's fatal error (MKL's, for one, exits with 1 to 3)")
     if left["stages"]:
         why += f"; stage(s) under way: {', '.join(left['stages'])}"
     if left["removed"]:
@@ -147,13 +157,20 @@ def _after(code: int, pid: int, note: Path) -> int:
     return code
 
 
-def _clean(note: Path, pid: int) -> dict:
+def _read_note(note: Path) -> dict:
+    try:
+        told = json.loads(note.read_text() or "{}")
+    except (OSError, ValueError):
+        return {}
+    return told if isinstance(told, dict) else {}
+
+
+def _clean(told: dict, pid: int) -> dict:
     """Remove child ``pid``'s temporary folders and lock side file under the output folder it
     told (:func:`tell`); the stages it had under way and the names removed."""
     try:
-        told = json.loads(note.read_text())
         out_root, name = Path(told["out_root"]), str(told["name"])
-    except (OSError, ValueError, KeyError, TypeError):
+    except (KeyError, TypeError):
         return {"stages": [], "removed": []}
     from .pipeline.debris import DEBRIS, remove_debris_of
     from .pipeline.lock import lock_paths, read_holder

@@ -41,7 +41,7 @@ CHILD = textwrap.dedent('''
     if how == "segv":
         os.kill(pid, signal.SIGSEGV)
     elif how.startswith("exit"):
-        os._exit(int(how[4:]))                       # 34: a code metasheet never uses; 1: Python's own
+        os._exit(int(how[4:]))                       # a native exit: Python's atexit does not run
     elif how == "said":
         sys.exit(2)
     else:                                            # wait to be stopped
@@ -77,8 +77,11 @@ def test_a_child_killed_by_a_native_crash_ends_in_a_sentence_and_leaves_nothing(
 
 
 @pytest.mark.parametrize(("code", "words"), [(34, "exit code 34 without a message"),
-                                              (1, "exit code 1: an error metasheet did not expect")])
-def test_an_exit_code_run_never_uses_is_named(tmp_path, code, words):
+                                              (1, "exit code 1 without a message"),
+                                              (2, "exit code 2 without a message: a native library's fatal")])
+def test_an_exit_the_interpreter_did_not_make_is_named(tmp_path, code, words):
+    """A native ``exit`` (here ``os._exit``, which skips Python's ``atexit`` as C's ``exit`` does)
+    is named whatever its code: MKL's fatal error exits with 2, a code metasheet uses too."""
     r = run_supervised(tmp_path, f"exit{code}")
     assert r.returncode == code
     assert r.stderr.startswith("error: ") and words in r.stderr
@@ -86,8 +89,8 @@ def test_an_exit_code_run_never_uses_is_named(tmp_path, code, words):
 
 
 def test_a_child_that_said_why_is_not_talked_over(tmp_path):
-    r = run_supervised(tmp_path, "said")
-    assert r.returncode == 2 and r.stderr == ""  # the child's own error line is the message
+    r = run_supervised(tmp_path, "said")  # sys.exit(2) after its own message: Python's exit
+    assert r.returncode == 2 and r.stderr == ""
     assert left(tmp_path / "out") == ["q", "q/orient", "q/orient/sheets.msh", "ready"]
 
 
