@@ -71,18 +71,18 @@ def _parent_note() -> Path | None:
 
 def become_child() -> None:
     """In a supervised child: die with the parent (SIGTERM, which :mod:`.stop_signals` unwinds),
-    and mark the note :func:`said` when the interpreter ends the process."""
-    if _parent_note() is not None:
-        atexit.register(said)
-    value = os.environ.get(ENV, "")
-    pid = value.partition(":")[0]
-    if not pid.isdigit() or not sys.platform.startswith("linux"):
+    and mark the note :func:`said` when the interpreter ends the process. Nothing in any other
+    process (a variable inherited from elsewhere names another parent)."""
+    if _parent_note() is None:
+        return
+    atexit.register(said)
+    if not sys.platform.startswith("linux"):
         return
     with contextlib.suppress(OSError, AttributeError):
         import ctypes
 
         ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
-    if os.getppid() != int(pid):  # the parent died before the prctl took effect
+    if _parent_note() is None:  # the parent died before the prctl took effect
         os.kill(os.getpid(), signal.SIGTERM)
 
 

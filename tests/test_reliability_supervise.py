@@ -159,3 +159,14 @@ def test_the_next_run_puts_back_a_swap_a_dead_process_cut(tmp_path):
     assert sorted(p.name for p in base.iterdir()) == ["material", "orient"]
     assert (base / "orient" / "sheets.msh").read_text() == "the previous outputs"
     assert any(n.startswith(f"put back {base / 'orient'}") for n in notes)
+
+
+def test_a_variable_naming_another_parent_changes_nothing(tmp_path):
+    """A stale ``METASHEET_SUPERVISOR`` (inherited from elsewhere) neither stops the process nor
+    marks a note: ``become_child`` acts only under the parent the variable names."""
+    note = tmp_path / "note.json"
+    code = "from metasheet import supervise; supervise.become_child(); print('alive')"
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **{supervise.ENV: f"1:{note}"})  # pid 1 is not the parent
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == "alive", r.stderr
+    assert not note.exists()
