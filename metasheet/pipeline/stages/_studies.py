@@ -258,8 +258,6 @@ def scene_of(ctx: StageContext) -> RobotScene:
     return DEFAULT_SCENE
 
 
-
-
 def unit_cache(ctx: StageContext) -> UnitCache:
     """Per-unit results in ``<pipeline outputs>/.<stage>.units`` (``.<stage>-<column>.units`` for
     a second column; outside the temporary workdir, so they survive an interrupted run);
