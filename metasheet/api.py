@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError, OutputError
-from .pipeline.config import Pipeline, load_pipeline
+from .pipeline.config import MAX_WORKERS, Pipeline, load_pipeline
 from .pipeline.manifest import write_bytes_atomic
 from .pipeline.runner import StageOutcome, run_pipeline
 
@@ -66,8 +66,8 @@ def run(pipeline: Pipeline | str | Path | Mapping, *, out: str | Path | None = N
         raise ConfigError("overrides: give them with the pipeline's file or mapping, not a loaded Pipeline")
     executor = None
     if workers is not None:
-        if not 1 <= int(workers) <= 256:
-            raise ConfigError(f"workers: {workers!r}: allowed 1 to 256")
+        if not 1 <= int(workers) <= MAX_WORKERS:
+            raise ConfigError(f"workers: {workers!r}: allowed 1 to {MAX_WORKERS}")
         executor = Executor(int(workers), pipeline.section.scheduler)
     out_root = Path(out) if out is not None else pipeline.root / "outputs"
     kw = {"report": progress} if progress is not None else {}

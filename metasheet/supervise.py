@@ -32,6 +32,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .stop_signals import STOP_SIGNALS
+
 #: ``"<parent pid>:<note file>"`` in a supervised child's environment.
 ENV = "METASHEET_SUPERVISOR"
 
@@ -45,10 +47,6 @@ CAUSES = {
     "SIGBUS": "a native library crashed (a memory-mapped file or the disk failing)",
     "SIGABRT": "a native library aborted (often memory running out)",
 }
-
-
-def _stop_signals() -> tuple[int, ...]:
-    return tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
 
 
 def wanted(args: list[str]) -> bool:
@@ -122,10 +120,10 @@ def supervise(args: list[str], command: list[str] | None = None) -> int:
             with contextlib.suppress(ProcessLookupError):
                 child.send_signal(signum)
 
-        for s in _stop_signals():
+        for s in STOP_SIGNALS:
             signal.signal(s, forward)
         code = child.wait()
-        for s in _stop_signals():
+        for s in STOP_SIGNALS:
             signal.signal(s, signal.SIG_IGN)  # the clean-up below is short: let it finish
         return _after(code, child.pid, note_path)
     finally:
@@ -141,7 +139,7 @@ def _after(code: int, pid: int, note: Path) -> int:
         return code
     if code < 0:
         name = signal.Signals(-code).name
-        cause = ("stopped before it could unwind" if -code in _stop_signals()
+        cause = ("stopped before it could unwind" if -code in STOP_SIGNALS
                  else CAUSES.get(name, "a native library ended it"))
         why = f"the run's process (pid {pid}) died of {name}: {cause}"
         code = 128 - code
