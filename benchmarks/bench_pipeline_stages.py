@@ -25,7 +25,7 @@ from _results import add_save_option, saved_output
 
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.staleness import upstream
-from metasheet.studies.columns import COLUMNS
+from metasheet.pipeline.column import COLUMNS
 
 
 def stage_rows(pipeline, base: Path) -> list[dict]:

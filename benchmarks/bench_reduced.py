@@ -67,7 +67,7 @@ def _from_pipeline(pipeline: str, out: str | None, column: str):
 
     from metasheet.rom.surface_robot import load_surface
     from metasheet.serve.loading import find_outputs, load_robot
-    from metasheet.studies.columns import column_folder
+    from metasheet.pipeline.column import column_folder
 
     outputs = find_outputs(pipeline, out)
     folder = column_folder(outputs.directory / "reduce", column, "reduce")

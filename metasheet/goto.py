@@ -49,16 +49,17 @@ def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full",
     stage's density and model); ``model`` "full" / "reduced". ``material_model``, when given,
     must be the material stage's (the robot, and a reduced basis, are built with that one).
     ``column`` "reproduction": the same mesh and scene with the published constants under the
-    authors' force field (:mod:`metasheet.studies.columns`)."""
+    authors' force field (:mod:`metasheet.pipeline.column`)."""
     from .errors import ConfigError
     from .material_model import check_model
     from .pipeline.artefacts import read_material
+    from .pipeline.column import column as column_of
     from .serve.loading import find_outputs, load_robot
 
     outputs = find_outputs(pipeline, out)
     robot, info = load_robot(outputs, model, "foam", column)
-    if material_model is not None and column == "reproduction":
-        raise ConfigError("--material-model: the reproduction column's model is the authors' force field; "
+    if material_model is not None and column_of(column, field="--column").fixes_material:
+        raise ConfigError(f"--material-model: the {column} column fixes its material model (the studies' reproduction_model); "
                           "drop --material-model")
     if material_model is not None:
         used = read_material(outputs.directory / "material").model
@@ -68,14 +69,13 @@ def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full",
     return robot, info
 
 
-#: ``robot goto``'s tolerances [mm], [deg] per column: the reproduction follows the paper's
-#: test (Section IV-B: +-10 deg "within 2 deg", the position within 1 mm).
-GOTO_TOLERANCES = {"prediction": (0.1, 0.2), "reproduction": (1.0, 2.0)}
-
-
 def goto_tolerances(column: str, tol_mm: float | None, tol_deg: float | None) -> tuple[float, float]:
-    """The position [mm] and rotation [deg] tolerances of a goto: those given, else the column's."""
-    mm, deg = GOTO_TOLERANCES.get(column, GOTO_TOLERANCES["prediction"])
+    """The position [mm] and rotation [deg] tolerances of a goto: those given, else the column's
+    (:class:`metasheet.pipeline.column.Column`; the reproduction's are the paper's test, Section
+    IV-B: +-10 deg "within 2 deg", the position within 1 mm)."""
+    from .pipeline.column import column as column_of
+
+    mm, deg = column_of(column, field="--column").tolerances
     return (mm if tol_mm is None else tol_mm), (deg if tol_deg is None else tol_deg)
 
 

@@ -104,3 +104,62 @@ def test_bad_column_is_named(outputs, capsys):
         from metasheet.goto import pipeline_robot
 
         pipeline_robot(toml, out, column="reproduction", material_model="ours")
+
+
+@pytest.mark.parametrize("col", ["prediction", "reproduction"])
+def test_a_columns_robot_is_the_same_for_the_studies_and_the_page(outputs, col):
+    """One builder (:func:`metasheet.pipeline.column.column_robot`): the study's picklable recipe
+    (the study stages' route, servos placed from the rest angle) and the page's robot (the robot
+    stage's recorded servo geometry) are the same robot, byte for byte: a basis trained on one
+    fits the other."""
+    from metasheet.pipeline.artefacts import read_material, read_orient, read_robot_scene
+    from metasheet.pipeline.column import column, column_robot
+    from metasheet.rom.coordinates import robot_key
+
+    toml, out = outputs
+    d = find_outputs(toml, out).directory
+    sc = read_robot_scene(d / "robot")
+    parts = column_robot(read_orient(d / "orient"), read_material(d / "material"), column(col), sc.sheet_mass_g)
+    study = parts.spec(rod_length=sc.rod_length, rest_angle=sc.rest_angle, horn_length=sc.horn_length).build()
+    page = load_robot(find_outputs(toml, out), "full", "foam", col)[0]
+    assert robot_key(study.robot) == robot_key(page)
+    assert parts.model == ("authors" if col == "reproduction" else "ours")
+    n = page.body.n_elements
+    assert (n > load_robot(find_outputs(toml, out), "full", "foam")[0].body.n_elements) == (col == "reproduction")
+
+
+def test_what_a_column_fixes():
+    from metasheet.pipeline.column import COLUMNS, REPRODUCTION_MESH, column
+
+    pred, rep = (column(c) for c in COLUMNS)
+    assert not pred.fixes_material and pred.mesh == {} and pred.study_defaults == {} and not pred.keeps_units
+    assert rep.material == paper.PAPER_FOAM and rep.model == "authors" and rep.mesh == REPRODUCTION_MESH
+    assert rep.study_defaults == {"stop_beyond_strain": False, **REPRODUCTION_MESH} and rep.keeps_units
+    assert rep.tolerances == (1.0, 2.0) and pred.tolerances == (0.1, 0.2)  # the paper's test; ours
+    assert column("reproduction", "ours").model == "ours"
+    with pytest.raises(ConfigError, match=r"--column: 'both': allowed values are prediction, reproduction"):
+        column("both", field="--column")
+
+
+def test_column_names_are_compared_only_where_a_column_is_defined_or_laid_out():
+    """The column's facts live in metasheet/pipeline/column.py: elsewhere code asks a
+    :class:`Column` (``fixes_material``, ``mesh``, ``tolerances``, ...) instead of comparing its
+    name with a literal. Allowed: the report, which lays the two columns out side by side, and
+    the command's check that only the default column runs without a pipeline."""
+    import ast
+    from pathlib import Path
+
+    import metasheet
+    from metasheet.pipeline.column import COLUMNS
+
+    root = Path(metasheet.__file__).parent
+    allowed = {"pipeline/column.py", "report/columns.py", "cli.py"}
+    found = []
+    for f in sorted(root.rglob("*.py")):
+        rel = f.relative_to(root).as_posix()
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in COLUMNS
+                                                     for c in [node.left, *node.comparators]):
+                found.append(f"{rel}:{node.lineno}")
+    assert [w for w in found if w.split(":")[0] not in allowed] == []
+    assert any(w.startswith("pipeline/column.py") for w in found)  # the scan sees comparisons

@@ -1,4 +1,4 @@
-"""The two columns of every study (metasheet/studies/columns.py): the reproduction runs on the
+"""The two columns of every study (metasheet/pipeline/column.py): the reproduction runs on the
 published constants under the authors' force field without a strain stop, the prediction on
 the material stage's; each writes its own folder and names its column in its JSON."""
 

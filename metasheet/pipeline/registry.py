@@ -66,7 +66,7 @@ class StageContext:
         the manifest (``timings_s``). Wall-clock times never go into an artefact: the same
         config gives the same bytes.
     column : which column of the paper a study computes ("prediction": the printed foam's
-        constants; "reproduction": the paper's own model), :mod:`metasheet.studies.columns`.
+        constants; "reproduction": the paper's own model), :mod:`metasheet.pipeline.column`.
     subdir : folder of ``workdir`` the files go to ("": the stage's own folder; a study's
         second column writes into ``<column>/``).
     siblings : ``"<pipeline>/<stage>"`` -> that folder, for each of the stage's

@@ -1,10 +1,8 @@
-"""The orient stage's sheets meshed again, and the sheets a study column's robot is made of.
+"""The orient stage's sheets meshed again.
 
 The orient stage meshes the sheet pair once. The robot stage's mesh-convergence levels, a
 study's own ``mesh_size`` and the reproduction column (the authors' kind of mesh:
-:data:`metasheet.studies.columns.REPRODUCTION_MESH`) mesh the same geometry and fibre law again
-(:func:`remesh`). :func:`column_sheets` is the one place a column's sheets are chosen: the
-study stages and ``metasheet serve`` build the reproduction's robot from it.
+:data:`metasheet.pipeline.column.REPRODUCTION_MESH`) mesh the same geometry and fibre law again.
 """
 
 from __future__ import annotations
@@ -40,18 +38,3 @@ def remesh(orient: OrientFile, mesh_size: float, layers: int | None = None, elem
         (orient.fibers_at(meshes[0].centroids(), False), orient.fibers_at(meshes[1].centroids(), True))
     return SheetPair(*meshes, *fibers, *consts, element)
 
-
-def column_sheets(orient: OrientFile, one_material: bool, mesh_size: float | None = None,
-                  layers: int | None = None, element: str | None = None, grip_size: float | None = None):
-    """The sheet pair of a column's robot: the orient stage's own, or re-meshed when any of
-    ``mesh_size`` [mm], ``layers``, ``element``, ``grip_size`` [mm] is given (None: orient's);
-    without per-element constants when ``one_material`` (a column that fixes the material, as
-    the reproduction does) or when the orient sheets are not graded."""
-    if any(v is not None for v in (mesh_size, layers, element, grip_size)):
-        sheets = remesh(orient, orient.sheet_params.mesh_size if mesh_size is None else mesh_size,
-                        layers, element, grip_size)
-    else:
-        sheets = orient.sheets(need_constants=orient.graded)
-    if one_material or not (orient.graded and sheets.has_constants):
-        sheets = replace(sheets, constants=None, constants_mirrored=None)
-    return sheets

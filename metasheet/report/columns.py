@@ -1,5 +1,5 @@
 """The report's side-by-side section: each of the paper's claims, its reproduction and the
-printed foam's prediction (:mod:`metasheet.studies.columns`), with a verdict.
+printed foam's prediction (:mod:`metasheet.pipeline.column`), with a verdict.
 
 A verdict is computed from the numbers, never written by hand: "reproduced" when the
 reproduction column's figure meets the paper's statement as the row's test reads it,
@@ -93,7 +93,7 @@ def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping
     out = ["## The paper, reproduced and predicted", "",
            "The **reproduction** runs each study as the paper's figures were made: the published constants under "
            "the authors' force field, no strain stop, on the authors' kind of mesh (uniform P1, 5 mm; "
-           "`metasheet/studies/columns.py`). Its counts are that mesh's: how far it is from the converged mesh "
+           "`metasheet/pipeline/column.py`). Its counts are that mesh's: how far it is from the converged mesh "
            "(the Jacobian, the rod's compliance) is in the section \"Mesh convergence of the robot\" when "
            "`pipelines/convergence.toml` ran beside this pipeline, and docs/paper.md (\"Which results rest on "
            "the coarse mesh\") gives the rest-pose test on the converged mesh. The **prediction** runs it "

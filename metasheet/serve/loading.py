@@ -144,7 +144,7 @@ class RobotInfo:
     ``material`` ("foam" / "silicone"), what it is made of (``description``, for the page),
     its :class:`RobotGeometry`, ``note``: why the model differs from the one asked for
     ("" when it does not), and the study ``column`` whose foam it is
-    (:mod:`metasheet.studies.columns`)."""
+    (:mod:`metasheet.pipeline.column`)."""
 
     model: str
     material: str
@@ -185,7 +185,7 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam", co
     ``info.note`` saying why; ``material`` : "foam" (the sheets' own constants) or
     "silicone" (the robot stage's silicone case); ``column`` : "prediction" (the pipeline's
     foam) or "reproduction" (the paper's published foam under the authors' force field, on the
-    authors' kind of mesh: :mod:`metasheet.studies.columns`). Raises :class:`ConfigError` for
+    authors' kind of mesh: :mod:`metasheet.pipeline.column`). Raises :class:`ConfigError` for
     a missing artefact (see :func:`check_outputs`), an unknown model, material or column, a
     basis trained on another robot.
     """
@@ -193,18 +193,16 @@ def load_robot(outputs: Outputs, model: str = "full", material: str = "foam", co
         raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(GOTO_MODELS)}")
     if material not in MATERIALS:
         raise ConfigError(f"material: {material!r}: allowed values are {', '.join(MATERIALS)}")
-    from ..studies.columns import COLUMNS, column_folder
+    from ..pipeline.column import COLUMNS, column as column_of, column_folder
 
-    if column not in COLUMNS:
-        raise ConfigError(f"--column: {column!r}: allowed values are {', '.join(COLUMNS)}")
-    if column == "reproduction" and material != "foam":
-        raise ConfigError(f"material: {material!r}: the reproduction column is the paper's published foam; "
+    if column_of(column, field="--column").fixes_material and material != "foam":
+        raise ConfigError(f"material: {material!r}: the {column} column is the paper's published foam; "
                           "silicone is the prediction column's comparison")
     check_outputs(outputs)
     basis_file = column_folder(outputs.directory / "reduce", column, "reduce") / "basis.npz"
     needs = {"reduced": basis_file, "surface": basis_file.with_name("surface.npz")}.get(model)
     if needs is not None and not needs.is_file():
-        fix = ("add 'reproduction' to [reduce] columns and run the pipeline again" if column == "reproduction"
+        fix = (f"add {column!r} to [reduce] columns and run the pipeline again" if column != COLUMNS[0]
                else "run a pipeline with the reduce stage")
         raise ConfigError(f"--model {model}: needs the reduce stage's outputs for the {column} column ({needs}), "
                           f"which are missing: {fix}, or use --model full")
@@ -284,35 +282,31 @@ def certificate(reduce_dir: Path) -> str:
 
 def _full_robot(outputs: Outputs, material: str, column: str):
     """The FEM robot of ``outputs`` for ``material`` in ``column`` and its :class:`RobotInfo`."""
-    from .. import paper
     from ..material import Isotropic
     from ..pipeline.artefacts import read_material, read_orient, read_robot_scene
+    from ..pipeline.column import column as column_of, column_robot
     from ..robot.builder import six_dof_robot
 
     d = outputs.directory
     orient, mat, sc = read_orient(d / "orient"), read_material(d / "material"), read_robot_scene(d / "robot")
     scene = {"rod_length": sc.rod_length, "geometry": sc.servo_geometry(), "gravity": sc.gravity}
-    fibers, element = (orient.normal.fibers, orient.mirrored.fibers), orient.element
-    if material == "foam" and column == "prediction":
-        mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": mat.density}
-        robot = six_dof_robot(orient.sheets(), model=mat.model, **mass, **scene)
-        what = f"foam: the sheets' own constants along their fibres ({mat.source or 'material stage'}, model {mat.model})"
-    elif material == "foam":  # the reproduction column
-        from ..pipeline.remesh import column_sheets
-        from ..studies.columns import REPRODUCTION_MESH, column_material
-
-        col, m = column_material("reproduction"), REPRODUCTION_MESH
-        mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": paper.FOAM_DENSITY}
-        sheets = column_sheets(orient, True, m["mesh_size"], element=m["element"], grip_size=m["grip_size"])
-        robot = six_dof_robot(sheets, col.material, model=col.model, **mass, **scene)
-        what = (f"published constants (the paper's), model {col.model}, {m['element']} {m['mesh_size']:g} mm sheets: "
-                "the reproduction column")
-        fibers, element = (sheets.fibers, sheets.fibers_mirrored), m["element"]
+    if material == "foam":
+        parts = column_robot(orient, mat, column_of(column), sc.sheet_mass_g)
+        robot = parts.robot(**scene)
+        if parts.column.fixes_material:
+            m = parts.column.mesh
+            what = (f"published constants (the paper's), model {parts.model}, {m['element']} {m['mesh_size']:g} mm "
+                    "sheets: the reproduction column")
+        else:
+            whose = "the graded sheets' own constants" if parts.sheets.has_constants else "the material's constants"
+            what = f"foam: {whose} along the fibres ({mat.source or 'material stage'}, model {mat.model})"
+        fibers, element = (parts.sheets.fibers, parts.sheets.fibers_mirrored), parts.sheets.element
     else:
         E, nu, density = outputs.silicone
         mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": density}
         robot = six_dof_robot(orient.sheets(need_constants=False), Isotropic(E, nu), **mass, **scene)
         what = f"silicone: isotropic E = {E:g} MPa, nu = {nu:g}"
+        fibers, element = (orient.normal.fibers, orient.mirrored.fibers), orient.element
     geometry = robot_geometry(robot, fibers)
     description = (f"{what}; scene {sc.scene}, rod {sc.rod_length:g} mm, stroke "
                    f"[{sc.angle_min:g}, {sc.angle_max:g}] deg; {len(geometry.tets)} {element} elements")

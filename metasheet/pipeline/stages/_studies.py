@@ -28,7 +28,6 @@ from ...robot.validity import GRIP_BAND_MM
 from ...studies.resume import UnitCache, keep_only_used
 from ..artefacts import OrientFile, RobotScene, read_material, read_orient, read_robot_scene
 from ..registry import Params, StageContext
-from ..remesh import column_sheets
 
 #: The scene a study runs on when no robot stage ran (the paper's, :mod:`metasheet.paper`).
 DEFAULT_SCENE = RobotScene(paper.ROD_LENGTH, paper.REST_ANGLE, paper.HORN_LENGTH, paper.ANGLE_MIN, paper.ANGLE_MAX)
@@ -70,7 +69,7 @@ class StudyRobotParams(Params):
     columns: list[Literal["prediction", "reproduction"]] = Field(
         ["prediction"], min_length=1, max_length=2, description="what the study computes: 'prediction' (the "
         "material stage's constants and model, within the strain limit) and/or 'reproduction' (the paper's "
-        "published constants under reproduction_model, no strain stop: metasheet/studies/columns.py); the first "
+        "published constants under reproduction_model, no strain stop: metasheet/pipeline/column.py); the first "
         "writes into the stage's folder, the second into <stage>/<column>/")
     reproduction_model: Literal["authors", "ours"] = Field(
         "authors", description="the reproduction column's material model: 'authors' (their SOFA force field, "
@@ -88,17 +87,19 @@ class StudyRobotParams(Params):
         return self
 
     def for_column(self, column: str):
-        """These parameters as ``column`` runs them (the reproduction's own keys applied)."""
-        from ...studies.columns import REPRODUCTION_DEFAULTS
+        """These parameters as ``column`` runs them: the column's study defaults
+        (:class:`metasheet.pipeline.column.Column`), then the table's ``reproduction`` keys, for
+        the column that has defaults (the prediction runs the table as written)."""
+        from ..column import column as column_of
 
-        if column != "reproduction":
+        defaults = column_of(column).study_defaults
+        if not defaults:
             return self
         bad = sorted(k for k in self.reproduction if k not in type(self).model_fields or k in ("columns", "reproduction"))
         if bad:
-            raise ConfigError(f"reproduction: {bad}: not a key of this table that the reproduction column can "
-                              "change")
-        data = {**self.model_dump(), **{k: v for k, v in REPRODUCTION_DEFAULTS.items() if k in type(self).model_fields},
-                **self.reproduction, "columns": ["reproduction"], "reproduction": {}}
+            raise ConfigError(f"reproduction: {bad}: not a key of this table that the {column} column can change")
+        data = {**self.model_dump(), **{k: v for k, v in defaults.items() if k in type(self).model_fields},
+                **self.reproduction, "columns": [column], "reproduction": {}}
         try:
             return type(self).model_validate(data)
         except ValidationError as exc:
@@ -143,27 +144,19 @@ def build_spec(ctx: StageContext):
         from ...studies.standin import StandInSpec
 
         return StandInSpec(motor_range=(lo, hi), max_step_deg=p.max_step_deg)
-    from ...studies.adapter import RobotSpec
-
     needs = ("reduce", "orient", "material") if p.model == "reduced" else ("orient", "material")
     for need in needs:
         if need not in ctx.inputs:
             raise ConfigError(f"{ctx.name}.model: {p.model!r}: the {need!r} stage must be in the pipeline")
-    from ...robot.builder import resolve_density
-    from ...studies.columns import column_material
+    from ..column import column, column_robot
 
-    orient = read_orient(ctx.inputs["orient"])
-    mat = read_material(ctx.inputs["material"])
-    col = column_material(ctx.column, p.reproduction_model)
-    material, model = (mat.material, mat.model) if col.material is None else (col.material, col.model)
     sc = up.with_overrides(rod_length=p.rod_length, rest_angle=p.rest_angle, horn_length=p.horn_length)
     scene = {k: getattr(sc, k) for k in ("rod_length", "rest_angle", "horn_length", "servo_radius", "servo_depth")}
-    sheets = column_sheets(orient, col.material is not None, p.mesh_size, p.layers, p.element, p.grip_size)
-    mat_density = mat.density if col.material is None else paper.FOAM_DENSITY
-    density = resolve_density(sheets.sheet, None if sc.sheet_mass_g else mat_density, sc.sheet_mass_g)
-    spec = RobotSpec.from_sheets(sheets, material, motor_range=(lo, hi), density=density,
-                                 gravity=tuple(sc.gravity), rot_weight=p.rot_weight, max_step_deg=p.max_step_deg,
-                                 model=model, strain_band_mm=p.strain_band_mm, **scene)
+    parts = column_robot(read_orient(ctx.inputs["orient"]), read_material(ctx.inputs["material"]),
+                         column(ctx.column, p.reproduction_model), sc.sheet_mass_g, mesh_size=p.mesh_size,
+                         layers=p.layers, element=p.element, grip_size=p.grip_size)
+    spec = parts.spec(motor_range=(lo, hi), gravity=tuple(sc.gravity), rot_weight=p.rot_weight,
+                      max_step_deg=p.max_step_deg, strain_band_mm=p.strain_band_mm, **scene)
     if p.model == "reduced":
         from ...studies.reduced_adapter import ReducedSpec
 
@@ -174,7 +167,7 @@ def build_spec(ctx: StageContext):
 def basis_file(reduce_dir: Path, column: str, key: str) -> Path:
     """The reduce stage's basis for ``column``; a :class:`ConfigError` naming ``key`` when the
     reduce stage did not train it."""
-    from ...studies.columns import column_folder
+    from ..column import column_folder
 
     path = column_folder(reduce_dir, column, "reduce") / "basis.npz"
     if not path.is_file():
@@ -275,7 +268,9 @@ def drop_cache(ctx: StageContext) -> None:
     """After the stage (column) succeeded: the reproduction column keeps the units this run used
     (its robot is the published foam's, whatever the pipeline's cell: a rerun after another cell
     reuses them; ``metasheet run --force`` removes them first); another column's are removed."""
-    if ctx.column == "reproduction" and ctx.params.resume:
+    from ..column import column
+
+    if column(ctx.column).keeps_units and ctx.params.resume:
         keep_only_used(_cache_dir(ctx))
     else:
         shutil.rmtree(_cache_dir(ctx), ignore_errors=True)

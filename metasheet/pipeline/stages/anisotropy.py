@@ -140,7 +140,9 @@ def _listed(values) -> list:
 def _published_spec(ctx: StageContext, spec):
     """The same robot with the paper's published constants, or None (stand-in model, uniform
     published material already, or a graded design whose per-element constants it would erase)."""
-    if ctx.column != "prediction" or ctx.params.model not in ("robot", "reduced") or "material" not in ctx.inputs:
+    from ..column import column
+
+    if column(ctx.column).fixes_material or ctx.params.model not in ("robot", "reduced") or "material" not in ctx.inputs:
         return None
     from ..artefacts import read_material, read_orient
 

@@ -110,7 +110,7 @@ def run(ctx: StageContext) -> dict:
         summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
         summaries["reduce_seconds"] = (read_manifest(ctx.inputs["reduce"]) or {}).get("wall_time_s")
         second = ctx.inputs["reduce"] / "reproduction" / "reduce.json"
-        if second.exists():  # the reproduction column's basis (metasheet/studies/columns.py)
+        if second.exists():  # the reproduction column's basis (metasheet/pipeline/column.py)
             summaries["reduce_reproduction_json"] = json.loads(second.read_text())
     if "sheet" in ctx.inputs and (ctx.inputs["sheet"] / "sheet_dns.json").exists():  # the printed sheet's DNS
         summaries["sheet_dns"] = json.loads((ctx.inputs["sheet"] / "sheet_dns.json").read_text())
@@ -167,7 +167,7 @@ def _columns(ctx: StageContext, name: str, pictures: dict) -> dict:
     """Column -> summary of the study ``name``: its own folder's and its ``<column>/``
     folders'; each column's picture copied as ``<name>_<column>.png`` (the first's is
     ``<name>.png``) and listed in ``pictures`` under "<name>/<column>"."""
-    from ...studies.columns import COLUMNS
+    from ..column import COLUMNS
 
     d, out = ctx.inputs[name], {}
     for folder in (d, *(d / c for c in COLUMNS)):
