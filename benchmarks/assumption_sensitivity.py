@@ -45,7 +45,7 @@ from metasheet.cells.design import design_cell, parse_design
 from metasheet.cells.foam import voxel_centres
 from metasheet.cells.skeleton import SkeletonIndex
 from metasheet.homogenize.voxels import homogenize_voxels
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 
 from _results import add_save_option, saved_output
 

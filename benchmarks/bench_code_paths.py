@@ -1,4 +1,4 @@
-"""What the pinned code paths cost: the quick pipeline pinned to AVX2 (metasheet.cpu) against
+"""What the pinned code paths cost: the quick pipeline pinned to AVX2 (metasheet.runtime.cpu) against
 this CPU's native kernels, run after run in the same session.
 
     python benchmarks/bench_code_paths.py [--repeats 3] [--pipeline pipelines/quick.toml] [--save]
@@ -63,7 +63,7 @@ def main() -> None:
         print("| code paths | wall [s] | ratio to native |")
         print("|---|---|---|")
         print(f"| native (this CPU's kernels) | {native:.1f} | 1.00 |")
-        print(f"| pinned (AVX2: metasheet.cpu) | {pinned:.1f} | {pinned / native:.2f} |")
+        print(f"| pinned (AVX2: metasheet.runtime.cpu) | {pinned:.1f} | {pinned / native:.2f} |")
         print(f"\nsame bytes: {same}")
 
 

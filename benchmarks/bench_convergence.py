@@ -20,8 +20,8 @@ import os
 
 import numpy as np
 
-from metasheet import paper
-from metasheet.material import Isotropic
+from metasheet.published import paper
+from metasheet.mechanics.material import Isotropic
 from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.convergence import Level, convergence_summary, run_levels
 from metasheet.sheet.geometry import SheetParams

@@ -54,7 +54,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=2)
     add_save_option(ap)
     args = ap.parse_args()
-    from metasheet.executor import THREAD_VARS, UNIT_THREADS, Executor
+    from metasheet.runtime.executor import THREAD_VARS, UNIT_THREADS, Executor
     from metasheet.studies.workspace import explore_ray
 
     set_vars = [v for v in THREAD_VARS if v in os.environ]

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 from metasheet.fem.meshes import box_mesh
 from metasheet.robot.body import ElasticBody
 from metasheet.robot.dirichlet import solve_static

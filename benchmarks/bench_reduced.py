@@ -36,7 +36,7 @@ from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
 from metasheet.rom.model import ReducedRobot
 from metasheet.rom.training import motor_design, sensitivity, train
-from metasheet.rotations import rotation_matrix
+from metasheet.mechanics.rotations import rotation_matrix
 from metasheet.studies.adapter import paper_robot_spec
 
 from _results import add_save_option, saved_output

@@ -44,7 +44,7 @@ def _blas() -> str:
 def _control_run(rob, rest, steps, **kw):
     """A moving goal (small circle + twist): every step does real work. Returns times, drift, ctl."""
     from metasheet.robot.inverse import InverseController, InverseSettings
-    from metasheet.rotations import rotation_matrix
+    from metasheet.mechanics.rotations import rotation_matrix
     from metasheet.robot.equilibrium import solve_equilibrium
 
     ctl = InverseController(rob, rest, InverseSettings(max_step_deg=2.0, **kw))
@@ -68,7 +68,7 @@ def main():
     ap.add_argument("--grip-size", type=float, default=0.0)
     add_save_option(ap)
     a = ap.parse_args()
-    from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+    from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
     from metasheet.robot.builder import SheetPair, six_dof_robot
     from metasheet.fem.solvers import available
     from metasheet.robot.statics import Linearizer

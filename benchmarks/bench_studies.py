@@ -20,7 +20,7 @@ import platform
 import statistics
 import time
 
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.studies.adapter import paper_robot_spec
 from metasheet.studies.grid import star_grid
 from metasheet.studies.model import MODELS

@@ -23,7 +23,7 @@ is its own. "K vs trilinear": relative Frobenius distance of K to the trilinear 
     python benchmarks/bench_voxel_grips.py --sheet [--save]
 """
 
-import metasheet  # noqa: F401  (before numpy: it pins numpy's CPU code paths, metasheet.cpu)
+import metasheet  # noqa: F401  (before numpy: it pins numpy's CPU code paths, metasheet.runtime.cpu)
 
 # isort: split
 import argparse
@@ -102,7 +102,7 @@ def build(case: str, patch_mm: float):
 def one(case: str, coarsening: str, rtol: float, patch_mm: float, relative: bool) -> dict:
     """Child process: build the foam, condense onto the grips, return the row."""
     from metasheet.fem.voxel.grips import rigid_bodies_stiffness
-    from metasheet.material import Isotropic
+    from metasheet.mechanics.material import Isotropic
 
     t = time.perf_counter()
     foam, bodies, refs = build(case, patch_mm)

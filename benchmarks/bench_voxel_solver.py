@@ -69,7 +69,7 @@ def foam(n: int, tile: int):
 def stage_voxels(path: str):
     """(phases, size [mm], materials) of a cell stage's voxels.npz (+ cell.json), percolating solid only."""
     from metasheet.homogenize.percolation import percolating_solid
-    from metasheet.material import Isotropic
+    from metasheet.mechanics.material import Isotropic
 
     d = np.load(path)
     if "E" in d:  # a self-contained file: one solid phase
@@ -118,7 +118,7 @@ def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | 
 
 def ti_constants(C: np.ndarray, axis) -> list[float]:
     """(E_t, E_l, nu_t, nu_tl, mu_l) of the transverse-isotropic fit of C (axis None: searched)."""
-    from metasheet.material import TransverseIsotropic
+    from metasheet.mechanics.material import TransverseIsotropic
 
     m = TransverseIsotropic.fit(C, axis=axis).material
     return [m.E_t, m.E_l, m.nu_t, m.nu_tl, m.mu_l]

@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_voxel_solver import stage_voxels
 
 from metasheet.fem.voxel import periodic_stiffness
-from metasheet.material import TransverseIsotropic
+from metasheet.mechanics.material import TransverseIsotropic
 
 
 def main() -> None:

@@ -25,7 +25,7 @@ matplotlib.use("Agg")  # off screen: no display needed
 import matplotlib.pyplot as plt
 import numpy as np
 
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.homogenize.chart import ChartInterpolant, chart_points, evaluate_point, lookup
 from metasheet.viz import figure_png
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import metasheet  # first: pins numpy's code path, so the numbers repeat on any x86-64 CPU)
 import numpy as np
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.robot import InverseController, InverseSettings, SheetPair, six_dof_robot, solve_equilibrium
 from metasheet.sheet import SheetParams
 

@@ -26,7 +26,7 @@ matplotlib.use("Agg")  # off screen: no display needed
 import matplotlib.pyplot as plt
 import numpy as np
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.robot import SheetPair, evaluate, six_dof_robot
 from metasheet.sheet import SheetParams
 from metasheet.viz import figure_png

@@ -24,7 +24,7 @@ matplotlib.use("Agg")  # off screen: no display needed
 import matplotlib.pyplot as plt
 import numpy as np
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.pipeline.printsource import WALL_EXPONENT, PointModel
 from metasheet.sheet import SheetParams, grade, spiral_fibers, tripod_sheet
 from metasheet.sheet import icesl

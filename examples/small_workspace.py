@@ -26,7 +26,7 @@ matplotlib.use("Agg")  # off screen: no display needed
 import matplotlib.pyplot as plt
 import numpy as np
 
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.studies.adapter import paper_robot_spec
 from metasheet.studies.grid import star_grid
 from metasheet.studies.workspace import WorkspaceSettings, explore_workspace

@@ -4,12 +4,12 @@ The Python API is at the top level (:mod:`metasheet.api`): ``metasheet.run(path)
 ``metasheet.load_pipeline``, ``metasheet.read_constants``, ``read_jacobian``, ``read_study``.
 """
 
-from .cpu import pin_code_paths as _pin
+from .runtime.cpu import pin_code_paths as _pin
 
-# before numpy loads: the same kernels, so the same bytes, on every x86-64 CPU (metasheet.cpu)
+# before numpy loads: the same kernels, so the same bytes, on every x86-64 CPU (metasheet.runtime.cpu)
 _pin()
 
-from .numba_cache import install as _guard_numba_cache  # noqa: E402
+from .runtime.numba_cache import install as _guard_numba_cache  # noqa: E402
 
 # a damaged compiled-kernel cache file is removed and compiled again, not a raw traceback
 _guard_numba_cache()

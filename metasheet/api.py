@@ -58,7 +58,7 @@ def run(pipeline: Pipeline | str | Path | Mapping, *, out: str | Path | None = N
     needs), ``force`` recomputes. ``out``: the output root (default: ``outputs/`` of the project);
     ``workers``: local worker processes (default: the file's); ``overrides``: ``TABLE.KEY=VALUE``
     as ``--set``; ``progress``: called with (stage, message) as stages start and end."""
-    from .executor import Executor
+    from .runtime.executor import Executor
 
     if not isinstance(pipeline, Pipeline):
         pipeline = load_pipeline(pipeline, overrides)
@@ -98,7 +98,7 @@ class Constants:
     data: dict = field(repr=False)
 
     def to_dict(self) -> dict[str, float]:
-        """The five constants by name (``metasheet.material.TransverseIsotropic(**...)``)."""
+        """The five constants by name (``metasheet.mechanics.material.TransverseIsotropic(**...)``)."""
         return {k: getattr(self, k) for k in ("E_t", "E_l", "nu_t", "nu_tl", "mu_l")}
 
 

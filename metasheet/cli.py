@@ -42,7 +42,7 @@ from .goto import format_result, goto_robot, goto_tolerances, parse_pose, pipeli
 from .pipeline.config import MAX_WORKERS
 from .cli_files import FILE_COMMANDS
 from .cli_output import console, docs, say, stdout, table
-from .stop_signals import Stopped, exit_now, stop_on_signals
+from .runtime.stop_signals import Stopped, exit_now, stop_on_signals
 from . import supervise
 
 # rich_markup_mode=None: help and click's usage errors print as plain text (no markup, no
@@ -158,7 +158,7 @@ def run(
     status 3 with --no-wait). Temporary folders left by killed runs are removed first. A stage
     folder holding files metasheet did not write is not replaced (exit 2) without --overwrite.
     """
-    from .executor import Executor
+    from .runtime.executor import Executor
     from .pipeline.config import load_pipeline
     from .pipeline.runner import run_pipeline
 

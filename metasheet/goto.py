@@ -11,7 +11,7 @@ def goto_model(orient: Path | None, material_model: str | None) -> str:
     """The material model ``robot goto --orient`` uses: ``material_model`` when given, else
     the material stage's next to the orient stage (``<orient>/../material/material.json``)
     when there is one, else "ours"."""
-    from .material_model import check_model
+    from .mechanics.material_model import check_model
 
     if material_model is not None:
         return check_model(material_model, "--material-model")
@@ -28,7 +28,7 @@ def goto_robot(orient: Path | None = None, mesh_size: float = 8.0, material_mode
     [mm]) with the paper's foam along the default spiral; the paper's scene and foam density
     either way (not a pipeline's: use :func:`pipeline_robot`); the material model of
     :func:`goto_model`."""
-    from . import paper
+    from .published import paper
     from .robot.builder import SheetPair, six_dof_robot
 
     material_model = goto_model(orient, material_model)
@@ -51,7 +51,7 @@ def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full",
     ``column`` "reproduction": the same mesh and scene with the published constants under the
     authors' force field (:mod:`metasheet.pipeline.column`)."""
     from .errors import ConfigError
-    from .material_model import check_model
+    from .mechanics.material_model import check_model
     from .pipeline.artefacts import read_material
     from .pipeline.column import column as column_of
     from .serve.loading import find_outputs, load_robot

@@ -32,7 +32,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .stop_signals import STOP_SIGNALS
+from .runtime.stop_signals import STOP_SIGNALS
 
 #: ``"<parent pid>:<note file>"`` in a supervised child's environment.
 ENV = "METASHEET_SUPERVISOR"

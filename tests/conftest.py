@@ -65,7 +65,7 @@ def pytest_addoption(parser):
 @pytest.fixture(scope="session", autouse=True)
 def one_blas_thread_per_process():
     """One BLAS / OpenMP thread in each test process, as a pipeline run gives itself
-    (:data:`metasheet.executor.UNIT_THREADS`): xdist already fills the cores with processes, and
+    (:data:`metasheet.runtime.executor.UNIT_THREADS`): xdist already fills the cores with processes, and
     idle OpenBLAS threads spin (a reduce stage measured 18 CPU s at two threads, 5 at one).
     A thread count set in the environment (``OPENBLAS_NUM_THREADS=2 python -m pytest``, as
     ``.ci/run`` reruns the bytes tests) is left as it is; tests that compare thread counts set
@@ -73,7 +73,7 @@ def one_blas_thread_per_process():
     pool by the cores, whatever ``OMP_NUM_THREADS`` says."""
     import numba
 
-    from metasheet.executor import THREAD_VARS, own_threads
+    from metasheet.runtime.executor import THREAD_VARS, own_threads
 
     if any(os.environ.get(var) for var in (*THREAD_VARS, "NUMBA_NUM_THREADS")):
         yield
@@ -90,7 +90,7 @@ def one_blas_thread_per_process():
 @pytest.fixture(scope="module")
 def foam_robot_14():
     """The light foam robot on 14 mm P1 sheets (solver tests)."""
-    from metasheet import paper
+    from metasheet.published import paper
     from metasheet.robot.builder import SheetPair, six_dof_robot
     from metasheet.sheet.geometry import SheetParams
 

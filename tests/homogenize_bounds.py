@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 _T = [0, 1, 5]  # in-plane components (strain continuous)
 _N = [2, 3, 4]  # out-of-plane components (stress continuous)

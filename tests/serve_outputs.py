@@ -7,7 +7,7 @@ import json
 import meshio
 import numpy as np
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.conventions import GRAVITY
 from metasheet.pipeline.artefacts import write_jacobian, write_material
 from metasheet.sheet.fibers import spiral_fibers

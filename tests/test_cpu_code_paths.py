@@ -1,6 +1,6 @@
-"""metasheet.cpu: one code path on every x86-64 CPU, decided once and inherited by workers."""
+"""metasheet.runtime.cpu: one code path on every x86-64 CPU, decided once and inherited by workers."""
 
-from metasheet import cpu
+from metasheet.runtime import cpu
 
 AVX2 = "processor\t: 0\nflags\t\t: fpu sse2 avx fma avx2 bmi2\n"
 OLD = "processor\t: 0\nflags\t\t: fpu sse2 sse4_2 avx\n"

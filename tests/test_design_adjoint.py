@@ -14,7 +14,7 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.design.adjoint import (
     min_singular_sensitivity,
     rest_problem,
@@ -23,7 +23,7 @@ from metasheet.design.adjoint import (
 )
 from metasheet.sheet.fibre_field import PolarBSpline, rotate_points
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.kinematics import kinematics
 from metasheet.sheet.fibers import spiral_fibers

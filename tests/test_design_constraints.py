@@ -14,7 +14,7 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.design.adjoint import rest_problem, solve_rest
 from metasheet.design.constraints import (
     ks_aggregate,

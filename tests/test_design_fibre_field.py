@@ -7,7 +7,7 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.sheet.fibre_field import (
     FibreField,
     PolarBSpline,
@@ -19,9 +19,9 @@ from metasheet.sheet.fibre_field import (
 )
 from metasheet.design.tensor import inplane_mandel, to_voigt
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.sheet.fibers import spiral_fibers
-from metasheet.voigt import stiffness_along
+from metasheet.mechanics.voigt import stiffness_along
 
 THIRD = 2.0 * np.pi / 3.0
 

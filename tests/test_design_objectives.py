@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.design import evaluation as ev
 from metasheet.design import objectives as obj
 from metasheet.design import printability as pr

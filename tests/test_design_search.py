@@ -7,7 +7,7 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.design import search as ds
 from metasheet.design.adjoint import solve_rest
 from metasheet.errors import ConfigError

@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.executor import THREAD_VARS, UNIT_THREADS, Executor
+from metasheet.runtime.executor import THREAD_VARS, UNIT_THREADS, Executor
 
 
 def blas_threads(_):
@@ -95,7 +95,7 @@ def niceness(_):
 
 
 def test_workers_run_below_their_parent():
-    from metasheet.executor import WORKER_NICENESS
+    from metasheet.runtime.executor import WORKER_NICENESS
 
     assert Executor(workers=2).map(niceness, range(2)) == [os.nice(0) + WORKER_NICENESS] * 2
 
@@ -131,7 +131,7 @@ def burn(seconds):
 def test_a_meter_adds_up_the_cpu_time_of_the_units_in_the_workers():
     """Each unit reports its own CPU time; the meter's total is their sum (the worker's wrapper
     measures a little more: the call around the unit), for a plain pool and a session's."""
-    from metasheet.executor import CpuMeter
+    from metasheet.runtime.executor import CpuMeter
 
     for shared in (False, True):
         meter = CpuMeter()

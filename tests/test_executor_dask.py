@@ -2,7 +2,7 @@
 
 import pytest
 
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 
 distributed = pytest.importorskip("distributed")
 

@@ -14,7 +14,7 @@ import scipy.sparse.linalg as spla
 from metasheet.errors import ConfigError
 from metasheet.fem import factor, solvers
 from metasheet.homogenize import homogenize_voxels
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 from homogenize_bounds import backus_laminate
 from homogenize_samples import edge_foam, laminate

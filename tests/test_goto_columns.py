@@ -5,7 +5,7 @@ constants under the authors' force field; ``--tol-mm`` / ``--tol-deg`` set the t
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.errors import ConfigError
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.serve.loading import find_outputs, load_robot

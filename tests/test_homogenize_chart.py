@@ -58,7 +58,7 @@ def test_chart_stage_small_sweep(tmp_path, seeds):
     sibling: the one-seed case (no scatter: no bars; test_chart_bars_* check the bars' pooling)."""
     from pathlib import Path
 
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
     from metasheet.pipeline.registry import StageContext
     from metasheet.pipeline.stages import chart as stage
 

@@ -11,7 +11,7 @@ import pytest
 from scipy.optimize import brentq
 
 from metasheet.homogenize import homogenize_voxels
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 from homogenize_samples import edge_foam
 

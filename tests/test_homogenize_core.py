@@ -7,7 +7,7 @@ import pytest
 from metasheet.errors import ConfigError, InfeasibleError
 from metasheet.fem.hex8 import hex8_box_matrices
 from metasheet.homogenize import homogenize_voxels
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 
 from homogenize_bounds import (
     backus_laminate, hashin_shtrikman_upper, hydrostatic_modulus, voigt_bound,

@@ -28,7 +28,7 @@ from scipy import stats
 
 from metasheet.homogenize.ensemble import ensemble_stats
 from metasheet.homogenize.realisations import ensemble_input, evaluate_realisation, realisation_items
-from metasheet.material import CONSTANT_NAMES
+from metasheet.mechanics.material import CONSTANT_NAMES
 
 from test_homogenize_golden import VARIANTS
 

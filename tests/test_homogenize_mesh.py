@@ -6,7 +6,7 @@ import pytest
 from metasheet.errors import ConfigError, InfeasibleError, MeshError
 from metasheet.homogenize import homogenize_mesh, homogenize_voxels, voxels_to_tets
 from metasheet.homogenize.periodic import periodic_masters, projection
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 
 from homogenize_bounds import backus_laminate
 from homogenize_samples import cubic_lattice, edge_foam, laminate

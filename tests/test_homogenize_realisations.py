@@ -18,7 +18,7 @@ from scipy import stats
 
 from metasheet.errors import ConfigError, StageError
 from metasheet.homogenize.realisations import check_design, realisation_items
-from metasheet.material import CONSTANT_NAMES
+from metasheet.mechanics.material import CONSTANT_NAMES
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
 
@@ -103,7 +103,7 @@ def test_small_study_same_bytes_when_homogenize_runs_again(small_study):
     """Default-selection sibling of test_same_bytes_on_a_second_run: the homogenize stage run
     again (forced) on the same cell, now on a pool of two workers (the cell's own solve one
     of the units, beside the realisations), writes the serial run's bytes."""
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
 
     tmp, _, ens = small_study
     names = ("constants.json", "realisations.json", "convergence.json")

@@ -15,7 +15,7 @@ import pytest
 
 from metasheet.homogenize import homogenize_voxels
 from metasheet.homogenize.percolation import percolating_solid
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from homogenize_samples import edge_foam  # noqa: E402

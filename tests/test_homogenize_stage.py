@@ -6,7 +6,7 @@ import meshio
 import numpy as np
 import pytest
 
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import homogenize as stage
 

@@ -5,8 +5,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic, TransverseIsotropic, interpolate
-from metasheet.voigt import frames_from_axes, rotate_stiffness, stiffness_along
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic, interpolate
+from metasheet.mechanics.voigt import frames_from_axes, rotate_stiffness, stiffness_along
 
 PAPER = TransverseIsotropic(1.39, 0.09422, 0.26162, 0.4161, 0.01628215)
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic, TransverseIsotropic
-from metasheet.material_model import (
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material_model import (
     MATERIAL_MODELS,
     authors_effective,
     authors_entries,
@@ -18,7 +18,7 @@ from metasheet.material_model import (
     model_stiffness,
     other_model,
 )
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.robot.builder import (
     SheetPair,
     element_stiffness,
@@ -26,7 +26,7 @@ from metasheet.robot.builder import (
     six_dof_robot,
 )
 from metasheet.sheet.geometry import SheetParams
-from metasheet.voigt import MANDEL
+from metasheet.mechanics.voigt import MANDEL
 
 CASES = [PAPER_FOAM, TransverseIsotropic(1.0, 0.5, 0.3, 0.3, 0.2), TransverseIsotropic(2.0, 0.2, 0.2, 0.6, 0.05)]
 

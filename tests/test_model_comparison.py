@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.executor import Executor
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.runtime.executor import Executor
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.pipeline.artefacts import write_material
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import anisotropy

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from metasheet.errors import InfeasibleError
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.homogenize.chart import lookup, parse_csv, to_csv
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import chart as chart_stage

@@ -7,7 +7,7 @@ import pytest
 from pydantic import Field
 
 from metasheet.errors import ConfigError, StageError
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.pipeline import registry
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.registry import Params, Stage, register

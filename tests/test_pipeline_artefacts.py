@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.pipeline import artefacts as art
 from metasheet.sheet.fibers import spiral_fibers
 from metasheet.sheet.geometry import SheetParams, mirror_sheet, tripod_sheet

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError, InfeasibleError
-from metasheet.material import CONSTANT_NAMES
+from metasheet.mechanics.material import CONSTANT_NAMES
 from metasheet.pipeline.artefacts import read_orient
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import orient, printmap

@@ -5,7 +5,7 @@ from concurrent.futures import ProcessPoolExecutor, wait
 
 import pytest
 
-from metasheet.priority_pool import PriorityPool
+from metasheet.runtime.priority_pool import PriorityPool
 
 
 def started_at(x):

@@ -174,10 +174,10 @@ def tiny(tmp_path_factory):
 def _run(tiny, name, **params):
     """The reduce stage with ``params`` on the tiny robot, in its own folder: (reduce.json, summary).
     No time budget unless ``params`` gives one: the rounds' results must not depend on how
-    loaded the test machine is. With the run's own BLAS pinning (:data:`~metasheet.executor.
+    loaded the test machine is. With the run's own BLAS pinning (:data:`~metasheet.runtime.executor.
     UNIT_THREADS`), as the pipeline runner sets it: unpinned, OpenBLAS's spinning threads made
     each run cost three times the CPU on two cores, and the bytes test needs it anyway."""
-    from metasheet.executor import UNIT_THREADS, own_threads
+    from metasheet.runtime.executor import UNIT_THREADS, own_threads
     from metasheet.pipeline.registry import StageContext
     from metasheet.pipeline.stages import reduce as stage
 
@@ -219,7 +219,7 @@ def test_a_small_first_round_grows_until_the_targets_are_met(grown):
 @pytest.mark.bytes
 def test_the_training_rounds_give_the_same_bytes_twice(tiny, grown):
     """Two rounds (the first misses, the second meets), run twice (the module's run and one
-    here) with the run's own BLAS pinning (:data:`~metasheet.executor.UNIT_THREADS`, as the
+    here) with the run's own BLAS pinning (:data:`~metasheet.runtime.executor.UNIT_THREADS`, as the
     pipeline runner sets it; :func:`_run`): the rounds read no clock and no thread count, so the
     same reduce.json and the same basis and surface. Unpinned, the inverse model's figures moved
     by 1e-12 between two runs in one process (OpenBLAS splits a sum by its free threads while

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from metasheet import cpu
+from metasheet.runtime import cpu
 from metasheet.pipeline import registry
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.registry import Params, Stage, register
@@ -69,7 +69,7 @@ def _twice_from_scratch(tmp_path: Path, only: list[str], pictures: bool = True) 
     ``pictures`` False: the cell and homogenize stages draw none (and none is compared)."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}  # cold, as on a fresh clone
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    env.pop(cpu.DECISION, None)  # each run decides its code paths as a user's would (metasheet.cpu)
+    env.pop(cpu.DECISION, None)  # each run decides its code paths as a user's would (metasheet.runtime.cpu)
     trees, seconds = [], []
     for run in ("a", "b"):
         project = tmp_path / f"project_{run}"
@@ -156,7 +156,7 @@ def _elastic_system():
 
     from metasheet.fem.meshes import box_mesh
     from metasheet.fem.tet4 import tet4_matrices
-    from metasheet.material import Isotropic
+    from metasheet.mechanics.material import Isotropic
 
     points, tets = box_mesh((1.0, 1.0, 1.0), (8, 8, 8), jitter=0.2, seed=3)
     K, _, _, _ = tet4_matrices(points, tets, Isotropic(1.0, 0.3).stiffness())

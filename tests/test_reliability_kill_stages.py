@@ -2,7 +2,7 @@
 message, no temporary folder, no lock file. Before: once the orient stage had meshed, gmsh's
 start had reset SIGTERM and SIGHUP to their default action, and a signal during printmap or
 robot killed the run outright (exit -15 / -1), leaving ``.printmap.tmp-<pid>`` and the lock's
-``.json`` (:mod:`metasheet.gmsh_start`).
+``.json`` (:mod:`metasheet.runtime.gmsh_start`).
 
 Each case copies the session's quick run, removes the stage (and orient, so that gmsh has
 started in the run before the stage when orient is upstream of it) and runs ``--stage`` it on

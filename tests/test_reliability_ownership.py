@@ -122,7 +122,7 @@ def test_a_worker_that_dies_is_named(tmp_path, monkeypatch):
     from pipeline_files import die
 
     from metasheet.errors import StageError
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
     from metasheet.pipeline.registry import _REGISTRY, stages
 
     def run(ctx):

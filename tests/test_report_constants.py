@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from metasheet.literature import E_S, authors_constants, authors_table
-from metasheet.paper import PAPER_FOAM
+from metasheet.published.literature import E_S, authors_constants, authors_table
+from metasheet.published.paper import PAPER_FOAM
 from metasheet.report.constants import constants_section
 
 

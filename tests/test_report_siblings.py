@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from metasheet.homogenize.chart import to_csv
-from metasheet.literature import authors_constants, authors_table
+from metasheet.published.literature import authors_constants, authors_table
 from metasheet.pipeline import manifest as mf
 from metasheet.pipeline.config import load_pipeline, siblings
 from metasheet.pipeline.runner import run_pipeline

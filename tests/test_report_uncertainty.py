@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from metasheet.paper import PAPER_FOAM
+from metasheet.published.paper import PAPER_FOAM
 from metasheet.sheet.consistency import against_uncertainty
 from metasheet.report.uncertainty import print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
 

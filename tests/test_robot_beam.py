@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 from metasheet.fem.meshes import box_mesh
 from metasheet.robot.body import ElasticBody
 from metasheet.robot.dirichlet import solve_static

@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from metasheet.errors import ConfigError, MeshError
-from metasheet.material import Isotropic, TransverseIsotropic
-from metasheet.voigt import stiffness_along
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.voigt import stiffness_along
 from metasheet.fem.meshes import box_mesh
 from metasheet.robot.body import ElasticBody
 from metasheet.robot.kernels import element_stiffness, shape_gradients

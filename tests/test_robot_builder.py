@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic, interpolate
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.mechanics.material import Isotropic, interpolate
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.robot.builder import SheetPair, element_stiffness, material_stiffness, six_dof_robot
 from metasheet.sheet.geometry import SheetParams
 

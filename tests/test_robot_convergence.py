@@ -90,7 +90,7 @@ def test_the_levels_on_two_workers_give_the_same_study(coarse_run):
     stage's sheet.png alone cost 4 CPU s): only the robot stage runs again."""
     import shutil
 
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
 
     root = coarse_run.parent.parent
     for stage in ("material", "orient"):
@@ -110,7 +110,7 @@ def test_two_levels_on_two_workers_give_the_serial_study(coarse_run):
     alone runs)."""
     import shutil
 
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
 
     root = coarse_run.parent.parent
     text = (root / "pipelines" / "c.toml").read_text()

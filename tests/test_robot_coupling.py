@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError, ConvergenceError
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.robot.robots import grip_centre, ServoGeometry, tripod
 from metasheet.robot.kinematics import kinematics_at
-from metasheet.rotations import rotation_matrix, rotation_vector
+from metasheet.mechanics.rotations import rotation_matrix, rotation_vector
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet
 

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from metasheet.errors import ConfigError, ConvergenceError
-from metasheet.material import TransverseIsotropic
+from metasheet.mechanics.material import TransverseIsotropic
 from metasheet.fem.meshes import box_mesh
 from metasheet.robot.body import ElasticBody
 from metasheet.robot.dirichlet import solve_static

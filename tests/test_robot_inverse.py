@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic
-from metasheet.paper import PAPER_FOAM, SILICONE
+from metasheet.mechanics.material import Isotropic
+from metasheet.published.paper import PAPER_FOAM, SILICONE
 from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.compare import evaluate
 from metasheet.robot.robots import tripod
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.qp import solve_step_qp
-from metasheet.rotations import rotation_vector
+from metasheet.mechanics.rotations import rotation_vector
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet
 

@@ -20,7 +20,7 @@ from metasheet.fem.tet10 import (
     tet10_quadrature,
     tet10_shape_values,
 )
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 from metasheet.robot import kernels
 from metasheet.robot.quadrature import (
     corotational_quadrature_numba,
@@ -29,7 +29,7 @@ from metasheet.robot.quadrature import (
     max_principal_green_strain,
     voigt_to_tensor,
 )
-from metasheet.voigt import stiffness_along
+from metasheet.mechanics.voigt import stiffness_along
 
 MAT = TransverseIsotropic(E_t=10.0, E_l=40.0, nu_t=0.4, nu_tl=0.2, mu_l=3.0)  # [MPa]
 

@@ -9,15 +9,15 @@ import pytest
 import scipy.sparse as sp
 
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic
-from metasheet.paper import PAPER_FOAM
+from metasheet.mechanics.material import Isotropic
+from metasheet.published.paper import PAPER_FOAM
 from metasheet.robot.builder import SheetPair, six_dof_robot
 from metasheet.robot.robots import tripod
 from metasheet.robot.inverse import InverseController, InverseSettings
 from metasheet.robot.kinematics import kinematics
 from metasheet.fem.factor import SparseSolver, resolve
 from metasheet.fem.solvers import available
-from metasheet.rotations import rotation_matrix, rotation_vector
+from metasheet.mechanics.rotations import rotation_matrix, rotation_vector
 from metasheet.robot.statics import Linearizer
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.sheet.geometry import SheetParams, tripod_sheet

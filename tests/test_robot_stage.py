@@ -8,7 +8,7 @@ import pytest
 
 from metasheet.errors import ConfigError
 from metasheet.goto import format_result, goto_robot
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.pipeline.artefacts import write_material
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import robot as robot_stage
@@ -97,7 +97,7 @@ def test_anisotropy_end_point_with_the_published_constants(orient_dir, tmp_path)
     published alpha (93.2 %), computed on the published robot (not the pipeline's)."""
     from dataclasses import replace
 
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
     from metasheet.pipeline.stages import anisotropy
 
     mat = tmp_path / "material"

@@ -5,7 +5,7 @@ said "stalled" and the closest pose, nothing more."""
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.robot import InverseController, SheetPair, six_dof_robot, solve_equilibrium
 from metasheet.robot.stall import StallDiagnosis, diagnose
 from metasheet.sheet import SheetParams

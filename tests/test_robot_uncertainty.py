@@ -13,8 +13,8 @@ import pytest
 from test_robot_stage import _write_orient, orient_dir  # noqa: F401  (the coarse sheets, built once)
 
 from metasheet.errors import ConfigError
-from metasheet.material import CONSTANT_NAMES
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.mechanics.material import CONSTANT_NAMES
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.pipeline.artefacts import read_material, read_orient, write_material
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import robot as robot_stage
@@ -92,7 +92,7 @@ def test_stage_spread_at_the_bounds(serial_run):
 def test_a_pool_of_two_writes_the_serial_bytes(orient_dir, serial_run):
     """Every robot of the stage (the cases and the bounds) is a unit of the executor: on two
     workers jacobian.json and rest.vtu are the serial run's bytes."""
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
 
     tmp, _, _ = serial_run
     _run(orient_dir, tmp, H20, executor=Executor(workers=2))

@@ -14,7 +14,7 @@ from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.rom.surface import (EquilibriumData, choose_degree, errors, exponents, fit_surface,
                                    left_jacobian, monomials)
 from metasheet.rom.surface_robot import SurfaceRobot, equilibrium_data
-from metasheet.rotations import rotation_matrix, rotation_vector
+from metasheet.mechanics.rotations import rotation_matrix, rotation_vector
 
 NA = 3
 LO, HI = np.radians([-10.0, -8.0, -12.0]), np.radians([10.0, 12.0, 8.0])
@@ -163,7 +163,7 @@ def test_angles_outside_the_box_are_refused():
 def test_fitted_on_a_coarse_robot_it_matches_the_robot_on_unseen_angles():
     """The surface of a real (coarse, full-model) robot over rest +- 3 deg: errors on held-out
     equilibria far below the certificate's targets (0.1 mm, 0.1 deg, 2 %)."""
-    from metasheet import paper
+    from metasheet.published import paper
     from metasheet.robot.builder import SheetPair, six_dof_robot
     from metasheet.rom.training import motor_design
     from metasheet.sheet.geometry import SheetParams

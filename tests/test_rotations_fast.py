@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from metasheet.rotations import cross, rotation_matrix, skew
+from metasheet.mechanics.rotations import cross, rotation_matrix, skew
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

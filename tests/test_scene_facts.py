@@ -30,7 +30,7 @@ def test_stroke_facts_follow_each_candidates_definition(robot):
 
 def test_tilt_goals_turn_the_rest_pose_by_ten_degrees_about_each_axis():
     from metasheet.robot.statics import RobotState
-    from metasheet.rotations import rotation_matrix, rotation_vector
+    from metasheet.mechanics.rotations import rotation_matrix, rotation_vector
 
     R0 = rotation_matrix(np.radians([3.0, -2.0, 5.0]))
     st = RobotState(p=np.array([1.0, 2.0, 3.0]), R=R0, angles=np.zeros(6), x=np.zeros(0))
@@ -58,7 +58,7 @@ def test_the_authors_preset_reaches_the_papers_tilts_from_rest_under_the_authors
     the published constants and the authors' force field (the reproduction column), passes the
     paper's test: +-10 deg about x, y and z from rest, each within 2 deg and 1 mm. Measured
     margins on this mesh: y and z turn 8.8-9.0 deg (docs/paper.md)."""
-    from metasheet import paper
+    from metasheet.published import paper
     from metasheet.robot import SheetPair, six_dof_robot
     from metasheet.robot.scenes import AUTHORS as A
     from metasheet.studies.scene_facts import stroke_facts, tilt_facts

@@ -8,7 +8,7 @@ import pytest
 
 from metasheet.conventions import GRAVITY
 from metasheet.errors import ConfigError
-from metasheet.paper import FOAM_DENSITY, PAPER_FOAM
+from metasheet.published.paper import FOAM_DENSITY, PAPER_FOAM
 from metasheet.pipeline.artefacts import RobotScene, read_orient, write_material
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.registry import StageContext

@@ -14,7 +14,7 @@ import pytest
 from metasheet.errors import ConfigError
 from metasheet.robot.equilibrium import solve_equilibrium
 from metasheet.robot.inverse import InverseController
-from metasheet.rotations import rotation_vector
+from metasheet.mechanics.rotations import rotation_vector
 from metasheet.serve import scene
 from metasheet.serve.app import SCALE, check_port
 from metasheet.serve.loading import find_outputs, load_robot

@@ -7,10 +7,10 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.errors import ConfigError
-from metasheet.material import CONSTANT_NAMES, TransverseIsotropic
-from metasheet.material_model import model_stiffness
+from metasheet.mechanics.material import CONSTANT_NAMES, TransverseIsotropic
+from metasheet.mechanics.material_model import model_stiffness
 from metasheet.robot.builder import SheetPair, material_stiffness
 from metasheet.sheet.apparent import (
     component_basis,

@@ -27,13 +27,13 @@ from homogenize_bounds import backus_laminate
 from metasheet.cells.foam import voxel_centres
 from metasheet.errors import ConfigError
 from metasheet.fem.voxel.grips import rigid_bodies_stiffness
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.sheet.dns import compare, grip_labels
 from metasheet.sheet.geometry import attach_tags, tripod_sheet
 from metasheet.sheet.grips import eigen_ratios, fem_condensed, grip_references
 from metasheet.sheet.outline import SheetParams
 from metasheet.sheet.printed_foam import tripod_region
-from metasheet.voigt import stiffness_along
+from metasheet.mechanics.voigt import stiffness_along
 
 TPU, SOFT = Isotropic(12.0, 0.3), Isotropic(1.2, 0.3)
 SMALL = SheetParams(arm_width=10.0, reach=20.0, thickness=2.0, hole_radius=1.0, fillet_radius=1.0,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.material import TransverseIsotropic
+from metasheet.mechanics.material import TransverseIsotropic
 from metasheet.sheet.geometry import SheetParams
 from metasheet.sheet.grading import element_constants, evaluate, grade, regions, scaling_lookup
 

@@ -7,9 +7,9 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet import paper
+from metasheet.published import paper
 from metasheet.errors import ConfigError
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.robot.builder import SheetPair, material_stiffness
 from metasheet.sheet.grips import (
     GRIPS,

@@ -176,7 +176,7 @@ def test_two_workers_give_the_same_bytes(run):
     run's sheet_dns.json and voxel file, byte for byte (wall times live in the manifest only).
     Default-selection sibling: test_stage_writes_the_comparison_and_the_report (the serial run;
     no cheaper pool-of-two run exists yet: the stage's whole pipeline is the cost)."""
-    from metasheet.executor import Executor
+    from metasheet.runtime.executor import Executor
 
     tmp, out = run
     names = ("sheet_dns.json", "sheet_normal.npz")

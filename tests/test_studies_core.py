@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from metasheet.errors import ConfigError
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.studies.anisotropy import anisotropy_sweep, anisotropy_sweeps
 from metasheet.studies.grid import star_grid
 from metasheet.studies.maze import MazeSettings, maze_commands, solve_maze, solve_mazes

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.studies.anisotropy import anisotropy_sweep
 from metasheet.studies.grid import star_grid
 from metasheet.studies.standin import StandInSpec

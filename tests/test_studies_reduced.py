@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError, StageError
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.studies.adapter import FemRobot, paper_robot_spec
 from metasheet.studies.certify import certify_study, sample
 from metasheet.studies.grid import star_grid

@@ -5,7 +5,7 @@ import pickle
 import numpy as np
 import pytest
 
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.studies.anisotropy import anisotropy_sweep
 from metasheet.studies.grid import star_grid
 from metasheet.studies.maze import MazeSettings, solve_maze

@@ -120,7 +120,7 @@ def test_the_reproduction_robot_on_coarse_sheets(tmp_path, monkeypatch):
 
 
 def _reproduction_robot(tmp_path, text):
-    from metasheet import paper
+    from metasheet.published import paper
     from metasheet.pipeline.stages._studies import build_spec
     from metasheet.pipeline.registry import StageContext
     from metasheet.pipeline.stages.anisotropy import AnisotropyParams

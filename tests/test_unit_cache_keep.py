@@ -4,7 +4,7 @@ reuses them; the key covers the code; --force recomputes."""
 
 import pytest
 
-from metasheet.executor import Executor
+from metasheet.runtime.executor import Executor
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
 from metasheet.studies import resume

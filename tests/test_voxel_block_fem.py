@@ -22,7 +22,7 @@ from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
 from metasheet.fem.voxel.grips import rigid_bodies_stiffness
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 E, NU = 12.0, 0.3  # [MPa] TPU
 SIZE = (8.0, 4.0, 4.0)  # [mm]

@@ -11,7 +11,7 @@ import pytest
 
 from metasheet.errors import ConfigError
 from metasheet.fem.voxel.clamped import rigid_body_stiffness
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 L, B = 8.0, 1.0  # length and square side [mm]

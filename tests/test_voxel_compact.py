@@ -22,7 +22,7 @@ from metasheet.fem.voxel.coarsen import (
 from metasheet.fem.voxel.compact import compact
 from metasheet.fem.voxel.element import phase_table
 from metasheet.fem.voxel.operator import VoxelOperator, touched_nodes
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 CASES = [((7, 6, 5), True), ((8, 5, 6), True), ((6, 5, 4), False)]

@@ -28,7 +28,7 @@ from metasheet.fem.voxel.device_solve import periodic_stiffness_device, projecto
 from metasheet.fem.voxel.homogenize import prepare_cell
 from metasheet.fem.voxel.pcg import translation_projector
 from metasheet.homogenize.percolation import percolating_solid
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 
 TPU = Isotropic(12.0, 0.3).stiffness()
 SOFT = Isotropic(1.5, 0.45).stiffness()

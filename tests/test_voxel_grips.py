@@ -22,7 +22,7 @@ from metasheet.fem.voxel.homogenize import validate_grid
 from metasheet.fem.voxel.multigrid import build_hierarchy
 from metasheet.fem.voxel.operator import VoxelOperator, touched_nodes
 from metasheet.fem.voxel.split import assemble
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 MATS = {1: TPU.stiffness()}

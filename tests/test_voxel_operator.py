@@ -23,7 +23,7 @@ from metasheet.fem.voxel.operator import (
     touched_nodes,
 )
 from metasheet.homogenize.voxels import voxel_elements
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 SOFT = Isotropic(1.5, 0.45)

@@ -19,7 +19,7 @@ from metasheet.homogenize.voxel_correctors import solve_voxel_correctors
 from metasheet.fem.voxel import periodic_stiffness
 from metasheet.homogenize import homogenize_voxels
 from metasheet.homogenize.percolation import percolating_solid
-from metasheet.material import Isotropic, TransverseIsotropic
+from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 
 TPU = Isotropic(12.0, 0.3)
 SOFT = Isotropic(1.5, 0.45)

@@ -16,7 +16,7 @@ from metasheet.fem.voxel.compact import compact
 from metasheet.fem.voxel.element import phase_table
 from metasheet.fem.voxel.operator import VoxelOperator, touched_nodes
 from metasheet.fem.voxel.split import assemble, galerkin, split_prolongation
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 

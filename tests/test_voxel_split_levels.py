@@ -33,7 +33,7 @@ from metasheet.fem.voxel.split_levels import (
     fine_grid,
     split_parts,
 )
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 UNIT = (1.0, 1.0, 1.0)

@@ -13,7 +13,7 @@ from metasheet.fem.voxel import periodic_stiffness
 from metasheet.fem.voxel.multigrid import build_hierarchy
 from metasheet.fem.voxel.operator import VoxelOperator
 from metasheet.homogenize.percolation import percolating_solid
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)
 UNIT = (1.0, 1.0, 1.0)

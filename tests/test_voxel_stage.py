@@ -18,7 +18,7 @@ from metasheet.fem.voxel import periodic_stiffness
 from metasheet.fem.voxel.element import phase_table
 from metasheet.fem.voxel.operator import VoxelOperator, apply_full, touched_nodes
 from metasheet.homogenize.percolation import percolating_solid
-from metasheet.material import Isotropic
+from metasheet.mechanics.material import Isotropic
 from metasheet.pipeline.registry import StageContext
 from metasheet.pipeline.stages import homogenize as stage
 

@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 import metasheet
-from metasheet.provenance import code_digest
+from metasheet.runtime.provenance import code_digest
 
 ROOT = Path(__file__).resolve().parents[2]
 DEST = ROOT / "docs" / "img" / "paper"

@@ -95,7 +95,7 @@ print(f"relative density {constants.relative_density:.3f}, misfit {constants.dat
 # %%
 import numpy as np
 
-from metasheet.material import TransverseIsotropic
+from metasheet.mechanics.material import TransverseIsotropic
 
 fit = TransverseIsotropic.fit(constants.C)
 print(fit.material)

@@ -32,7 +32,7 @@ import numpy as np
 from pydantic import Field, ValidationError
 
 from ..errors import TYPE_WORDS, ConfigError
-from ..material import Isotropic
+from ..mechanics.material import Isotropic
 from .connectivity import ConnectivityReport, check_percolation, settle_phases
 from .foam import Foam, foam_field, voxel_centres
 from .measure import mean_chord_lengths
@@ -182,7 +182,7 @@ class CellResult:
         (cubic, n = nx = ny = nz, for all but polyfoams).
     size : (3,) [mm] the periodic box.
     axis : longitudinal axis index (0, 1, 2).
-    materials : phase -> :class:`~metasheet.material.Isotropic`.
+    materials : phase -> :class:`~metasheet.mechanics.material.Isotropic`.
     relative_density : solid voxels / all voxels [-].
     foam : the :class:`Foam` (foam and polyfoam designs), else None.
     solution : the thickness solve (foam designs), else None.

@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..material import Isotropic
+from ..mechanics.material import Isotropic
 from .metrics import PolyhedralMetric, StretchedMetric
 
 

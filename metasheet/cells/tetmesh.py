@@ -246,7 +246,7 @@ def _gmsh_fill(verts, faces, h, *, optimize, threads):
     """
     import gmsh
 
-    from ..gmsh_start import initialize as start_gmsh
+    from ..runtime.gmsh_start import initialize as start_gmsh
 
     was_init = not start_gmsh(argv=[], readConfigFiles=False, run=False, interruptible=False)
     opts = {

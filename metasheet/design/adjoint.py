@@ -46,12 +46,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .. import paper
+from ..published import paper
 from ..errors import ConfigError
 from ..fem.assembly import submatrix_map
 from ..fem.hex8 import strain_operator
-from ..material import Isotropic, TransverseIsotropic
-from ..material_model import check_model, model_stiffness
+from ..mechanics.material import Isotropic, TransverseIsotropic
+from ..mechanics.material_model import check_model, model_stiffness
 from ..robot.builder import SheetPair, six_dof_robot
 from ..robot.kinematics import jacobian_from_schur
 from ..robot.robots import Q_A, Q_B, ServoGeometry
@@ -107,12 +107,12 @@ def rest_problem(sheets: SheetPair, material, basis: PolarBSpline | None = None,
     ----------
     sheets : the pair; ``sheets.fibers`` (in the sheet plane) is the starting field theta0 and
         ``sheets.fibers_mirrored`` must be its mirror (``fibers @ diag(1, -1, 1)``, to 1e-9).
-    material : :class:`~metasheet.material.TransverseIsotropic` or
-        :class:`~metasheet.material.Isotropic`, the same everywhere (graded per-element
+    material : :class:`~metasheet.mechanics.material.TransverseIsotropic` or
+        :class:`~metasheet.mechanics.material.Isotropic`, the same everywhere (graded per-element
         constants are not supported here).
     basis : the design's :class:`.fibre_field.PolarBSpline` (default: 4 x 12 cubic, r_max the
         sheet's outer radius).
-    model : "ours" or "authors" (:mod:`metasheet.material_model`); rod_length [mm], geometry
+    model : "ours" or "authors" (:mod:`metasheet.mechanics.material_model`); rod_length [mm], geometry
         (None: the default :class:`~metasheet.robot.robots.ServoGeometry`): as
         :func:`metasheet.robot.builder.six_dof_robot`.
     length_scale : [mm] for the scaled singular values.

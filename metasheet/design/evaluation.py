@@ -21,7 +21,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 
-from ..material_model import model_stiffness
+from ..mechanics.material_model import model_stiffness
 from . import objectives as obj
 from . import printability as pr
 from . import strain as st

@@ -1,9 +1,9 @@
 """A transverse-isotropic stiffness turned in the sheet plane, and its derivative in the angle.
 
-The material's local axis 3 (the soft l axis, :class:`~metasheet.material.TransverseIsotropic`)
+The material's local axis 3 (the soft l axis, :class:`~metasheet.mechanics.material.TransverseIsotropic`)
 follows the in-plane fibre ``(cos theta, sin theta, 0)`` of the sheet frame
 (:mod:`.fibre_field`'s convention). In Mandel form (where rotating a symmetric tensor is an
-orthogonal 6 x 6 matrix, :mod:`metasheet.voigt`)
+orthogonal 6 x 6 matrix, :mod:`metasheet.mechanics.voigt`)
 
     C(theta) = Q(theta) C_x Q(theta)^T,    Q(theta) = mandel_rotation(Rz(theta)) = exp(theta Omega),
     dC/dtheta = Omega C(theta) - C(theta) Omega,
@@ -11,7 +11,7 @@ orthogonal 6 x 6 matrix, :mod:`metasheet.voigt`)
 with ``C_x`` the tensor whose l axis lies along sheet x and ``Omega`` (skew, 6 x 6) the
 Mandel generator of rotations about z. Exact, no finite differences; a transverse-isotropic
 tensor does not care about the frame's roll about l, so this is the same tensor
-:func:`metasheet.voigt.stiffness_along` builds (to round-off), and an isotropic one gives
+:func:`metasheet.mechanics.voigt.stiffness_along` builds (to round-off), and an isotropic one gives
 ``dC/dtheta = 0`` to round-off (it commutes with every rotation).
 The robot's world frame is reached by one more fixed rotation per sheet
 (:data:`metasheet.robot.robots.Q_A`, ``Q_B``), applied to C and dC/dtheta alike.
@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import skew
-from ..voigt import MANDEL, mandel_rotation
+from ..mechanics.rotations import skew
+from ..mechanics.voigt import MANDEL, mandel_rotation
 
 #: local -> sheet frame taking the material's axis 3 to sheet x (columns: local axes 1, 2, 3)
 _L_ALONG_X = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

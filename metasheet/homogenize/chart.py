@@ -8,7 +8,7 @@ A chart sweeps two settings of a cell family (:data:`FAMILY_AXES`):
 
 :func:`chart_points` lists the sweep's work items; :func:`evaluate_point` (module level,
 picklable) builds one cell with :mod:`metasheet.cells.design` and homogenises it, so the
-sweep runs through :class:`~metasheet.executor.Executor` in parallel.
+sweep runs through :class:`~metasheet.runtime.executor.Executor` in parallel.
 :class:`ChartInterpolant` interpolates the seed-averaged constants bilinearly (log of the
 moduli, the Poisson ratios as they are) and :func:`lookup` inverts it: target (E_t, E_l) or
 (relative density, alpha) -> the two settings, by a small bounded least-squares solve.
@@ -25,7 +25,7 @@ from scipy.interpolate import RegularGridInterpolator
 from scipy.optimize import least_squares
 
 from ..errors import ConfigError, InfeasibleError
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 
 #: The two swept settings of each cell family, in chart order.
 FAMILY_AXES = {"foam": ("target_density", "stretch"), "polyfoam": ("infill_percentage", "kgon_x_shrink")}

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, InfeasibleError
-from ..material import Isotropic, TransverseIsotropic, TransverseFit
+from ..mechanics.material import Isotropic, TransverseIsotropic, TransverseFit
 from ..fem.solvers import solve_spd
 
 
@@ -29,7 +29,7 @@ def material_stiffness(phase: int, material) -> np.ndarray:
     if isinstance(material, (Isotropic, TransverseIsotropic)):
         return material.stiffness()
     raise ConfigError(
-        f"materials[{phase}]: {type(material).__name__}: expected metasheet.material.Isotropic "
+        f"materials[{phase}]: {type(material).__name__}: expected metasheet.mechanics.material.Isotropic "
         "or TransverseIsotropic"
     )
 

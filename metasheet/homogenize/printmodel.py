@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, InfeasibleError
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 from .chart import ChartInterpolant, lookup
 
 _MODULI = ("E_t", "E_l", "mu_l")

@@ -23,7 +23,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..errors import ConfigError
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 
 #: The scalar constants whose statistics are kept, in order [MPa, -].
 STAT_NAMES = tuple(CONSTANT_NAMES)

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..material import TransverseFit
+from ..mechanics.material import TransverseFit
 
 #: Names of the six unit macro-strain load cases, Voigt order.
 LOAD_CASES = ("11", "22", "33", "23", "13", "12")
@@ -96,7 +96,7 @@ class HomogenizationResult:
 
     @property
     def material(self):
-        """The fitted :class:`~metasheet.material.TransverseIsotropic` material."""
+        """The fitted :class:`~metasheet.mechanics.material.TransverseIsotropic` material."""
         return self.fit.material
 
     def constants(self) -> dict:

@@ -68,8 +68,8 @@ def homogenize_voxels(phases, size, materials: dict, *, solver: str = "auto", rt
     ----------
     phases : (nx, ny, nz) int, 0 = void, k > 0 = ``materials[k]``.
     size : (3,) float [mm], the box's edge lengths.
-    materials : dict phase -> :class:`~metasheet.material.Isotropic` or
-        :class:`~metasheet.material.TransverseIsotropic` (its axis 3 = global z).
+    materials : dict phase -> :class:`~metasheet.mechanics.material.Isotropic` or
+        :class:`~metasheet.mechanics.material.TransverseIsotropic` (its axis 3 = global z).
     solver : "auto", "direct" or "amg" (:func:`metasheet.fem.solvers.solve_spd`), or "voxel"
         (matrix-free multigrid CG, :func:`metasheet.homogenize.voxel_correctors.solve_voxel_correctors`);
         "auto" takes "voxel" from :data:`~metasheet.homogenize.voxel_correctors.VOXEL_AUTO_DOFS` unknowns.

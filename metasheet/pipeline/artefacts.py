@@ -31,13 +31,13 @@ import numpy as np
 
 from ..conventions import GRAVITY
 from ..errors import ConfigError, MeshError
-from ..material import CONSTANT_NAMES, TransverseIsotropic
-from ..material_model import authors_effective, check_model, model_stiffness
+from ..mechanics.material import CONSTANT_NAMES, TransverseIsotropic
+from ..mechanics.material_model import authors_effective, check_model, model_stiffness
 from ..robot.builder import SheetPair
 from ..robot.scenes import RobotScene  # noqa: F401  (the robot stage's scene; read_robot_scene returns it)
 from ..sheet.geometry import SheetMesh
 from ..sheet.outline import SheetParams
-from ..stop_signals import Stopped
+from ..runtime.stop_signals import Stopped
 from .manifest import read_manifest, write_json_atomic
 
 SHEET_FILES = {"normal": "sheet.vtu", "mirrored": "sheet_mirrored.vtu"}
@@ -194,7 +194,7 @@ def read_print_model(chart_dir: Path, cell_dir: Path | None = None, homogenize_d
 @dataclass(frozen=True)
 class MaterialFile:
     """``material.json``: the sheets' ``material``, mass ``density`` [t/mm^3], ``source`` and
-    the material ``model`` the robot builds its tensor with (:mod:`metasheet.material_model`)."""
+    the material ``model`` the robot builds its tensor with (:mod:`metasheet.mechanics.material_model`)."""
 
     material: TransverseIsotropic
     density: float
@@ -255,7 +255,7 @@ def write_sheet(path: Path, sheet: SheetMesh, cell_data: dict[str, np.ndarray]) 
 @dataclass(frozen=True)
 class SheetFile:
     """One sheet VTU: the ``mesh``, ``fibers`` (m, 3), ``constants`` (m, 5) in
-    :data:`~metasheet.material.CONSTANT_NAMES` order or None, and every cell field."""
+    :data:`~metasheet.mechanics.material.CONSTANT_NAMES` order or None, and every cell field."""
 
     mesh: SheetMesh
     fibers: np.ndarray

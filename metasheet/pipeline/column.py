@@ -2,8 +2,8 @@
 what a column is and builds its robot; the study stages, ``robot goto`` and ``serve`` call it.
 
 The paper's figures (Fig. 5-8, the maze) came from the authors' model: the published
-transverse-isotropic constants (:data:`metasheet.paper.PAPER_FOAM`) under the authors' SOFA
-force field (shear moduli from E_t and nu_t, mu_l unused: :mod:`metasheet.material_model`),
+transverse-isotropic constants (:data:`metasheet.published.paper.PAPER_FOAM`) under the authors' SOFA
+force field (shear moduli from E_t and nu_t, mu_l unused: :mod:`metasheet.mechanics.material_model`),
 and no strain limit. metasheet's own answer is another robot: the printed foam's homogenised
 constants, all five of them, within the strain range the homogenisation holds in. A study
 computes either or both:
@@ -46,7 +46,7 @@ class Column:
     Attributes
     ----------
     name : "prediction" or "reproduction".
-    material : the sheets' :class:`~metasheet.material.TransverseIsotropic`; None: the
+    material : the sheets' :class:`~metasheet.mechanics.material.TransverseIsotropic`; None: the
         material stage's (and its density) with the orient sheets' per-element constants.
     model : the material model, "ours" / "authors"; None: the material stage's.
     mesh : the sheet keys (``element``, ``mesh_size`` [mm], ``grip_size`` [mm]) the column
@@ -77,7 +77,7 @@ def column(name: str, reproduction_model: str = "authors", field: str = "column"
     if name == "prediction":
         return Column(name, None, None, {}, {}, (0.1, 0.2), False)
     if name == "reproduction":
-        from .. import paper
+        from ..published import paper
 
         return Column(name, paper.PAPER_FOAM, reproduction_model, dict(REPRODUCTION_MESH),
                       {"stop_beyond_strain": False, **REPRODUCTION_MESH}, (1.0, 2.0), True)
@@ -119,7 +119,7 @@ def column_sheets(orient, col: Column, mesh_size: float | None = None, layers: i
 class ColumnRobot:
     """The parts of a column's 6-DOF robot: its ``sheets``
     (:class:`~metasheet.robot.builder.SheetPair`, with per-element constants when graded),
-    the design ``material`` (:class:`~metasheet.material.TransverseIsotropic`: everywhere unless
+    the design ``material`` (:class:`~metasheet.mechanics.material.TransverseIsotropic`: everywhere unless
     the sheets carry constants), the material ``model`` and the sheets' ``density`` [t/mm^3]."""
 
     column: Column
@@ -150,7 +150,7 @@ def column_robot(orient, material_file, col: Column, sheet_mass_g: float | None 
     (:class:`~metasheet.pipeline.artefacts.MaterialFile` ``material_file``), and the density:
     ``sheet_mass_g`` [g] over the sheet's volume when the scene gives a sheet mass, else the
     column's foam (the paper's density for the published constants) or the material stage's."""
-    from .. import paper
+    from ..published import paper
     from ..robot.builder import resolve_density
 
     sheets = column_sheets(orient, col, **mesh)

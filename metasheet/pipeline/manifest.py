@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..version import __version__
-from ..provenance import code_digest
+from ..runtime.provenance import code_digest
 
 MANIFEST = "manifest.json"
 
@@ -132,7 +132,7 @@ def versions() -> dict[str, str]:
 
 def cache_key(stage: str, params: dict, files: dict[str, str], inputs: dict[str, dict]) -> str:
     """The key that decides whether a stage must run again: its parameters, the files they
-    name, its inputs' keys, and the code (:func:`~metasheet.provenance.code_digest`), so an
+    name, its inputs' keys, and the code (:func:`~metasheet.runtime.provenance.code_digest`), so an
     edited metasheet reruns a stage without ``--force``."""
     return sha256_json(
         {"stage": stage, "params": params, "files": files, "inputs": inputs, "version": __version__,

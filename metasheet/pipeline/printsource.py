@@ -32,7 +32,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigError
-from ..material import CONSTANT_NAMES, TransverseIsotropic
+from ..mechanics.material import CONSTANT_NAMES, TransverseIsotropic
 from ..sheet.icesl import POLYFOAM_DEFAULTS
 from .artefacts import read_cell_info, read_constants
 

@@ -17,7 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict
 
-from ..executor import Executor
+from ..runtime.executor import Executor
 
 
 class Params(BaseModel):

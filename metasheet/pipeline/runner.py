@@ -12,14 +12,14 @@ What a run guarantees (tested in ``tests/test_reliability_*.py``):
 - **Interrupted means stopped.** An interrupt (Ctrl-C, SIGTERM, SIGHUP through the CLI)
   kills the pool's workers, stops the stages under way at their next progress report,
   removes this run's temporary folders and re-raises; the workers of a SIGKILLed run exit
-  by themselves (:mod:`metasheet.executor`).
+  by themselves (:mod:`metasheet.runtime.executor`).
 - **One run per output folder at a time**, first come first served (:mod:`.lock`). Only the
   process that called :func:`run_pipeline` takes the lock: the work units a stage hands to
   its executor (process pool or dask workers) never do.
 - **Named faults.** An output folder that cannot be written (permissions, read-only, disk
   full) is an :class:`~metasheet.errors.OutputError` naming the path and the cause.
 - **Same bytes.** The run computes with one BLAS / OpenMP thread in this process and in each
-  worker (:data:`~metasheet.executor.UNIT_THREADS`), whatever ``OPENBLAS_NUM_THREADS`` says:
+  worker (:data:`~metasheet.runtime.executor.UNIT_THREADS`), whatever ``OPENBLAS_NUM_THREADS`` says:
   no result depends on how a library splits a sum. Measured times go to the manifest only
   (``started``, ``wall_time_s``, ``cpu_s``, ``timings_s``); see :mod:`.manifest` for the
   cache key's canonical hashes.
@@ -39,8 +39,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from ..errors import ConfigError, Interrupted, MetasheetError, OutputError, StageError, output_error
-from ..cpu import code_paths
-from ..executor import CpuMeter, Executor, own_threads
+from ..runtime.cpu import code_paths
+from ..runtime.executor import CpuMeter, Executor, own_threads
 from ..supervise import tell as tell_supervisor
 from . import manifest as mf
 from .config import Pipeline, upstream

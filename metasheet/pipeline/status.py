@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import StageError
-from ..provenance import code_digest
+from ..runtime.provenance import code_digest
 from . import manifest as mf
 from .config import Pipeline
 from .staleness import stage_key

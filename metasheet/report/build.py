@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 from .columns import columns_section, scene_facts_section
 from .constants import constants_section
 from .convergence import HEADING as CONVERGENCE_HEADING, convergence_section

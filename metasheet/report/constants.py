@@ -1,8 +1,8 @@
 """Report section: the homogenised foam next to the published constants and the literature.
 
 Three sources side by side, each named: the pipeline's homogenised cell (``homogenize``),
-the paper's published constants (:data:`metasheet.paper.PAPER_FOAM`) and the authors'
-homogenised IceSL foam table (:mod:`metasheet.literature`), at the cell's density and over
+the paper's published constants (:data:`metasheet.published.paper.PAPER_FOAM`) and the authors'
+homogenised IceSL foam table (:mod:`metasheet.published.literature`), at the cell's density and over
 the design chart's density sweep; then the robot's figures for both constant sets. The
 differences listed are computed from these numbers.
 """
@@ -13,9 +13,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..literature import E_S, G_S, SOURCE, authors_constants, authors_table
-from ..material import CONSTANT_NAMES
-from ..paper import PAPER_FOAM
+from ..published.literature import E_S, G_S, SOURCE, authors_constants, authors_table
+from ..mechanics.material import CONSTANT_NAMES
+from ..published.paper import PAPER_FOAM
 
 _UNITS = {"E_t": "MPa", "E_l": "MPa", "nu_t": "-", "nu_tl": "-", "mu_l": "MPa"}
 

@@ -1,7 +1,7 @@
 """Report section: which of the paper's claims depend on the shear modulus mu_l.
 
 The authors' SOFA force field built its tensor with the longitudinal shear modulus
-E_t / (2 (1 + nu_t)) and never used mu_l (:mod:`metasheet.material_model`). The robot stage
+E_t / (2 (1 + nu_t)) and never used mu_l (:mod:`metasheet.mechanics.material_model`). The robot stage
 evaluates the foam robot under both material models (cases ``foam`` and ``foam_<other>``,
 and the same for ``published``), the anisotropy stage the Fig. 7 end point
 (``model_end_points``); this section puts the claims side by side:
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..material_model import MATERIAL_MODELS
+from ..mechanics.material_model import MATERIAL_MODELS
 
 LABELS = {"ours": "ours (all five constants)", "authors": "authors' force field (mu_l unused)"}
 
@@ -70,7 +70,7 @@ def model_section(robot: Mapping | None, anisotropy: Mapping | None) -> tuple[li
     head = "| claim | " + " | ".join(f"{lab}, {LABELS[m]}" for lab, m, _ in cols) + " |"
     intro = (f"The robot runs on model **{run}**. The authors' force field (TetrahedronAnisotropicForceField) "
              "sets c44 = c55 = E_t / (2 (1 + nu_t)) and never reads mu_l; its c13 differs too "
-             "(see `metasheet.material_model`), so a column pair measures both differences together. "
+             "(see `metasheet.mechanics.material_model`), so a column pair measures both differences together. "
              "Silicone (isotropic) is the same under both.")
     lines = ["## Which results depend on the shear modulus mu_l", "", intro, "", head, "|---" * (len(cols) + 1) + "|"]
     sil = robot.get("silicone", {}).get("singular_values")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..material import CONSTANT_NAMES
-from ..paper import PAPER_FOAM
+from ..mechanics.material import CONSTANT_NAMES
+from ..published.paper import PAPER_FOAM
 
 
 def _f(v, nd: int = 3) -> str:

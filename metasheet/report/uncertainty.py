@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..literature import authors_constants, authors_table
-from ..material import CONSTANT_NAMES
-from ..paper import PAPER_FOAM
+from ..published.literature import authors_constants, authors_table
+from ..mechanics.material import CONSTANT_NAMES
+from ..published.paper import PAPER_FOAM
 
 _UNITS = {"E_t": "MPa", "E_l": "MPa", "nu_t": "-", "nu_tl": "-", "mu_l": "MPa"}
 

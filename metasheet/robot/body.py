@@ -15,8 +15,8 @@ import numpy as np
 
 from ..conventions import GRAVITY, TPU_DENSITY
 from ..errors import ConfigError, MeshError, check_range
-from ..material import Isotropic, TransverseIsotropic
-from ..voigt import stiffness_along
+from ..mechanics.material import Isotropic, TransverseIsotropic
+from ..mechanics.voigt import stiffness_along
 from ..fem import tet10
 from ..fem.assembly import SparsityPattern
 from . import kernels, quadrature
@@ -72,7 +72,7 @@ class ElasticBody:
         (straight-edged: the 4 vertices, then the midpoints of edges 01, 02, 03, 12, 13, 23,
         :mod:`metasheet.fem.tet10`).
     stiffness : (m, 6, 6) or (6, 6) float [MPa], Voigt stiffness in GLOBAL axes (11, 22, 33,
-        23, 13, 12, engineering shear); see :func:`metasheet.voigt.stiffness_along`.
+        23, 13, 12, engineering shear); see :func:`metasheet.mechanics.voigt.stiffness_along`.
     density : float [t/mm^3] for the lumped mass (TPU: 1.19e-9).
     backend : "numba" (fused compiled kernel, default) or "numpy" (batched reference).
 

@@ -4,7 +4,7 @@ The robot stage, the ``metasheet robot goto`` command, the studies (in every wor
 tests and benchmarks all call :func:`six_dof_robot`, so the sheets' stiffness is made one
 way: per-element constants (a graded design, as the orient stage wrote them) or a single
 material, rotated so that its axis 3 (the soft l axis) follows each element's fibre, and one
-material model (:mod:`metasheet.material_model`: ours, all five constants, or the authors'
+material model (:mod:`metasheet.mechanics.material_model`: ours, all five constants, or the authors'
 force field's tensor) turns constants into a tensor.
 """
 
@@ -14,15 +14,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import paper
+from ..published import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError
-from ..material import Isotropic, TransverseIsotropic
-from ..material_model import check_model, model_stiffness
+from ..mechanics.material import Isotropic, TransverseIsotropic
+from ..mechanics.material_model import check_model, model_stiffness
 from ..sheet.elements import as_element, check_element
 from ..sheet.geometry import SheetMesh
 from ..sheet.outline import SheetParams
-from ..voigt import stiffness_along
+from ..mechanics.voigt import stiffness_along
 from .robots import Robot, ServoGeometry, six_dof
 
 
@@ -36,7 +36,7 @@ class SheetPair:
     mirrored : its reflection y -> -y (tripod B).
     fibers, fibers_mirrored : (m, 3) float fibre direction (local axis 3) per element of each.
     constants, constants_mirrored : (m, 5) float per-element constants [MPa, -] in
-        :data:`~metasheet.material.CONSTANT_NAMES` order, or None (a material is then given).
+        :data:`~metasheet.mechanics.material.CONSTANT_NAMES` order, or None (a material is then given).
     element : the robot's finite element, "p1" (the sheets' own linear tetrahedra) or "p2"
         (the same tetrahedra made quadratic when the robot is built,
         :func:`metasheet.sheet.elements.as_element`).
@@ -81,7 +81,7 @@ class SheetPair:
 
 def material_stiffness(material, fibers: np.ndarray, model: str = "ours") -> np.ndarray:
     """Sheet-frame stiffness [MPa] of one material: (6, 6) when isotropic, else (m, 6, 6)
-    with axis 3 along ``fibers`` (m, 3); ``model``: see :mod:`metasheet.material_model`."""
+    with axis 3 along ``fibers`` (m, 3); ``model``: see :mod:`metasheet.mechanics.material_model`."""
     C = model_stiffness(material, model)
     if isinstance(material, Isotropic):
         return C
@@ -90,7 +90,7 @@ def material_stiffness(material, fibers: np.ndarray, model: str = "ours") -> np.
 
 def element_stiffness(fibers: np.ndarray, constants: np.ndarray, model: str = "ours") -> np.ndarray:
     """(m, 6, 6) sheet-frame stiffness [MPa] from per-element constants (m, 5), axis 3 along
-    ``fibers`` (m, 3), under ``model`` (:mod:`metasheet.material_model`). Elements whose constants agree to 1e-12 share one tensor (a graded
+    ``fibers`` (m, 3), under ``model`` (:mod:`metasheet.mechanics.material_model`). Elements whose constants agree to 1e-12 share one tensor (a graded
     design has a few distinct materials); each group uses its first element's constants."""
     keys = np.round(np.asarray(constants, float), 12)
     _, first, inv = np.unique(keys, axis=0, return_index=True, return_inverse=True)
@@ -122,16 +122,16 @@ def six_dof_robot(sheets: SheetPair, material=None, *, density: float | None = N
     ----------
     sheets : the sheet pair with fibres (and per-element constants for ``material`` None).
     material : None: each element's own constants (an error when the pair has none);
-        :class:`~metasheet.material.Isotropic` or
-        :class:`~metasheet.material.TransverseIsotropic`: that material everywhere, along
+        :class:`~metasheet.mechanics.material.Isotropic` or
+        :class:`~metasheet.mechanics.material.TransverseIsotropic`: that material everywhere, along
         the fibres.
-    density : sheet mass density [t/mm^3] (e.g. :data:`metasheet.paper.FOAM_DENSITY`), or
+    density : sheet mass density [t/mm^3] (e.g. :data:`metasheet.published.paper.FOAM_DENSITY`), or
     sheet_mass_g : the mass of each sheet [g] (the authors' scene: 32 g); the density is then
         mass / volume of ``sheets.sheet`` (the mirrored sheet has the same volume). Give one.
     rod_length : [mm]; geometry : servo placement and stroke; gravity : (3,) [mm/s^2].
     model : how constants become a tensor, "ours" (all five) or "authors" (their SOFA force
         field: longitudinal shear from E_t and nu_t, mu_l unused); see
-        :mod:`metasheet.material_model`. The one place the robot's material model is applied.
+        :mod:`metasheet.mechanics.material_model`. The one place the robot's material model is applied.
     """
     check_model(model, "model")
     density = resolve_density(sheets.sheet, density, sheet_mass_g)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotations import rotation_vector
+from ..mechanics.rotations import rotation_vector
 from .kinematics import Kinematics, kinematics
 from .robots import Robot
 from .statics import RobotState

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import skew
+from ..mechanics.rotations import skew
 from ..sheet.grips import N_GRIP_DOF, check_references, check_stiffness
 from .kinematics import Kinematics, kinematics_from_schur
 from .robots import Q_A, Q_B

@@ -78,7 +78,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
-from ..rotations import rotation_matrix, rotation_vector
+from ..mechanics.rotations import rotation_matrix, rotation_vector
 from .equilibrium import solve_equilibrium
 from .inverse_settings import InverseSettings
 from .qp import QPStep, pose_error, solve_step_qp, weighted_norm

@@ -24,7 +24,7 @@ from typing import Protocol
 import numpy as np
 import qpsolvers
 
-from ..rotations import rotation_vector
+from ..mechanics.rotations import rotation_vector
 
 SOLVERS = ("daqp", "quadprog", "proxqp")  # dense QP solvers (through qpsolvers)
 

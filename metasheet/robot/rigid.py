@@ -16,7 +16,7 @@ The node positions are split into ``x_e`` (nodes rigidly tied to the effector), 
 The transposed Jacobians turn nodal forces into the rigid bodies' force/torque; their
 derivatives give the geometric stiffness terms (:func:`geometric_effector`,
 :func:`geometric_servo`) that make Newton's tangent exact for the rigid coordinates.
-Rotation vectors and matrices: :mod:`metasheet.rotations`.
+Rotation vectors and matrices: :mod:`metasheet.mechanics.rotations`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import axis_rotation, cross, skew
+from ..mechanics.rotations import axis_rotation, cross, skew
 
 
 @dataclass(frozen=True)

@@ -50,10 +50,10 @@ from functools import cached_property
 
 import numpy as np
 
-from .. import paper
+from ..published import paper
 from ..conventions import GRAVITY, TPU_DENSITY
 from ..errors import ConfigError, check_range
-from ..voigt import MANDEL, mandel_rotation
+from ..mechanics.voigt import MANDEL, mandel_rotation
 from .rigid import RigidCoupling, Servo
 
 

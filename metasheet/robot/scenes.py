@@ -41,7 +41,7 @@ across the rod, as metasheet's mirrored sheet is (:mod:`metasheet.sheet.fibers`)
 * 45 deg log spiral: the pitch was not known from the sources then (see above: the authors'
   is 30 deg).
 * no sheet mass: the density is the foam's, TPU x relative density
-  (:data:`metasheet.paper.FOAM_DENSITY`); the authors give every sheet 32 g, which on their
+  (:data:`metasheet.published.paper.FOAM_DENSITY`); the authors give every sheet 32 g, which on their
   mesh (27,365 mm^3) is 1.17 g/cm^3, nearly solid TPU (the tutorial's silicone sheet's mass).
 """
 
@@ -49,7 +49,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
-from .. import paper
+from ..published import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError, check_range
 from ..sheet.outline import SheetParams
@@ -161,14 +161,14 @@ METASHEET = ScenePreset(
         "centre_radius": "FACTS.md:48 (a sphere of radius 7.5 mm there; here the cylinder of that radius the mesh conforms to, metasheet/sheet/geometry.py)",
         "law": "paper Fig. 3 (a spiral); log = constant angle to the circle",
         "pitch_deg": "metasheet's choice (module docstring)",
-        "rod_length": "metasheet.paper.ROD_LENGTH (robot/robots.py docstring)",
-        "rest_angle": "metasheet.paper.REST_ANGLE (robot/robots.py docstring: keeps the +-10 deg rotations)",
+        "rod_length": "metasheet.published.paper.ROD_LENGTH (robot/robots.py docstring)",
+        "rest_angle": "metasheet.published.paper.REST_ANGLE (robot/robots.py docstring: keeps the +-10 deg rotations)",
         "horn_length": "FACTS.md:46 (horn about 25 mm)",
         "servo_radius": "derived from rest_angle and horn_length",
         "servo_depth": "derived from rest_angle and horn_length",
         "angle_min": "paper Section IV-A (0 = horizontal horn)",
         "angle_max": "paper Section IV-A (90 = vertical horn)",
-        "sheet_mass_g": "none: density = TPU 1.19 g/cm^3 x relative density 0.15 (metasheet.paper)",
+        "sheet_mass_g": "none: density = TPU 1.19 g/cm^3 x relative density 0.15 (metasheet.published.paper)",
         "gravity": "metasheet.robot.robots: rod along x, gravity -z",
     })
 

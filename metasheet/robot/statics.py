@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from ..fem.assembly import submatrix_map
 from ..fem.factor import SparseSolver
 from .memo import LinearizationMemo, factor_bytes, state_key
-from ..rotations import cross, rotation_matrix, rotation_vector
+from ..mechanics.rotations import cross, rotation_matrix, rotation_vector
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConfigError
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 from .builder import SheetPair
 from .equilibrium import solve_equilibrium
 from .kinematics import kinematics

@@ -24,7 +24,7 @@ from ..robot.equilibrium import solve_equilibrium
 from ..robot.inverse import InverseController
 from ..robot.inverse_settings import InverseSettings
 from ..robot.kinematics import kinematics
-from ..rotations import rotation_vector
+from ..mechanics.rotations import rotation_vector
 
 #: the certificate's targets: position [mm], orientation [deg], Jacobian [relative], motors [deg]
 TARGETS = {"position_mm": 0.1, "orientation_deg": 0.1, "jacobian_rel": 0.02}

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import cross, rotation_vector, skew
+from ..mechanics.rotations import cross, rotation_vector, skew
 
 
 @dataclass(frozen=True)

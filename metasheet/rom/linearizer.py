@@ -13,7 +13,7 @@ import scipy.linalg as sla
 
 from ..robot.memo import LinearizationMemo, state_key
 from ..robot.statics import Linearization
-from ..rotations import rotation_matrix
+from ..mechanics.rotations import rotation_matrix
 from .coordinates import ReducedState
 from .tangents import Tangent, TangentLibrary
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import axis_rotation, cross
+from ..mechanics.rotations import axis_rotation, cross
 from .coordinates import ReducedBasis, ReducedState, coordinate_jacobian, projected_state, robot_key
 from .linearizer import ReducedLinearizer
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import rotation_matrix, rotation_vector, skew
+from ..mechanics.rotations import rotation_matrix, rotation_vector, skew
 
 
 def exponents(n_vars: int, degree: int) -> np.ndarray:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
 from ..robot.statics import Linearization
-from ..rotations import rotation_matrix, rotation_vector
+from ..mechanics.rotations import rotation_matrix, rotation_vector
 from .surface import EquilibriumData, Surface
 
 

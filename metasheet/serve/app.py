@@ -33,7 +33,7 @@ from collections import deque
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import rotation_matrix
+from ..mechanics.rotations import rotation_matrix
 from . import scene
 from .maze import maze_file, read_maze
 from .panel import MEASURED_RATE, RateMeter, status_markdown

@@ -11,7 +11,7 @@ artefacts the robot stage read, in the same way (:mod:`metasheet.pipeline.stages
   a sheet mass gives every sheet that mass instead, as in the robot stage.
 
 The "silicone" robot is the robot stage's silicone case: the same sheets, isotropic silicone
-(the pipeline's ``[robot]`` silicone constants, else :data:`metasheet.paper.SILICONE`), the
+(the pipeline's ``[robot]`` silicone constants, else :data:`metasheet.published.paper.SILICONE`), the
 silicone density or the scene's sheet mass.
 
 Every robot is built by :func:`load_robot`, the one place a robot model is chosen (the page
@@ -71,7 +71,7 @@ def find_outputs(pipeline: str | Path, out: str | Path | None = None) -> Outputs
 
     Raises :class:`ConfigError` when the outputs the page reads were written by another
     version of the file (:func:`check_fresh`)."""
-    from .. import paper
+    from ..published import paper
     from ..pipeline.config import load_pipeline
 
     p = load_pipeline(pipeline)
@@ -282,7 +282,7 @@ def certificate(reduce_dir: Path) -> str:
 
 def _full_robot(outputs: Outputs, material: str, column: str):
     """The FEM robot of ``outputs`` for ``material`` in ``column`` and its :class:`RobotInfo`."""
-    from ..material import Isotropic
+    from ..mechanics.material import Isotropic
     from ..pipeline.artefacts import read_material, read_orient, read_robot_scene
     from ..pipeline.column import column as column_of, column_robot
     from ..robot.builder import six_dof_robot

@@ -52,7 +52,7 @@ import numpy as np
 from ..errors import ConfigError, MetasheetError
 from ..robot.inverse_settings import InverseSettings
 from ..robot.qp import pose_error
-from ..rotations import rotation_matrix
+from ..mechanics.rotations import rotation_matrix
 from .models import RobotModels
 from .tracking import GoalRun, check_goal, pose_of
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import ConfigError, check_range
 from ..robot.qp import pose_error, weighted_norm
-from ..rotations import rotation_matrix, rotation_vector
+from ..mechanics.rotations import rotation_matrix, rotation_vector
 
 #: :meth:`GoalRun.track` takes no step when the pose error is below this share of the tolerances
 TRACK_FRACTION = 0.05

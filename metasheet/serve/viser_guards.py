@@ -19,7 +19,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import rotation_vector
+from ..mechanics.rotations import rotation_vector
 
 log = logging.getLogger(__name__)
 

@@ -2,7 +2,7 @@
 best reproduce a target grip stiffness (issue 44, item 4; the target is the printed foam's DNS).
 
 The model is the sheet FEM of :func:`.grips.fem_condensed`: same mesh, fibre field, element
-and material model (:mod:`metasheet.material_model`), one material everywhere. The misfit is
+and material model (:mod:`metasheet.mechanics.material_model`), one material everywhere. The misfit is
 scale-free: the residual is ``log`` of the 18 generalised eigenvalues of (target, model)
 relative stiffnesses (:func:`.grips.eigen_pairs`), the objective its squared 2-norm (the
 affine-invariant distance of the two 18 x 18 matrices: units and coordinate scaling drop out).
@@ -18,7 +18,7 @@ displacement fields U of the unit grip motions give the exact derivative
 
 The fit runs in ``p = (log E_t, log E_l, atanh nu_t, atanh(nu_tl / b), log mu_l)`` with
 ``b = sqrt((1 - nu_t) E_t / (2 E_l))``: every p is a positive-definite material of ours
-(:class:`~metasheet.material.TransverseIsotropic`'s conditions); ``dc / dp`` comes from central
+(:class:`~metasheet.mechanics.material.TransverseIsotropic`'s conditions); ``dc / dp`` comes from central
 differences of that closed-form map. The authors' model ignores mu_l (its C44 is
 ``(C11 - C12) / 2``): then only the first four are fitted and mu_l stays at its start
 (:attr:`ApparentFit.fitted` says which); a p whose authors' tensor is indefinite gets a
@@ -50,9 +50,9 @@ import scipy.sparse as sp
 from scipy.optimize import least_squares
 
 from ..errors import ConfigError
-from ..material import CONSTANT_NAMES, TransverseIsotropic
-from ..material_model import check_model, model_stiffness
-from ..voigt import stiffness_along
+from ..mechanics.material import CONSTANT_NAMES, TransverseIsotropic
+from ..mechanics.material_model import check_model, model_stiffness
+from ..mechanics.voigt import stiffness_along
 from .elements import as_element
 from .grips import (
     GripCondensation,

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 from . import angles, grid, icesl
 
 NU_FLOOR = 0.1

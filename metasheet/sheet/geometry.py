@@ -124,7 +124,7 @@ def tripod_sheet(params: SheetParams | None = None) -> SheetMesh:
     """
     import gmsh
 
-    from ..gmsh_start import initialize as start_gmsh
+    from ..runtime.gmsh_start import initialize as start_gmsh
 
     params = params or SheetParams()
     t, h = float(params.thickness), float(params.mesh_size)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from ..material import CONSTANT_NAMES, TransverseIsotropic, interpolate
+from ..mechanics.material import CONSTANT_NAMES, TransverseIsotropic, interpolate
 from .outline import ARM_ANGLES, SheetParams
 
 REGIONS = ("hub", "arms", "tips")

@@ -41,7 +41,7 @@ from ..fem.assembly import SparsityPattern, submatrix_map
 from ..fem.factor import SparseSolver
 from ..fem.hex8 import strain_operator
 from ..fem.tet10 import tet4_quadrature, tet10_quadrature
-from ..rotations import skew
+from ..mechanics.rotations import skew
 from .elements import as_element
 from .geometry import ATTACH_CENTRE
 from .outline import ARM_ANGLES, SheetParams

@@ -14,11 +14,11 @@ from functools import cached_property
 
 import numpy as np
 
-from .. import paper
+from ..published import paper
 from ..conventions import GRAVITY
 from ..errors import ConfigError, ConvergenceError
-from ..material import Isotropic, TransverseIsotropic, interpolate
-from ..material_model import check_model
+from ..mechanics.material import Isotropic, TransverseIsotropic, interpolate
+from ..mechanics.material_model import check_model
 from ..robot.builder import SheetPair
 from ..robot.validity import GRIP_BAND_MM
 from ..sheet.geometry import SheetMesh
@@ -42,7 +42,7 @@ class RobotSpec:
     motor_range (lo, hi) [deg]; density [t/mm^3]; gravity (3,) [mm/s^2].
     consts, consts_m : optional (m, 5) per-element constants of a graded design (the orient
     stage's); when given they replace ``material`` until ``with_alpha``/``with_material``.
-    model : the material model, "ours" or "authors" (:mod:`metasheet.material_model`).
+    model : the material model, "ours" or "authors" (:mod:`metasheet.mechanics.material_model`).
     strain_band_mm : the band along the grips the strain-validity check leaves out [mm]
     (:mod:`metasheet.robot.validity`; 0: every element).
     rot_weight [mm/rad], max_step_deg [deg], stall_steps, refresh_angle_deg [deg]: inverse-loop

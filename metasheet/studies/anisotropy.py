@@ -1,7 +1,7 @@
 """Anisotropy sweep (paper Fig. 7): rod rotation and lateral translation against alpha.
 
 For each alpha from 0 (isotropic) to the design value, the sheet material is
-:func:`metasheet.material.interpolate` d (through ``spec.with_alpha``) and all motors move
+:func:`metasheet.mechanics.material.interpolate` d (through ``spec.with_alpha``) and all motors move
 together from rest: ``pull_deg`` one way, then ``push_deg`` the other way (each as a ramp
 of at most ``ramp_deg`` per forward solve, continuing from the previous state). With
 isotropic sheets a common motion cannot turn the rod (it translates sideways when a sheet
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError, check_range
-from ..executor import Executor
+from ..runtime.executor import Executor
 from .model import MODELS, ModelSpec
 from .resume import UnitCache
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import check_range
-from ..executor import Executor
+from ..runtime.executor import Executor
 from .model import MODELS, ModelSpec
 from .resume import UnitCache
 

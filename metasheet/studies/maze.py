@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError, check_range
-from ..executor import Executor
+from ..runtime.executor import Executor
 from .model import MODELS, ModelSpec, pose_errors
 from .resume import UnitCache
 

@@ -18,7 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import rotation_matrix
+from ..mechanics.rotations import rotation_matrix
 
 
 @dataclass(frozen=True)
@@ -183,7 +183,7 @@ class ModelCache:
 
 #: This process's models (a worker process has its own): the studies' work units build
 #: through it. A worker may see a few specs (motor ranges, alphas), and a pipeline run's
-#: workers serve its stages in turn (:meth:`~metasheet.executor.Executor.session`), hence 8.
+#: workers serve its stages in turn (:meth:`~metasheet.runtime.executor.Executor.session`), hence 8.
 MODELS = ModelCache(max_size=8)
 
 

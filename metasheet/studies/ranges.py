@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConfigError
-from ..executor import Executor
+from ..runtime.executor import Executor
 from .grid import StarGrid
 from .model import MODELS, ModelSpec, check_motor_range
 from .resume import UnitCache

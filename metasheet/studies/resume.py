@@ -19,8 +19,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..executor import Executor
-from ..provenance import code_digest
+from ..runtime.executor import Executor
+from ..runtime.provenance import code_digest
 
 #: The keys each cache directory was asked for in this process (stages run in threads).
 _USED: dict[Path, set[str]] = {}

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotations import rotation_matrix, rotation_vector
+from ..mechanics.rotations import rotation_matrix, rotation_vector
 
 #: The paper's test (Section IV-B): +-10 deg about each world axis, within 1 mm and 2 deg.
 TILT_DEG, POS_TOL_MM, ROT_TOL_DEG = 10.0, 1.0, 2.0
@@ -122,7 +122,7 @@ def measure(robot, cand: Candidate) -> dict:
 def authors_robot(mesh_size: float = 10.0, element: str = "p1", model: str = "ours", grip_size: float = 0.0):
     """The authors' scene with the published constants and an unbounded stroke (sheets meshed
     at ``mesh_size``, ``grip_size`` at the grips' borders (0: uniform) [mm])."""
-    from .. import paper
+    from ..published import paper
     from ..robot import SheetPair, six_dof_robot
     from ..robot.robots import ServoGeometry
     from ..robot.scenes import AUTHORS as A

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..material import CONSTANT_NAMES
+from ..mechanics.material import CONSTANT_NAMES
 from ..robot.builder import SheetPair, element_stiffness
 from ..robot.condensed import rest_numbers_condensed
 from ..sheet.dns import DnsSheet, compare

@@ -46,7 +46,7 @@ import networkx as nx
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError, check_range
-from ..executor import Executor
+from ..runtime.executor import Executor
 from .grid import StarGrid
 from .model import MODELS, ModelSpec, pose_errors
 from .resume import UnitCache

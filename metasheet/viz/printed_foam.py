@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..npz import npz_bytes
+from ..runtime.npz import npz_bytes
 from . import figure_png, one_at_a_time
 
 # phase colours: outside, foam void, foam wall, solid brush (RGBA)
@@ -89,7 +89,7 @@ def printed_foam_picture(phases: np.ndarray, region: np.ndarray, origin, voxel_m
 
 
 def voxel_npz_bytes(**arrays: np.ndarray) -> bytes:
-    """The printed foam's byte-stable ``.npz`` (:func:`metasheet.npz.npz_bytes`): ``phases``
+    """The printed foam's byte-stable ``.npz`` (:func:`metasheet.runtime.npz.npz_bytes`): ``phases``
     (nx, ny, nz) uint8, ``region`` (nx, ny, nz) uint8, ``size`` (3,) [mm], ``origin`` (3,) [mm]
     and ``voxel_mm`` (3,) [mm]."""
     return npz_bytes(**arrays)

@@ -12,7 +12,7 @@ import io
 
 import numpy as np
 
-from ..rotations import rotation_vector
+from ..mechanics.rotations import rotation_vector
 from . import one_at_a_time
 
 

@@ -22,14 +22,14 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from ... import paper
+from ...published import paper
 from ...errors import ConfigError
 from ...robot.validity import GRIP_BAND_MM
 from ...studies.resume import UnitCache, keep_only_used
 from ..artefacts import OrientFile, RobotScene, read_material, read_orient, read_robot_scene
 from ..registry import Params, StageContext
 
-#: The scene a study runs on when no robot stage ran (the paper's, :mod:`metasheet.paper`).
+#: The scene a study runs on when no robot stage ran (the paper's, :mod:`metasheet.published.paper`).
 DEFAULT_SCENE = RobotScene(paper.ROD_LENGTH, paper.REST_ANGLE, paper.HORN_LENGTH, paper.ANGLE_MIN, paper.ANGLE_MAX)
 
 

@@ -6,7 +6,7 @@ When the sheets' material is not the paper's published foam, ``anisotropy.json``
 the sweep's end point computed with the published constants (``published_end_point``), so
 the two materials' Fig. 7 end points can be compared. With ``compare_models`` the end point
 (only it: the sweep is expensive) is also computed under the other material model
-(:mod:`metasheet.material_model`), for the pipeline's constants (``model_end_points[<other>]``)
+(:mod:`metasheet.mechanics.material_model`), for the pipeline's constants (``model_end_points[<other>]``)
 and the published ones (``model_end_points["published_<other>"]``).
 
 ``model = "reduced"`` runs the sweep on the FULL model: every alpha is another sheet
@@ -21,10 +21,10 @@ from pydantic import Field
 
 from dataclasses import replace
 
-from ... import paper
+from ...published import paper
 from ...errors import ConfigError
-from ...material import TransverseIsotropic
-from ...material_model import model_stiffness, other_model
+from ...mechanics.material import TransverseIsotropic
+from ...mechanics.material_model import model_stiffness, other_model
 from ...studies.anisotropy import anisotropy_sweeps
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register

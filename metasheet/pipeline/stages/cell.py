@@ -25,7 +25,7 @@ from pydantic import Field
 from ...cells.design import CellResult, FoamDesign, LaminateDesign, design_cell, parse_design
 from ...cells.polyfoam import PolyfoamDesign
 from ...errors import ConfigError, MeshError
-from ...npz import write_npz
+from ...runtime.npz import write_npz
 from ..manifest import sha256_file, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 

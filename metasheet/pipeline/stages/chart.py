@@ -21,7 +21,7 @@ from pydantic import Field, model_validator
 from ...errors import ConfigError
 from ...homogenize.chart import FAMILY_AXES, chart_points, evaluate_point, to_csv
 from ...homogenize.chart_bars import chart_bars
-from ...material import CONSTANT_NAMES
+from ...mechanics.material import CONSTANT_NAMES
 from ..registry import Params, Stage, StageContext, register
 from .cell import read_design_toml
 

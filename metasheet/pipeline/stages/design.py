@@ -51,7 +51,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from pydantic import Field, model_validator
 
-from ... import paper
+from ...published import paper
 from ...design import evaluation as ev
 from ...design import outputs as out
 from ...design import search as ds

@@ -30,7 +30,7 @@ from pydantic import Field, model_validator
 
 from ...errors import ConfigError
 from ...homogenize import homogenize_mesh, homogenize_voxels
-from ...material import CONSTANT_NAMES, Isotropic, TransverseIsotropic
+from ...mechanics.material import CONSTANT_NAMES, Isotropic, TransverseIsotropic
 from ..artefacts import read_cell, read_cell_tets
 from ..manifest import write_json_atomic
 from ..registry import Params, Stage, StageContext, register

@@ -9,7 +9,7 @@ nu_tl alone and is used here the same way).
 ``model`` chooses how the robot turns the constants into a tensor (everywhere: robot stage,
 studies, ``metasheet robot goto``): "ours" uses all five; "authors" is the authors' SOFA force
 field, whose longitudinal shear is E_t / (2 (1 + nu_t)) whatever mu_l, and whose c13 differs
-(:mod:`metasheet.material_model`). ``material.json`` records it with the tensor it gives.
+(:mod:`metasheet.mechanics.material_model`). ``material.json`` records it with the tensor it gives.
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from ... import paper
+from ...published import paper
 from ...errors import ConfigError
-from ...material import Isotropic, TransverseIsotropic
-from ...material_model import model_stiffness
+from ...mechanics.material import Isotropic, TransverseIsotropic
+from ...mechanics.material_model import model_stiffness
 from ..artefacts import constants_material, read_constants, write_material
 from ..bounds import MASS_DENSITY, MODULUS
 from ..registry import Params, Stage, StageContext, register
@@ -68,7 +68,7 @@ def check_constants(p) -> TransverseIsotropic:
     """The material of the five constants ``p.E_t, E_l, nu_t, nu_tl, mu_l`` (each already in its
     field's range), or :class:`ConfigError` ``nu_tl: value: allowed range is (-b, b)`` when they
     give no positive-definite stiffness (1 - nu_t - 2 nu_tl^2 E_l / E_t > 0: only nu_tl's range
-    depends on the others; :class:`~metasheet.material.TransverseIsotropic` checks it)."""
+    depends on the others; :class:`~metasheet.mechanics.material.TransverseIsotropic` checks it)."""
     try:
         return TransverseIsotropic(p.E_t, p.E_l, p.nu_t, p.nu_tl, p.mu_l)
     except ConfigError:

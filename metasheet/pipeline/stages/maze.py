@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from ...material import Isotropic
+from ...mechanics.material import Isotropic
 from ...studies.maze import MazeSettings, solve_mazes
 from ..manifest import write_json_atomic
 from ..bounds import MASS_DENSITY, MODULUS

@@ -26,9 +26,9 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ... import paper
+from ...published import paper
 from ...errors import ConfigError
-from ...material import TransverseIsotropic, interpolate
+from ...mechanics.material import TransverseIsotropic, interpolate
 from ...robot.scenes import PRESETS, get_preset
 from ...sheet import fibers as fb
 from ...sheet import geometry as geo

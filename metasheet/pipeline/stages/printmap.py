@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import Field
 
 from ...errors import ConfigError, InfeasibleError
-from ...material import CONSTANT_NAMES
+from ...mechanics.material import CONSTANT_NAMES
 from ...sheet import fibers as fb
 from ...sheet import angles, icesl, icesl_lua
 from ...sheet.consistency import against_uncertainty, round_trip

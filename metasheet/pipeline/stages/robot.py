@@ -17,10 +17,10 @@ constants along the spiral fibres) and with isotropic silicone, and writes
 
 When the sheets' constants are not the paper's published ones (e.g. homogenised from the
 printed Polyfoam cell), a third case ``published`` builds the same robot with the paper's
-constants (:data:`metasheet.paper.PAPER_FOAM`) along the same fibres, so the report can put
+constants (:data:`metasheet.published.paper.PAPER_FOAM`) along the same fibres, so the report can put
 the robot's figures for both side by side.
 
-The sheets' tensor follows the material stage's ``model`` (:mod:`metasheet.material_model`).
+The sheets' tensor follows the material stage's ``model`` (:mod:`metasheet.mechanics.material_model`).
 With ``compare_models`` the foam (and published) robots are also built under the other model,
 as cases ``foam_<other>`` (and ``published_<other>``), so the report can show which of the
 paper's claims depend on the shear modulus mu_l (the authors' force field does not use it).
@@ -36,10 +36,10 @@ import numpy as np
 
 from pydantic import Field, model_validator
 
-from ... import paper
+from ...published import paper
 from ...errors import ConfigError
-from ...material import Isotropic
-from ...material_model import other_model
+from ...mechanics.material import Isotropic
+from ...mechanics.material_model import other_model
 from ...robot.builder import six_dof_robot
 from ...robot.convergence import Level
 from ...robot.compare import evaluate

@@ -23,8 +23,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from . import voigt  # the Voigt/Mandel rotations live there only (not re-exported)
-from .conventions import VOIGT_PAIRS
-from .errors import ConfigError
+from ..conventions import VOIGT_PAIRS
+from ..errors import ConfigError
 from .voigt import MANDEL as _MANDEL
 
 

@@ -25,8 +25,8 @@ Sources:
 
 from __future__ import annotations
 
-from .conventions import TPU_DENSITY
-from .material import Isotropic, TransverseIsotropic
+from ..conventions import TPU_DENSITY
+from ..mechanics.material import Isotropic, TransverseIsotropic
 
 #: The printed foam's transverse-isotropic constants [MPa, -] (authors' "paramPaper").
 PAPER_FOAM = TransverseIsotropic(E_t=1.39, E_l=0.09422, nu_t=0.26162, nu_tl=0.4161, mu_l=0.01628215)

@@ -1,6 +1,6 @@
 """A process pool shared by several maps, its waiting units served by priority.
 
-A pipeline run's stages share one pool of workers (:meth:`metasheet.executor.Executor.session`).
+A pipeline run's stages share one pool of workers (:meth:`metasheet.runtime.executor.Executor.session`).
 With the pool's own first-come queue, a stage that submitted first keeps every worker until
 its units are done, whatever waits on the other: the anisotropy sweep, which nothing
 downstream needs, held the workers while the reduce stage, which every study waits for,
@@ -8,7 +8,7 @@ queued behind it. Here the pool runs exactly ``slots`` units at a time (one per 
 when one finishes, starts the waiting unit of lowest priority number (the stage's place in
 the pipeline), first come first within a priority. A stage with nothing to run leaves the
 workers to the next. :func:`kill_workers` stops a pool's workers at once (an interrupted run,
-here and in :mod:`metasheet.executor`'s own pools).
+here and in :mod:`metasheet.runtime.executor`'s own pools).
 """
 
 from __future__ import annotations

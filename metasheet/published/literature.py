@@ -4,7 +4,7 @@ Source: the paper's authors' public code (github.com/VannesteFelix/anisotropy,
 ``examples/Tripod/homogenized_value.py``): two printed-foam families homogenised at four
 measured relative densities each, moduli normalised by the base material's E_s and shear
 moduli by G_s = E_s / 2.6 (nu_s = 0.3), E_s = 12 MPa (TPU NinjaFlex). The "transverse" foam
-has x soft and y, z stiff; the paper's constants (:data:`metasheet.paper.PAPER_FOAM`) are
+has x soft and y, z stiff; the paper's constants (:data:`metasheet.published.paper.PAPER_FOAM`) are
 this table interpolated linearly at rho = 0.15, which :func:`authors_constants` reproduces
 (tested). How the table was computed (mesh, resolution, tool) is not in the code.
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import check_range
+from ..errors import check_range
 
 #: E_s [MPa] and G_s = E_s / 2.6 [MPa] of the table's normalisation.
 E_S = 12.0

@@ -1,6 +1,6 @@
 """Which stiffness tensor the five constants make: ours, or the authors' SOFA force field's.
 
-``"ours"`` (default): :meth:`metasheet.material.TransverseIsotropic.stiffness`, the inverse of
+``"ours"`` (default): :meth:`metasheet.mechanics.material.TransverseIsotropic.stiffness`, the inverse of
 the compliance written with all five constants (S44 = S55 = 1 / mu_l).
 
 ``"authors"``: the tensor of the authors' ``TetrahedronAnisotropicForceField`` (VannesteFelix/
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 from .material import Isotropic, TransverseIsotropic
 
 #: The material models, in the order of every table: ours first.
@@ -85,7 +85,7 @@ def authors_stiffness(m: TransverseIsotropic) -> np.ndarray:
 def model_stiffness(material, model: str = "ours") -> np.ndarray:
     """(6, 6) Voigt stiffness [MPa] of ``material`` under ``model`` (:data:`MATERIAL_MODELS`).
 
-    An :class:`~metasheet.material.Isotropic` material is the same under both (their isotropic
+    An :class:`~metasheet.mechanics.material.Isotropic` material is the same under both (their isotropic
     branch is Lame's, ``TetrahedronAnisotropicForceField.inl`` lines 671-697).
     """
     check_model(model, "model")

@@ -3,7 +3,7 @@
 ``gmsh.initialize`` (its C library) sets SIGTERM, SIGHUP and SIGPIPE back to their default
 actions (measured: ``/proc/PID/status`` SigCgt 0x4003 -> 0x0002 and SIGPIPE out of SigIgn).
 After any meshing, a SIGTERM or SIGHUP then killed a run outright, leaving its temporary
-folders and its lock (the handlers of :mod:`metasheet.stop_signals` never ran), and a write to
+folders and its lock (the handlers of :mod:`metasheet.runtime.stop_signals` never ran), and a write to
 a pipe whose reader had died killed it with SIGPIPE (exit 141). So every signal's action
 (``sigaction``) is read before gmsh starts and put back after. ``signal.signal`` cannot do it:
 it works in the main thread only, and stages running side by side mesh in theirs.

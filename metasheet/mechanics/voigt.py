@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import MANDEL_SCALE
-from .errors import ConfigError
+from ..conventions import MANDEL_SCALE
+from ..errors import ConfigError
 
 #: Element-wise factor turning a Voigt (6, 6) stiffness into Mandel form.
 MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)

@@ -1,0 +1,1 @@
+"""Continuum mechanics the rest builds on: isotropic and transverse-isotropic materials (material.py), which tensor the five constants make (material_model.py: ours, or the authors' SOFA force field), Voigt/Mandel tensor algebra (voigt.py) and rotations (rotations.py)."""

@@ -1,0 +1,1 @@
+"""How metasheet runs, apart from what it computes: one numeric code path per CPU (cpu.py), work units in process, on a pool or on dask (executor.py, priority_pool.py), stop signals (stop_signals.py), deterministic npz files (npz.py), the compiled-kernel cache guard (numba_cache.py), gmsh started quietly (gmsh_start.py), the code digest (provenance.py)."""
