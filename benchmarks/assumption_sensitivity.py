@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from metasheet.cells.design import design_cell, parse_design
+from metasheet.cells.catalogue import design_cell, parse_design
 from metasheet.cells.foam import voxel_centres
 from metasheet.cells.skeleton import SkeletonIndex
 from metasheet.homogenize.voxels import homogenize_voxels

@@ -58,7 +58,7 @@ class Row:
 
 
 def _design(case: Case):
-    from metasheet.cells.design import design_cell, parse_design
+    from metasheet.cells.catalogue import design_cell, parse_design
 
     d = parse_design({
         "name": "bench", "size": case.size.tolist(), "resolution": case.n, "relative_density": case.rho,

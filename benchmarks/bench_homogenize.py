@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 
 def foam(n: int, matched: bool = False):
-    from metasheet.cells.design import design_cell, parse_design
+    from metasheet.cells.catalogue import design_cell, parse_design
     from metasheet.homogenize.percolation import percolating_solid
 
     cell = design_cell(parse_design(tomllib.loads((ROOT / "cells" / "iso_foam.toml").read_text()),

@@ -3,7 +3,7 @@
 The printed Polyfoam of ``cells/paper_polyfoam.toml`` (uniform fields: infill 15 %, shrink 0.2,
 angle 0; :func:`metasheet.sheet.printed_foam.printed_foam`) at 0.3 mm voxels, its solid brush tied
 to rigid grips, condensed onto their 6 B rigid dofs by
-:func:`metasheet.fem.voxel.grips.rigid_bodies_stiffness` (nothing clamped: 6 (B - 1) columns).
+:func:`metasheet.sheet.voxel_grips.rigid_bodies_stiffness` (nothing clamped: 6 (B - 1) columns).
 
 - patch (default): ``box_region`` of ``--patch-mm`` x ``--patch-mm`` x 5 mm, its 3 mm ends solid
   brush, one grip each (B = 2);
@@ -44,7 +44,7 @@ DESIGN = ROOT / "cells" / "paper_polyfoam.toml"
 
 
 def _design():
-    from metasheet.cells.design import parse_design
+    from metasheet.cells.catalogue import parse_design
 
     data = tomllib.loads(DESIGN.read_text())
     return parse_design(data, overrides={}, source=str(DESIGN)), data["material"]
@@ -101,7 +101,7 @@ def build(case: str, patch_mm: float):
 
 def one(case: str, coarsening: str, rtol: float, patch_mm: float, relative: bool) -> dict:
     """Child process: build the foam, condense onto the grips, return the row."""
-    from metasheet.fem.voxel.grips import rigid_bodies_stiffness
+    from metasheet.sheet.voxel_grips import rigid_bodies_stiffness
     from metasheet.mechanics.material import Isotropic
 
     t = time.perf_counter()

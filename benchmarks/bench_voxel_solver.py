@@ -19,7 +19,7 @@ Polyfoam cell: ``cells/paper_polyfoam.toml``), or a file holding ``phases``, ``s
 ``nu`` itself (``benchmarks/polyfoam_cells.py`` writes the paper's cell at other sizes), one tile.
 
 "voxel-gpu" runs the same split multigrid CG on a CUDA GPU through CuPy
-(:func:`metasheet.fem.voxel.device_solve.periodic_stiffness_device`; set-up on the host), and adds
+(:func:`metasheet.homogenize.voxel_periodic_gpu.periodic_stiffness_device`; set-up on the host), and adds
 the GPU memory pool's high-water mark ("gpu GB"); "voxel-numpy" runs that array code on the host
 (a check of the script, not a speed). The ratios and "C err" are against the first solver of
 ``--solvers`` that ran on the case (PARDISO by default).
@@ -56,7 +56,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def foam(n: int, tile: int):
     """(phases, size [mm], materials) of the iso foam at resolution n, tiled, percolating solid only."""
-    from metasheet.cells.design import design_cell, parse_design
+    from metasheet.cells.catalogue import design_cell, parse_design
     from metasheet.homogenize.percolation import percolating_solid
 
     cell = design_cell(parse_design(tomllib.loads((ROOT / "cells" / "iso_foam.toml").read_text()),
@@ -84,8 +84,8 @@ def stage_voxels(path: str):
 
 def one(n: int, tile: int, solver: str, repeat: int, rtol: float, voxels: str | None = None) -> dict:
     """Child process: homogenise one case with one solver, print JSON."""
-    from metasheet.fem.voxel import periodic_stiffness
-    from metasheet.fem.voxel.device_solve import periodic_stiffness_device
+    from metasheet.homogenize.voxel_periodic import periodic_stiffness
+    from metasheet.homogenize.voxel_periodic_gpu import periodic_stiffness_device
     from metasheet.homogenize import homogenize_voxels
 
     ph, size, mats = stage_voxels(voxels) if n == 0 else foam(n, tile)

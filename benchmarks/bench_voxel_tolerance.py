@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_voxel_solver import stage_voxels
 
-from metasheet.fem.voxel import periodic_stiffness
+from metasheet.homogenize.voxel_periodic import periodic_stiffness
 from metasheet.mechanics.material import TransverseIsotropic
 
 

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def write_cell(cells: int, voxel_mm: float, out: Path, seed: int = 1) -> Path:
     """Build the cell, keep its percolating solid, write it (temporary name, then rename)."""
-    from metasheet.cells.design import design_cell, parse_design
+    from metasheet.cells.catalogue import design_cell, parse_design
     from metasheet.homogenize.percolation import percolating_solid
 
     data = tomllib.loads((ROOT / "cells" / "paper_polyfoam.toml").read_text())

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from metasheet.cells.design import design_cell, parse_design
+from metasheet.cells.catalogue import design_cell, parse_design
 from metasheet.homogenize.voxels import homogenize_voxels
 
 from _results import add_save_option, saved_output

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from metasheet.cells.design import FoamDesign, LaminateDesign, SolidDesign, design_cell, parse_design
+from metasheet.cells.catalogue import FoamDesign, LaminateDesign, SolidDesign, design_cell, parse_design
 from metasheet.cells.foam import voxelize
 from metasheet.errors import ConfigError, InfeasibleError
 

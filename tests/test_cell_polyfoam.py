@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from metasheet.cells.design import design_cell, parse_design
+from metasheet.cells.catalogue import design_cell, parse_design
 from metasheet.cells.foam import Foam, voxel_centres
 from metasheet.cells.kgon import KgonMetric
 from metasheet.cells.polyfoam import PolyfoamDesign

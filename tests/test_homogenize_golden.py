@@ -75,7 +75,7 @@ SMALL = ("laminate", "solid")
 
 def _compute(name: str, resolution: int, *, design: str | None = None, seeds: dict | None = None,
              solver: str = "amg") -> dict:
-    from metasheet.cells.design import design_cell, parse_design
+    from metasheet.cells.catalogue import design_cell, parse_design
     from metasheet.homogenize import homogenize_voxels
 
     data = tomllib.loads((ROOT / "cells" / f"{design or name}.toml").read_text())

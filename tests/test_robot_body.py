@@ -9,7 +9,7 @@ from metasheet.mechanics.material import Isotropic, TransverseIsotropic
 from metasheet.mechanics.voigt import stiffness_along
 from metasheet.fem.meshes import box_mesh
 from metasheet.robot.body import ElasticBody
-from metasheet.robot.kernels import element_stiffness, shape_gradients
+from metasheet.fem.corotational.p1 import element_stiffness, shape_gradients
 
 FOAM = TransverseIsotropic(E_t=1.39, E_l=0.0942, nu_t=0.3, nu_tl=0.05, mu_l=0.08)
 

@@ -21,8 +21,8 @@ from metasheet.fem.tet10 import (
     tet10_shape_values,
 )
 from metasheet.mechanics.material import Isotropic, TransverseIsotropic
-from metasheet.robot import kernels
-from metasheet.robot.quadrature import (
+from metasheet.fem.corotational import p1 as kernels
+from metasheet.fem.corotational.p2 import (
     corotational_quadrature_numba,
     corotational_quadrature_numpy,
     element_strains,

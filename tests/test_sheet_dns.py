@@ -26,7 +26,7 @@ from homogenize_bounds import backus_laminate
 
 from metasheet.cells.foam import voxel_centres
 from metasheet.errors import ConfigError
-from metasheet.fem.voxel.grips import rigid_bodies_stiffness
+from metasheet.sheet.voxel_grips import rigid_bodies_stiffness
 from metasheet.mechanics.material import Isotropic
 from metasheet.sheet.dns import compare, grip_labels
 from metasheet.sheet.geometry import attach_tags, tripod_sheet

@@ -1,5 +1,5 @@
 """A solid block gripped rigidly at both ends (issue 42): the voxel condensation
-(:func:`metasheet.fem.voxel.grips.rigid_bodies_stiffness`) against the quadratic tet FEM of the
+(:func:`metasheet.sheet.voxel_grips.rigid_bodies_stiffness`) against the quadratic tet FEM of the
 same block (scikit-fem), an independent discretisation of the same problem.
 
 The block is 4 x 4 x 8 mm of TPU, its x = 0 and x = 8 mm faces tied to two rigid grips; the
@@ -21,7 +21,7 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from metasheet.fem.voxel.grips import rigid_bodies_stiffness
+from metasheet.sheet.voxel_grips import rigid_bodies_stiffness
 from metasheet.mechanics.material import Isotropic
 
 E, NU = 12.0, 0.3  # [MPa] TPU

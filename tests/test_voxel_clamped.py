@@ -1,6 +1,6 @@
 """Non-periodic voxel bodies: a clamped cantilever whose free end is tied to a rigid body.
 
-Its condensed 6 x 6 stiffness (metasheet.fem.voxel.clamped) against beam theory under
+Its condensed 6 x 6 stiffness (metasheet.sheet.voxel_clamped) against beam theory under
 refinement: Timoshenko tip compliance (shear factor 5/6) and Saint-Venant torsion of a square
 section. Trilinear voxels lock in bending, so the tip compliance approaches the beam's from
 below (measured 0.69, 0.89, 0.96 of it with 2, 4, 8 voxels across the section).
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from metasheet.errors import ConfigError
-from metasheet.fem.voxel.clamped import rigid_body_stiffness
+from metasheet.sheet.voxel_clamped import rigid_body_stiffness
 from metasheet.mechanics.material import Isotropic
 
 TPU = Isotropic(12.0, 0.3)

@@ -1,7 +1,7 @@
 """The split multigrid CG on an array device (metasheet.fem.voxel.device, .device_solve).
 
 The device code is array code for any module ``xp``: CI runs it with numpy ("numpy" back-end)
-against the CPU path (:func:`metasheet.fem.voxel.periodic_stiffness`, itself tested against the
+against the CPU path (:func:`metasheet.homogenize.voxel_periodic.periodic_stiffness`, itself tested against the
 assembled path and exact answers), piece by piece (operator, projection, bottom solve) and whole
 (C*, iteration counts). With CuPy and a CUDA GPU the same checks run on the GPU, and a second run
 must repeat the first's bits; without them, the GPU path refuses with a ConfigError.
@@ -14,7 +14,7 @@ from homogenize_samples import cubic_lattice, edge_foam
 
 from metasheet.errors import ConfigError
 from metasheet.homogenize.voxel_correctors import solve_voxel_correctors
-from metasheet.fem.voxel import periodic_stiffness
+from metasheet.homogenize.voxel_periodic import periodic_stiffness
 from metasheet.fem.voxel.blocks import csr_apply
 from metasheet.fem.voxel.device import (
     DENSE_BOTTOM,
@@ -24,8 +24,8 @@ from metasheet.fem.voxel.device import (
     backend,
     transfer,
 )
-from metasheet.fem.voxel.device_solve import periodic_stiffness_device, projector
-from metasheet.fem.voxel.homogenize import prepare_cell
+from metasheet.homogenize.voxel_periodic_gpu import periodic_stiffness_device, projector
+from metasheet.homogenize.voxel_periodic import prepare_cell
 from metasheet.fem.voxel.pcg import translation_projector
 from metasheet.homogenize.percolation import percolating_solid
 from metasheet.mechanics.material import Isotropic, TransverseIsotropic

@@ -1,4 +1,4 @@
-"""Several rigid grips on a voxel body (metasheet.fem.voxel.grips): the condensed (6 B, 6 B) stiffness.
+"""Several rigid grips on a voxel body (metasheet.sheet.voxel_grips): the condensed (6 B, 6 B) stiffness.
 
 Checked against a direct sparse solve with the grips moved, for its rigid null space, for the
 6 (B - 1)-column shortcut against all 6 B columns, for split against trilinear coarsening on a
@@ -12,13 +12,13 @@ from homogenize_samples import edge_foam
 
 from metasheet.errors import ConfigError
 from metasheet.fem.voxel.compact import compact
-from metasheet.fem.voxel.grips import (
+from metasheet.sheet.voxel_grips import (
     body_modes,
     held_solid,
     relative_motions,
     rigid_bodies_stiffness,
 )
-from metasheet.fem.voxel.homogenize import validate_grid
+from metasheet.fem.voxel.element import validate_grid
 from metasheet.fem.voxel.multigrid import build_hierarchy
 from metasheet.fem.voxel.operator import VoxelOperator, touched_nodes
 from metasheet.fem.voxel.split import assemble

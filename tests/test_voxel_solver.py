@@ -16,7 +16,7 @@ from homogenize_samples import cubic_lattice, edge_foam, laminate
 from metasheet.errors import ConfigError
 from metasheet.fem import solvers
 from metasheet.homogenize.voxel_correctors import solve_voxel_correctors
-from metasheet.fem.voxel import periodic_stiffness
+from metasheet.homogenize.voxel_periodic import periodic_stiffness
 from metasheet.homogenize import homogenize_voxels
 from metasheet.homogenize.percolation import percolating_solid
 from metasheet.mechanics.material import Isotropic, TransverseIsotropic

@@ -185,7 +185,7 @@ def test_node_parts_equal_the_graph_components():
     node graph (each voxel joins its 8 nodes), periodic or not, on solids with several pieces."""
     from scipy.sparse.csgraph import connected_components
 
-    from metasheet.fem.voxel.homogenize import node_parts
+    from metasheet.homogenize.voxel_periodic import node_parts
     from metasheet.fem.voxel.operator import node_shape
 
     rng = np.random.default_rng(1)

@@ -16,7 +16,8 @@ from test_voxel_split import _cop, _walls
 from test_voxel_split_solver import _close_walls, _percolating, _rel
 from threadpoolctl import threadpool_limits
 
-from metasheet.fem.voxel import periodic_stiffness, split_hierarchy
+from metasheet.fem.voxel import split_hierarchy
+from metasheet.homogenize.voxel_periodic import periodic_stiffness
 from metasheet.fem.voxel.blocks import (
     bsr_apply,
     csr_apply,

@@ -9,7 +9,7 @@ import pytest
 from homogenize_samples import cubic_lattice, edge_foam
 
 from metasheet.errors import ConfigError
-from metasheet.fem.voxel import periodic_stiffness
+from metasheet.homogenize.voxel_periodic import periodic_stiffness
 from metasheet.fem.voxel.multigrid import build_hierarchy
 from metasheet.fem.voxel.operator import VoxelOperator
 from metasheet.homogenize.percolation import percolating_solid

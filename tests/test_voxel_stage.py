@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from homogenize_samples import edge_foam
 
-from metasheet.fem.voxel import periodic_stiffness
+from metasheet.homogenize.voxel_periodic import periodic_stiffness
 from metasheet.fem.voxel.element import phase_table
 from metasheet.fem.voxel.operator import VoxelOperator, apply_full, touched_nodes
 from metasheet.homogenize.percolation import percolating_solid

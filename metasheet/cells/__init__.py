@@ -17,7 +17,7 @@
 """
 
 from .connectivity import ConnectivityReport, check_percolation
-from .design import CellDesign, CellResult, design_cell, parse_design
+from .catalogue import CellDesign, CellResult, design_cell, parse_design
 from .foam import Foam, foam_field, voxelize
 from .kgon import KgonMetric
 from .metrics import PolyhedralMetric, StretchedMetric

@@ -1,7 +1,7 @@
 """The Polyfoam cell: its design (:class:`PolyfoamDesign`), density solve and level set.
 
 One-bead walls, the cell size L set by the density; :func:`build_polyfoam` builds the cell
-of a design (:func:`metasheet.cells.design.design_cell` dispatches to it).
+of a design (:func:`metasheet.cells.catalogue.design_cell` dispatches to it).
 
 IceSL prints Polyfoam's Voronoi *walls* one bead thick (inferred, see ICESL.md); the infill
 density then sets the cell size, not the wall thickness. The model here (the named
@@ -309,7 +309,7 @@ class PolyfoamDesign(_Model):
 
 
 def build_polyfoam(design: PolyfoamDesign) -> dict[str, Any]:
-    """Build the cell of ``design``: the fields of its :class:`~metasheet.cells.design.CellResult`.
+    """Build the cell of ``design``: the fields of its :class:`~metasheet.cells.catalogue.CellResult`.
 
     The seeds are drawn at unit scale in the gauge's (``seed_space = "gauge"``) or the
     print's scaled space, the scale solved by :func:`solve_polyfoam`; the grid is

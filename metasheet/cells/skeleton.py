@@ -36,6 +36,7 @@ from numba import njit
 from scipy.spatial import Delaunay, cKDTree
 
 from ..errors import ConfigError
+from .gauge import polyhedral_gauge
 from .metrics import Metric
 from .seeds import periodic_images, wrap
 
@@ -181,12 +182,7 @@ def _gauge(vx, vy, vz, quadratic, scale, facets):
     if quadratic:
         wx, wy, wz = vx * scale[0], vy * scale[1], vz * scale[2]
         return np.sqrt(wx * wx + wy * wy + wz * wz), -1
-    best, arg = -np.inf, 0
-    for i in range(facets.shape[0]):
-        g = facets[i, 0] * vx + facets[i, 1] * vy + facets[i, 2] * vz
-        if g > best:
-            best, arg = g, i
-    return best, arg
+    return polyhedral_gauge(facets, vx, vy, vz)
 
 
 @njit(cache=True)

@@ -1,6 +1,6 @@
 """The sub-tables of a cell design (``cells/*.toml``): ``[material]``, ``[seeds]``, ``[metric]``.
 
-Frozen pydantic models shared by the design kinds (:mod:`metasheet.cells.design`,
+Frozen pydantic models shared by the design kinds (:mod:`metasheet.cells.catalogue`,
 :mod:`metasheet.cells.polyfoam`); unknown keys are refused. Units: moduli in MPa,
 lengths in mm, angles in degrees; ``axis`` a 0-based index (0, 1, 2 = x, y, z).
 """

@@ -23,7 +23,7 @@ Two uses:
   (:data:`PARDISO_MAX_DOF`, :data:`SUPERLU_MAX_DOF`, ...) whose factor fits in the memory
   available (:func:`factor_fits`), AMG-CG otherwise.
 - :class:`~metasheet.fem.factor.SparseSolver` (:mod:`.factor`): repeated factorisations of the robot's free block ``K_ff``, one fixed
-  structurally symmetric pattern, slightly non-symmetric values (see :mod:`metasheet.robot.kernels`).
+  structurally symmetric pattern, slightly non-symmetric values (see :mod:`metasheet.fem.corotational.p1`).
   SuperLU factorises ``K_ff`` itself (every solve exact). CHOLMOD factorises the symmetric part
   ``M = (K_ff + K_ff^T) / 2`` with its symbolic analysis cached for the pattern: ``M^-1`` is a
   *modified-Newton* operator, and :meth:`~metasheet.fem.factor.SparseSolver.solve_exact` restores the exact solve by

@@ -7,7 +7,7 @@ A chart sweeps two settings of a cell family (:data:`FAMILY_AXES`):
   slicer's own settings, so the inverse look-up returns values IceSL can print.
 
 :func:`chart_points` lists the sweep's work items; :func:`evaluate_point` (module level,
-picklable) builds one cell with :mod:`metasheet.cells.design` and homogenises it, so the
+picklable) builds one cell with :mod:`metasheet.cells.catalogue` and homogenises it, so the
 sweep runs through :class:`~metasheet.runtime.executor.Executor` in parallel.
 :class:`ChartInterpolant` interpolates the seed-averaged constants bilinearly (log of the
 moduli, the Poisson ratios as they are) and :func:`lookup` inverts it: target (E_t, E_l) or
@@ -79,7 +79,7 @@ def evaluate_point(item: dict) -> dict:
     ``item``: one entry of :func:`chart_points`. Returns one chart row
     (:func:`columns` of the family); moduli in MPa.
     """
-    from ..cells.design import design_cell, parse_design
+    from ..cells.catalogue import design_cell, parse_design
     from .voxels import homogenize_voxels
 
     data, overrides = item_design(item)

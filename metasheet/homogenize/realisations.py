@@ -61,7 +61,7 @@ def evaluate_realisation(item: dict) -> dict:
     (6 x 6 list, MPa), E_t .. mu_l [MPa, -], "seconds"}``; ``seconds`` is the wall time of
     the build and the solve, for the manifest only (never written to a result file).
     """
-    from ..cells.design import design_cell, parse_design
+    from ..cells.catalogue import design_cell, parse_design
     from .voxels import homogenize_voxels
 
     t0 = time.perf_counter()

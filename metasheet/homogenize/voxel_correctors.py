@@ -30,10 +30,10 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
     phases : (nx, ny, nz) int, 0 = void, k > 0 = phase k; the percolating solid only.
     size : (3,) float [mm]; stiffnesses : dict phase -> (6, 6) Voigt stiffness [MPa].
     solver : a name in :data:`GRID_SOLVERS`: "voxel" (CPU) or "voxel-gpu" (the same split multigrid CG
-        on a CUDA GPU through CuPy, :mod:`metasheet.fem.voxel.device_solve`; a ConfigError when CuPy or
+        on a CUDA GPU through CuPy, :mod:`metasheet.homogenize.voxel_periodic_gpu`; a ConfigError when CuPy or
         the GPU is missing; never chosen by "auto"); rtol : relative residual per load case.
     coarsening : the multigrid's coarse spaces, "split" (default) or "trilinear"
-        (:func:`metasheet.fem.voxel.periodic_stiffness`; a ConfigError names the allowed values).
+        (:func:`metasheet.homogenize.voxel_periodic.periodic_stiffness`; a ConfigError names the allowed values).
 
     Returns
     -------
@@ -45,13 +45,13 @@ def solve_voxel_correctors(phases: np.ndarray, size, stiffnesses: dict, *, solve
         raise ConfigError(f"solver: {solver!r}: allowed values are {', '.join(GRID_SOLVERS)}")
     # imported here: its numba kernels are compiled (or loaded from cache) on first use only
     if solver == "voxel-gpu":
-        from ..fem.voxel.device_solve import periodic_stiffness_device
+        from .voxel_periodic_gpu import periodic_stiffness_device
 
         if coarsening != "split":
             raise ConfigError(f"coarsening: {coarsening!r}: solver 'voxel-gpu' runs the split hierarchy only")
         r = periodic_stiffness_device(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter)
     else:
-        from ..fem.voxel import periodic_stiffness
+        from .voxel_periodic import periodic_stiffness
 
         r = periodic_stiffness(phases, size, stiffnesses, rtol=rtol, maxiter=maxiter, coarsening=coarsening)
     report = SolveReport(solver, r.iterations, r.residuals, r.setup_seconds, r.solve_seconds, r.n_dof)

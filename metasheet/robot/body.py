@@ -1,7 +1,7 @@
 """An elastic body meshed with tetrahedra: corotational anisotropic FEM (issue 6, eq. 1).
 
-Linear tetrahedra (4 nodes, one rotation per element: :mod:`metasheet.robot.kernels`) or
-quadratic ones (10 nodes, one rotation per quadrature point: :mod:`metasheet.robot.quadrature`),
+Linear tetrahedra (4 nodes, one rotation per element: :mod:`metasheet.fem.corotational.p1`) or
+quadratic ones (10 nodes, one rotation per quadrature point: :mod:`metasheet.fem.corotational.p2`),
 told apart by the connectivity's width. The cached CSR scatter is in
 :mod:`metasheet.fem.assembly`; the static solve with fixed nodes in :mod:`.dirichlet`.
 Sign convention: :meth:`ElasticBody.forces` returns the *internal* (restoring) force
@@ -19,7 +19,7 @@ from ..mechanics.material import Isotropic, TransverseIsotropic
 from ..mechanics.voigt import stiffness_along
 from ..fem import tet10
 from ..fem.assembly import SparsityPattern
-from . import kernels, quadrature
+from ..fem.corotational import p1, p2
 
 
 def _as_points(points) -> np.ndarray:
@@ -101,7 +101,7 @@ class ElasticBody:
         check_range("density", density, 0.0, None, lo_open=True)
         if backend not in ("numba", "numpy"):
             raise ConfigError(f"backend: {backend!r}: allowed 'numba' or 'numpy'")
-        self.backend = backend if kernels.HAVE_NUMBA else "numpy"
+        self.backend = backend if p1.HAVE_NUMBA else "numpy"
         self.stiffness = _as_stiffness(stiffness, self.n_elements)
         nen = self.tets.shape[1]
         self.element = "p1" if nen == 4 else "p2"
@@ -114,8 +114,8 @@ class ElasticBody:
                 f"tets[{flat[0]}]: degenerate element (volume {vol[flat[0]]:.3g} mm^3); {len(flat)} such elements"
             )
         if self.element == "p1":
-            self.grads, self.volumes, _ = kernels.shape_gradients(self.rest, self.tets)
-            self.Ke = kernels.element_stiffness(self.grads, self.volumes, self.stiffness)
+            self.grads, self.volumes, _ = p1.shape_gradients(self.rest, self.tets)
+            self.Ke = p1.element_stiffness(self.grads, self.volumes, self.stiffness)
             self.X_e = np.ascontiguousarray(self.rest[self.tets])
             self.quad_grads, self.quad_weights = self.grads[:, None], self.volumes[:, None]
             self.stiffness_scale = float(np.abs(self.Ke).max())
@@ -194,17 +194,17 @@ class ElasticBody:
             f = np.empty(3 * self.n_nodes)
             data = np.empty(self.pattern.nnz if tangent else 0)
             if self.element == "p1":
-                kernels.corotational_numba(
+                p1.corotational_numba(
                     x, self.tets, self.X_e, self.grads, self.Ke, self.pattern.block_map, f, data, tangent)
             else:
-                quadrature.corotational_quadrature_numba(
+                p2.corotational_quadrature_numba(
                     x, self.tets, self.quad_grads, self.quad_weights, self.stiffness, self.pattern.block_map,
                     f, data, tangent)
             return f, (data if tangent else None)
         if self.element == "p1":
-            fe, Kt = kernels.corotational_numpy(x[self.tets], self.X_e, self.grads, self.Ke, tangent=tangent)
+            fe, Kt = p1.corotational_numpy(x[self.tets], self.X_e, self.grads, self.Ke, tangent=tangent)
         else:
-            fe, Kt = quadrature.corotational_quadrature_numpy(
+            fe, Kt = p2.corotational_quadrature_numpy(
                 x[self.tets], self.quad_grads, self.quad_weights, self.stiffness, tangent=tangent)
         f = self.pattern.assemble_vector(fe)
         return f, (self.pattern.assemble_data(Kt) if tangent else None)
@@ -240,20 +240,20 @@ class ElasticBody:
 
     def deformation_gradients(self, x) -> np.ndarray:
         """(m, nq, 3, 3) deformation gradients at the quadrature points for positions ``x`` (n, 3) [mm]."""
-        return quadrature.deformation_gradients(self.check_positions(x), self.tets, self.quad_grads)
+        return p2.deformation_gradients(self.check_positions(x), self.tets, self.quad_grads)
 
     def max_principal_strain(self, x, elements: np.ndarray | None = None) -> np.ndarray:
         """(m,) largest principal Green-Lagrange strain [-] over each element's quadrature points;
         only those of ``elements`` ((m,) bool, None: all) when given, the same values as the
         full array's entries (each element's on its own), at a fraction of the cost."""
         if elements is None:
-            return quadrature.max_principal_green_strain(self.check_positions(x), self.tets, self.quad_grads)
+            return p2.max_principal_green_strain(self.check_positions(x), self.tets, self.quad_grads)
         key = np.asarray(elements, bool).tobytes()
         if getattr(self, "_strain_subset", (None,))[0] != key:  # the last mask's elements, kept
             e = np.asarray(elements, bool)
             self._strain_subset = (key, np.ascontiguousarray(self.tets[e]), np.ascontiguousarray(self.quad_grads[e]))
         _, tets, grads = self._strain_subset
-        return quadrature.max_principal_green_strain(self.check_positions(x), tets, grads)
+        return p2.max_principal_green_strain(self.check_positions(x), tets, grads)
 
     def stresses(self, x) -> np.ndarray:
         """(m, 6) element stresses [MPa], Voigt in global axes: ``R C (S - I) R^T`` (corotated).
@@ -264,7 +264,7 @@ class ElasticBody:
         """
         Fq = self.deformation_gradients(x)
         m, nq = Fq.shape[:2]
-        R, S = kernels.polar_numpy(Fq.reshape(-1, 3, 3))
+        R, S = p1.polar_numpy(Fq.reshape(-1, 3, 3))
         E = S - np.eye(3)
         eps = np.stack([E[:, 0, 0], E[:, 1, 1], E[:, 2, 2], 2 * E[:, 1, 2], 2 * E[:, 0, 2], 2 * E[:, 0, 1]], 1)
         s = np.einsum("mij,mj->mi", np.repeat(self.stiffness, nq, axis=0), eps)

@@ -76,7 +76,7 @@ def sensitivity_and_jacobian(lz, state) -> tuple[np.ndarray, np.ndarray]:
 def element_contributions(robot, V: np.ndarray, st: ReducedState) -> np.ndarray:
     """(6 + na + k, m) every element's generalised internal force ``T_e^T f_e`` at ``st``
     (rows scaled: forces [N], moments and torques over the effector's length scale [N])."""
-    from ..robot.quadrature import corotational_quadrature_numpy
+    from ..fem.corotational.p2 import corotational_quadrature_numpy
 
     c, body = robot.coupling, robot.body
     x_f = c.rest[c.free] + (V @ st.a).reshape(-1, 3)

@@ -5,7 +5,7 @@ walls, the solid brush) is solved as linear elasticity of its solid voxels (the 
 material, e.g. TPU) with each grip rigid: the nodes of the centre ring tied to body 0, those of
 arm k's tip box to body 1 + k, exactly the node sets the robot ties (:func:`.geometry.attach_tags`
 on the grid's nodes, the same regions the print map prints solid). The matrix-free voxel
-solver (:func:`metasheet.fem.voxel.grips.rigid_bodies_stiffness`) condenses it onto the 24
+solver (:func:`metasheet.sheet.voxel_grips.rigid_bodies_stiffness`) condenses it onto the 24
 rigid coordinates of :mod:`.grips` (same frame, bodies, reference points and units as the
 homogenised sheet FEM's :func:`.grips.fem_condensed`), so the two matrices compare directly.
 
@@ -114,7 +114,7 @@ def dns_sheet(spec: SheetPrint, progress=None) -> DnsSheet:
     foam = printed_foam(tripod_region(spec.params), spec.fields, spec.design, voxel_mm=spec.voxel_mm,
                         gauge=spec.gauge, seed=spec.seed, max_voxels=spec.max_voxels)
     built = time.perf_counter() - t0
-    from ..fem.voxel.grips import (
+    from .voxel_grips import (
         rigid_bodies_stiffness,  # numba kernels compile on first use only
     )
 

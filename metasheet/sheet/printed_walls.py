@@ -37,6 +37,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..cells.gauge import polyhedral_gauge
+
 
 @njit(cache=True)
 def kgon_facets_into(k, shrink, min_angle_deg, angle_deg, inv_scale, out):
@@ -77,16 +79,6 @@ def gauge_facets(k, min_angle_deg, shrink, angle_deg, inv_scale):
     for i in range(m):
         kgon_facets_into(k, shrink[i], min_angle_deg, angle_deg[i], inv_scale[i], out[i])
     return out
-
-
-@njit(cache=True)
-def _gauge(f, vx, vy, vz):
-    best, arg = -np.inf, 0
-    for i in range(f.shape[0]):
-        g = f[i, 0] * vx + f[i, 1] * vy + f[i, 2] * vz
-        if g > best:
-            best, arg = g, i
-    return best, arg
 
 
 @njit(cache=True)
@@ -173,13 +165,13 @@ def wall_tiles(pts, tile_ptr, seeds, seed_facets, k, min_angle_deg, shrink, angl
             margin = cap * 2.0 * gmax
             for j in range(N):
                 vx, vy, vz = cx - seeds[j, 0], cy - seeds[j, 1], cz - seeds[j, 2]
-                dj, _ = _gauge(ref, vx, vy, vz)
+                dj, _ = polyhedral_gauge(ref, vx, vy, vz)
                 e = bref + delta * (math.sqrt(vx * vx + vy * vy + vz * vz) + hr)
                 lo[j], hi[j] = dj - e, dj + e
         else:
             margin = cap * 2.0 * seed_norm
             for j in range(N):
-                dj, _ = _gauge(seed_facets[j], cx - seeds[j, 0], cy - seeds[j, 1], cz - seeds[j, 2])
+                dj, _ = polyhedral_gauge(seed_facets[j], cx - seeds[j, 0], cy - seeds[j, 1], cz - seeds[j, 2])
                 e = _box_bound(seed_facets[j], hx, hy, hz)
                 lo[j], hi[j] = dj - e, dj + e
         m = np.inf
@@ -197,7 +189,7 @@ def wall_tiles(pts, tile_ptr, seeds, seed_facets, k, min_angle_deg, shrink, angl
             for q in range(K):
                 j = cand[q]
                 f = gx if point_mode else seed_facets[j]
-                dist[q], arg[q] = _gauge(f, pts[p, 0] - seeds[j, 0], pts[p, 1] - seeds[j, 1],
+                dist[q], arg[q] = polyhedral_gauge(f, pts[p, 0] - seeds[j, 0], pts[p, 1] - seeds[j, 1],
                                          pts[p, 2] - seeds[j, 2])
                 if dist[q] < best:
                     best, j0 = dist[q], q

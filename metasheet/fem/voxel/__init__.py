@@ -11,16 +11,11 @@
 - :mod:`.blocks`, :mod:`.split_hierarchy`: the split levels' block operators, K-cycle, bottom factor;
 - :mod:`.multigrid`: the hierarchy (trilinear or split), Chebyshev/Jacobi smoothers, the V-cycle;
 - :mod:`.pcg`: (flexible) CG with the null space projected out, several right-hand sides in lockstep;
-- :mod:`.homogenize`: the six periodic load cases -> C*;
-- :mod:`.clamped`: clamped and rigid-tied nodes -> a rigid body's condensed 6 x 6 stiffness;
-- :mod:`.grips`: several rigid grips -> their condensed 6 B x 6 B stiffness (the printed sheet);
-- :mod:`.device`, :mod:`.device_solve`: the split multigrid CG on a CUDA GPU through CuPy
-  (``solver = "voxel-gpu"``, optional, imported only when asked), or on numpy for its tests.
+- :mod:`.device`: the split hierarchy and its CG on a CUDA GPU through CuPy (optional,
+  imported only when asked), or on numpy for its tests.
+
+The problems solved with this machinery live with their subjects: the periodic cell's six load
+cases -> C* (:mod:`metasheet.homogenize.voxel_periodic`, on the GPU:
+:mod:`metasheet.homogenize.voxel_periodic_gpu`), a sheet's rigid grips and clamped faces ->
+their condensed stiffness (:mod:`metasheet.sheet.voxel_grips`, :mod:`metasheet.sheet.voxel_clamped`).
 """
-
-from .clamped import RigidBodyStiffness, rigid_body_stiffness
-from .grips import GripStiffness, rigid_bodies_stiffness
-from .homogenize import VoxelHomogenization, periodic_stiffness
-
-__all__ = ["GripStiffness", "RigidBodyStiffness", "VoxelHomogenization", "periodic_stiffness",
-           "rigid_bodies_stiffness", "rigid_body_stiffness"]

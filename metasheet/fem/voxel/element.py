@@ -111,3 +111,28 @@ def check_phases(phases, size, given, *, name: str = "stiffnesses", item: str = 
     if missing:
         raise ConfigError(f"{name}: phases {missing} have no {item} (given: {sorted(given)})")
     return ph, s, present
+
+
+def validate_grid(phases, size, stiffnesses: dict):
+    """Check the grid and the phase map; returns (index (nx, ny, nz) int64 with -1 void,
+    table :class:`~.element.PhaseTable`, h (3,) [mm], present phases)."""
+    ph, s, present = check_phases(phases, size, stiffnesses)
+    if not present:
+        raise ConfigError("phases: no solid voxel (all 0 = void)")
+    h = s / np.array(ph.shape)
+    table = phase_table([stiffnesses[p] for p in present], h)
+    lut = np.full(int(ph.max()) + 1, -1, np.int64)
+    lut[present] = np.arange(len(present))
+    return lut[ph], table, h, present
+
+
+def voxel_scale(scale, shape) -> np.ndarray:
+    """Each voxel's modulus factor: ``scale`` (``shape``, finite, > 0), or ones when None."""
+    if scale is None:
+        return np.ones(shape)
+    s = np.asarray(scale, float)
+    if s.shape != tuple(shape):
+        raise ConfigError(f"scale: shape is {s.shape} and should be {tuple(shape)} (one factor per voxel)")
+    if not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise ConfigError("scale: every voxel's modulus factor must be finite and > 0")
+    return np.ascontiguousarray(s)

@@ -219,7 +219,7 @@ def _check_held(index: np.ndarray, fixed: np.ndarray) -> None:
     if loose:
         raise ConfigError(f"coarsening 'split': {loose} of {n} face-connected solid pieces touch no prescribed "
                           "dof (they float: a singular operator); keep only the held pieces "
-                          "(metasheet.fem.voxel.grips.held_solid) or use 'trilinear'")
+                          "(metasheet.sheet.voxel_grips.held_solid) or use 'trilinear'")
 
 
 def _lambda_max(cop, dinv: np.ndarray, steps: int = 12) -> float:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
-from ...cells.design import CellResult, FoamDesign, LaminateDesign, design_cell, parse_design
+from ...cells.catalogue import CellResult, FoamDesign, LaminateDesign, design_cell, parse_design
 from ...cells.polyfoam import PolyfoamDesign
 from ...errors import ConfigError, MeshError
 from ...runtime.npz import write_npz

@@ -3,7 +3,7 @@
 Strut foams (``kind = "foam"``) sweep (relative density, stretch); IceSL Polyfoam cells
 (``kind = "polyfoam"``) sweep IceSL's own ``infill_percentage`` x ``kgon_x_shrink``
 (:data:`metasheet.homogenize.chart.FAMILY_AXES`). Each grid point (and seed) builds a cell
-from the base ``design`` with :mod:`metasheet.cells.design` and homogenises it; the points
+from the base ``design`` with :mod:`metasheet.cells.catalogue` and homogenises it; the points
 run through ``ctx.executor.map``. Writes ``chart.csv`` (one row per point and seed, columns
 :func:`metasheet.homogenize.chart.columns`, moduli in MPa) and ``chart.png`` (one panel per
 constant; with ``seeds`` >= 2 the bars are 95 % intervals of each point's mean,
@@ -127,7 +127,7 @@ def run(ctx: StageContext) -> dict:
 
 def _check_corners(items: list[dict], source: str) -> None:
     """Validate the sweep's extreme settings up front: a bad range fails here, named, not in a worker."""
-    from ...cells.design import parse_design
+    from ...cells.catalogue import parse_design
     from ...homogenize.chart import item_design
 
     for item in (items[0], items[-1]):

@@ -74,7 +74,7 @@ def check_voxel(voxel_mm: float, bead_width: float) -> None:
 
 
 def _design(ctx: StageContext):
-    from ...cells.design import parse_design
+    from ...cells.catalogue import parse_design
     from ...cells.polyfoam import PolyfoamDesign
 
     d = parse_design(read_cell_design(ctx.inputs["cell"]), source="cell.json design")

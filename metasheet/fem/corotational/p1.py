@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fem.hex8 import strain_operator
-from ..fem.tet4 import tet4_gradients
+from ..hex8 import strain_operator
+from ..tet4 import tet4_gradients
 
 try:  # numba is a declared dependency; the numpy path stays as a fallback and reference.
     import numba

@@ -52,12 +52,12 @@ import numpy as np
 from scipy import ndimage
 from threadpoolctl import threadpool_limits
 
-from ...errors import ConfigError, ConvergenceError
-from .compact import CompactOperator, compact
-from .homogenize import _scale, validate_grid
-from .multigrid import build_hierarchy
-from .operator import VoxelOperator, node_shape, touched_nodes
-from .pcg import pcg
+from ..errors import ConfigError, ConvergenceError
+from ..fem.voxel.compact import CompactOperator, compact
+from ..fem.voxel.element import validate_grid, voxel_scale
+from ..fem.voxel.multigrid import build_hierarchy
+from ..fem.voxel.operator import VoxelOperator, node_shape, touched_nodes
+from ..fem.voxel.pcg import pcg
 
 #: Coarse spaces of :func:`rigid_bodies_stiffness` ("auto": "split", which now serves prescribed dofs).
 COARSENINGS = ("auto", "trilinear", "split")
@@ -232,7 +232,7 @@ def _stiffness(phases, size, stiffnesses, bodies, references, clamped, scale, rt
         raise ConfigError(f"bodies: body {missing[0] - 1} (value {missing[0]}) ties no node of the kept solid "
                           "(its nodes touch no solid voxel held by three non-collinear prescribed nodes)")
     fixed = np.repeat((clamped | tied)[..., None], 3, axis=3)
-    op = VoxelOperator(index, table.K, _scale(scale, index.shape), False,
+    op = VoxelOperator(index, table.K, voxel_scale(scale, index.shape), False,
                        (touched[..., None] & ~fixed).astype(float), h)
     progress("grips: hierarchy", 1, 4)
     H = build_hierarchy(op, fixed, coarsening="split" if coarsening == "auto" else coarsening) if op.n_free else None

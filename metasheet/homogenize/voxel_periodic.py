@@ -21,12 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ...errors import ConfigError, ConvergenceError
-from .components import components
-from .element import check_phases, phase_table
-from .multigrid import build_hierarchy
-from .operator import VoxelOperator, node_shape, scatter_compact, touched_nodes
-from .pcg import pcg, translation_projector
+from ..errors import ConfigError, ConvergenceError
+from ..fem.voxel.components import components
+from ..fem.voxel.element import validate_grid, voxel_scale
+from ..fem.voxel.multigrid import build_hierarchy
+from ..fem.voxel.operator import VoxelOperator, node_shape, scatter_compact, touched_nodes
+from ..fem.voxel.pcg import pcg, translation_projector
 
 
 @dataclass(frozen=True)
@@ -61,19 +61,6 @@ class VoxelHomogenization:
     levels: tuple[tuple[int, int, int], ...]
     device: str = "cpu"
     device_bytes: int = 0
-
-
-def validate_grid(phases, size, stiffnesses: dict):
-    """Check the grid and the phase map; returns (index (nx, ny, nz) int64 with -1 void,
-    table :class:`~.element.PhaseTable`, h (3,) [mm], present phases)."""
-    ph, s, present = check_phases(phases, size, stiffnesses)
-    if not present:
-        raise ConfigError("phases: no solid voxel (all 0 = void)")
-    h = s / np.array(ph.shape)
-    table = phase_table([stiffnesses[p] for p in present], h)
-    lut = np.full(int(ph.max()) + 1, -1, np.int64)
-    lut[present] = np.arange(len(present))
-    return lut[ph], table, h, present
 
 
 def node_parts(index: np.ndarray, periodic: bool) -> tuple[np.ndarray, int]:
@@ -157,7 +144,7 @@ def prepare_cell(phases, size, stiffnesses, scale=None, smoother: str = "chebysh
     """Validate the cell, build its operator and hierarchy, and the six right-hand sides."""
     t0 = time.perf_counter()
     index, table, h, _ = validate_grid(phases, size, stiffnesses)
-    sc = _scale(scale, index.shape)
+    sc = voxel_scale(scale, index.shape)
     free = np.repeat(touched_nodes(index, True)[..., None], 3, axis=3).astype(float)
     op = VoxelOperator(index, table.K, sc, True, free, h)
     labels, n_parts = node_parts(index, True)
@@ -202,14 +189,3 @@ def _periodic_stiffness(phases, size, stiffnesses, scale, rtol, maxiter, smoothe
     return VoxelHomogenization(0.5 * (C + C.T), C_raw, cop.to_full(out.x), tuple(out.iterations.tolist()),
                                tuple(out.residual.tolist()), cell.setup_seconds, t2 - t1, cell.op.n_free,
                                cell.H.shapes)
-
-
-def _scale(scale, shape) -> np.ndarray:
-    if scale is None:
-        return np.ones(shape)
-    s = np.asarray(scale, float)
-    if s.shape != tuple(shape):
-        raise ConfigError(f"scale: shape is {s.shape} and should be {tuple(shape)} (one factor per voxel)")
-    if not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ConfigError("scale: every voxel's modulus factor must be finite and > 0")
-    return np.ascontiguousarray(s)

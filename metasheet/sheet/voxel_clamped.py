@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import ConfigError
-from .grips import bool_nodes, point_modes, rigid_bodies_stiffness
-from .homogenize import validate_grid
-from .operator import node_shape, touched_nodes
+from ..errors import ConfigError
+from .voxel_grips import bool_nodes, point_modes, rigid_bodies_stiffness
+from ..fem.voxel.element import validate_grid
+from ..fem.voxel.operator import node_shape, touched_nodes
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ At each quadrature point ``q`` of element ``e``, with rest gradients ``g_a = gra
     f_a += w_q P g_a                      internal nodal force [N]
 
 For P1 (one point, ``w = V``) this is exactly the element force ``f = R K_e (R^T x - X)`` of
-:mod:`metasheet.robot.kernels` (``B (R^T x - X) = voigt(S - I)`` and ``(B^T sigma)_a = sigma g_a``).
+:mod:`metasheet.fem.corotational.p1` (``B (R^T x - X) = voigt(S - I)`` and ``(B^T sigma)_a = sigma g_a``).
 
 Why per quadrature point. The continuum model behind the P1 kernel is corotated linear
 elasticity: stress ``P = R C:(S - I)`` from the pointwise polar decomposition of ``F``; the P1
@@ -40,12 +40,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels import HAVE_NUMBA, polar_numpy
+from .p1 import HAVE_NUMBA, polar_numpy
 
 if HAVE_NUMBA:
     import numba
 
-    from .kernels import _inv3, _polar3
+    from .p1 import _inv3, _polar3
 
 #: Levi-Civita symbol eps_ijk.
 LEVI = np.zeros((3, 3, 3))

@@ -14,8 +14,8 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from ...errors import ConfigError
-from .device import (
+from ..errors import ConfigError
+from ..fem.voxel.device import (
     Backend,
     Bottom,
     FineLevel,
@@ -25,14 +25,14 @@ from .device import (
     dots,
     transfer,
 )
-from .homogenize import (
+from .voxel_periodic import (
     VoxelHomogenization,
     _periodic_stiffness,
     check_converged,
     energy_form,
     prepare_cell,
 )
-from .pcg import PCGResult
+from ..fem.voxel.pcg import PCGResult
 
 
 class DeviceHierarchy:

@@ -1,0 +1,1 @@
+"""Corotational kernels: one rotation per linear tetrahedron (p1.py) or per quadrature point of a quadratic one (p2.py): the polar decomposition, element forces and tangents. The robot body (metasheet.robot.body) assembles them."""
