@@ -1,0 +1,185 @@
+"""Finite strain on the voxel grid: a compressible neo-Hookean solid on trilinear voxels.
+
+The law (Ogden's compressible neo-Hookean, as in most FE codes' "neo-Hookean" for rubbers
+and TPU at moderate strain)::
+
+    W(F) = mu/2 (tr(F^T F) - 3) - mu ln J + lam/2 (ln J)^2,   J = det F
+    P = dW/dF = mu F + (lam ln J - mu) F^-T                     (first Piola-Kirchhoff [MPa])
+    dP[dF] = mu dF + lam tr(F^-1 dF) F^-T + (mu - lam ln J) F^-T dF^T F^-T
+
+with the Lame constants of the small-strain modulus E and Poisson ratio nu, so that at F = I
+the tangent is the linear voxel element's (:func:`metasheet.fem.hex8.hex8_box_matrices` of the
+isotropic C): the linear DNS is this model's rest linearisation.
+
+Every voxel is the same box, integrated with 2 x 2 x 2 Gauss points (the linear element's
+rule); local node ``a = ax + 2 ay + 4 az`` (:mod:`metasheet.fem.hex8`). The kernels run over a
+list of solid voxels, each given by its eight node numbers in any node numbering, sequentially:
+the same sums in the same order, so the same bits on any thread count and machine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ...errors import ConfigError, check_range
+from ..hex8 import HEX8_CORNERS, _hex8_gradients
+
+
+@dataclass(frozen=True)
+class NeoHookean:
+    """The compressible neo-Hookean law with small-strain modulus ``E`` [MPa] and Poisson ratio
+    ``nu`` [-] (module docstring)."""
+
+    E: float
+    nu: float
+
+    def __post_init__(self):
+        check_range("E", self.E, 0.0, 2e6, lo_open=True)
+        check_range("nu", self.nu, -1.0, 0.5, lo_open=True, hi_open=True)
+
+    @property
+    def mu(self) -> float:
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def lam(self) -> float:
+        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+
+    def stress(self, F) -> np.ndarray:
+        """P (..., 3, 3) [MPa] at deformation gradients F (..., 3, 3) with det F > 0."""
+        F = np.asarray(F, float)
+        J = np.linalg.det(F)
+        if np.any(J <= 0):
+            raise ConfigError("F: det F <= 0 (an inverted element): the law is defined for J > 0 only")
+        FinvT = np.swapaxes(np.linalg.inv(F), -1, -2)
+        return self.mu * F + (self.lam * np.log(J) - self.mu)[..., None, None] * FinvT
+
+    def energy(self, F) -> np.ndarray:
+        """W (...) [MPa = mJ/mm^3] at F (..., 3, 3)."""
+        F = np.asarray(F, float)
+        lnJ = np.log(np.linalg.det(F))
+        return 0.5 * self.mu * (np.einsum("...ij,...ij", F, F) - 3.0) - self.mu * lnJ + 0.5 * self.lam * lnJ**2
+
+
+def gauss_gradients(h) -> tuple[np.ndarray, np.ndarray]:
+    """(dN (8, 8, 3) [1/mm], w (8,) [mm^3]): the shape-function gradients of the box with edges
+    ``h`` (3,) [mm] at its 2 x 2 x 2 Gauss points (``dN[g, a]``), and the points' weights."""
+    h = np.asarray(h, float)
+    g = 0.5 / np.sqrt(3.0)
+    pts = 0.5 + g * (2 * HEX8_CORNERS - 1)  # the Gauss points in [0, 1]^3, in corner order
+    dN = np.stack([_hex8_gradients(p, h) for p in pts])
+    return dN, np.full(8, float(np.prod(h)) / 8.0)
+
+
+@njit(cache=True)
+def _inv_det(F, out):
+    a, b, c = F[0, 0], F[0, 1], F[0, 2]
+    d, e, f = F[1, 0], F[1, 1], F[1, 2]
+    g, h, i = F[2, 0], F[2, 1], F[2, 2]
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * A + b * B + c * C
+    if det <= 0.0:
+        return det
+    out[0, 0], out[1, 0], out[2, 0] = A / det, B / det, C / det
+    out[0, 1], out[1, 1], out[2, 1] = (c * h - b * i) / det, (a * i - c * g) / det, (b * g - a * h) / det
+    out[0, 2], out[1, 2], out[2, 2] = (b * f - c * e) / det, (c * d - a * f) / det, (a * e - b * d) / det
+    return det
+
+
+@njit(cache=True)
+def internal_forces(u, voxels, dN, w, mu, lam, F_out, f):
+    """Internal nodal forces of displacements ``u`` (n, 3) [mm] on the solid ``voxels`` (m, 8)
+    (node numbers), added into ``f`` (n, 3) [N]; each Gauss point's F written to ``F_out``
+    (m, 8, 3, 3). Returns (strain energy [mJ], the number of Gauss points with det F <= 0:
+    then the energy and forces are meaningless and the caller must step back).
+
+    The stress is evaluated from the displacement gradient ``H = F - I`` without differences of
+    O(1) terms, ``P = mu (H + F^-T H^T) + lam ln J F^-T`` with ``ln J = log1p(tr H + I2(H) +
+    det H)``, so its relative error stays at round-off however small the strain (the forms
+    with F lose the digits of |H| / 1 at small motions)."""
+    Finv = np.empty((3, 3))
+    F = np.empty((3, 3))
+    Hg = np.empty((3, 3))
+    energy = 0.0
+    bad = 0
+    for e in range(voxels.shape[0]):
+        for g in range(8):
+            for i in range(3):
+                for j in range(3):
+                    s = 0.0
+                    for a in range(8):
+                        s += u[voxels[e, a], i] * dN[g, a, j]
+                    Hg[i, j] = s
+                    F[i, j] = s + (1.0 if i == j else 0.0)
+                    F_out[e, g, i, j] = F[i, j]
+            J = _inv_det(F, Finv)
+            if J <= 0.0:
+                bad += 1
+                continue
+            trH = Hg[0, 0] + Hg[1, 1] + Hg[2, 2]
+            i2 = (Hg[0, 0] * Hg[1, 1] + Hg[1, 1] * Hg[2, 2] + Hg[0, 0] * Hg[2, 2]
+                  - Hg[0, 1] * Hg[1, 0] - Hg[1, 2] * Hg[2, 1] - Hg[0, 2] * Hg[2, 0])
+            detH = (Hg[0, 0] * (Hg[1, 1] * Hg[2, 2] - Hg[1, 2] * Hg[2, 1])
+                    - Hg[0, 1] * (Hg[1, 0] * Hg[2, 2] - Hg[1, 2] * Hg[2, 0])
+                    + Hg[0, 2] * (Hg[1, 0] * Hg[2, 1] - Hg[1, 1] * Hg[2, 0]))
+            lnJ = np.log1p(trH + i2 + detH)
+            hh = 0.0
+            for i in range(3):
+                for j in range(3):
+                    hh += Hg[i, j] * Hg[i, j]
+            # tr(F^T F) - 3 = 2 tr H + |H|^2
+            energy += w[g] * (0.5 * mu * (2.0 * trH + hh) - mu * lnJ + 0.5 * lam * lnJ * lnJ)
+            for a in range(8):
+                n = voxels[e, a]
+                for i in range(3):
+                    s = 0.0
+                    for j in range(3):
+                        fh = 0.0  # (F^-T H^T)_ij = sum_k Finv[k, i] H[j, k]
+                        for k in range(3):
+                            fh += Finv[k, i] * Hg[j, k]
+                        s += (mu * (Hg[i, j] + fh) + lam * lnJ * Finv[j, i]) * dN[g, a, j]
+                    f[n, i] += w[g] * s
+    return energy, bad
+
+
+@njit(cache=True)
+def tangent_apply(v, voxels, dN, w, mu, lam, Fs, y):
+    """``y += K_t(F) v``: the tangent stiffness at the Gauss points' ``Fs`` (m, 8, 3, 3) (from
+    :func:`internal_forces`, all with det F > 0) applied to ``v`` (n, 3) [mm], into ``y`` (n, 3) [N]."""
+    Finv = np.empty((3, 3))
+    dF = np.empty((3, 3))
+    FiT_dFT = np.empty((3, 3))
+    for e in range(voxels.shape[0]):
+        for g in range(8):
+            J = _inv_det(Fs[e, g], Finv)
+            lnJ = np.log(J)
+            for i in range(3):
+                for j in range(3):
+                    s = 0.0
+                    for a in range(8):
+                        s += v[voxels[e, a], i] * dN[g, a, j]
+                    dF[i, j] = s
+            tr = 0.0
+            for i in range(3):
+                for j in range(3):
+                    tr += Finv[i, j] * dF[j, i]
+            for i in range(3):  # F^-T dF^T: (i, l) = sum_k Finv[k, i] dF[l, k]
+                for l in range(3):
+                    s = 0.0
+                    for k in range(3):
+                        s += Finv[k, i] * dF[l, k]
+                    FiT_dFT[i, l] = s
+            c = mu - lam * lnJ
+            for a in range(8):
+                n = voxels[e, a]
+                for i in range(3):
+                    s = 0.0
+                    for j in range(3):
+                        m = 0.0  # (F^-T dF^T F^-T)_ij
+                        for l in range(3):
+                            m += FiT_dFT[i, l] * Finv[j, l]
+                        s += (mu * dF[i, j] + lam * tr * Finv[j, i] + c * m) * dN[g, a, j]
+                    y[n, i] += w[g] * s

@@ -1,0 +1,272 @@
+"""A hyperelastic voxel body with prescribed displacements, solved by Newton's method with the
+linear multigrid as the preconditioner of each step's CG.
+
+The body is the solid voxels of a phase grid, one neo-Hookean law
+(:class:`~.hyperelastic.NeoHookean`) for every solid phase, no body forces. Dofs named in
+``prescribed`` take the given displacements; the others are found where the internal forces
+vanish, which for a hyperelastic body is where the strain energy is stationary over them:
+
+1. **Predictor.** From the current state, the prescribed dofs move by their increment and the
+   free dofs by the tangent's answer to it (``K_ff du_f = -K_fp du_p``), the consistent linear
+   prediction. Where a Gauss point would invert (det F <= 0) the increment is halved and the
+   load taken in more steps (at most ``max_substeps``).
+2. **Newton.** ``K_t du = -r`` on the free dofs by CG to a relative tolerance that tightens with
+   the residual (``min(0.1, |r| / |f|)``, down to ``rtol / 10``), preconditioned by the split
+   multigrid of the *linear* elastic body (:func:`~.multigrid.build_hierarchy`, built once):
+   at rest the tangent is that operator, away from it a fixed, well-conditioned approximation
+   of it. A backtracking line search on the strain energy (Armijo, no inversion) keeps each step
+   a descent.
+3. **Stop** when the free dofs' residual is at most ``rtol`` times the internal forces' norm on
+   the prescribed dofs (the reactions), or raise :class:`~metasheet.errors.ConvergenceError`
+   with the history.
+
+The result holds the displacements and internal forces of the body's nodes (reactions at the
+prescribed dofs). Everything runs sequentially over fixed orders (the kernels, the CG's
+fixed-order reductions): the same bits on any thread count.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ...errors import ConfigError, ConvergenceError, check_range
+from ..hex8 import HEX8_CORNERS
+from .element import validate_grid
+from .hyperelastic import NeoHookean, gauss_gradients, internal_forces, tangent_apply
+from .multigrid import build_hierarchy
+from .operator import VoxelOperator, node_shape, touched_nodes
+from .pcg import pcg
+
+
+@dataclass(frozen=True)
+class NonlinearSolution:
+    """The equilibrium of a hyperelastic voxel body.
+
+    nodes : (n,) int64 flat grid nodes ``(i Ny + j) Nz + k`` of the body (those its solid voxels
+        touch), increasing; u : (n, 3) [mm] their displacements; forces : (n, 3) [N] the internal
+        forces there (the reactions at the prescribed dofs, ~0 at the free ones).
+    energy : the strain energy [mJ = N mm]; residual : the free dofs' final residual over the
+        reactions' norm (or over the forces' round-off / rtol where they vanish) [-]; newton : Newton iterations (all load steps); cg : CG iterations of each
+        solve; steps : load steps taken; node_shape : (Nx, Ny, Nz); h : (3,) voxel edges [mm].
+    """
+
+    nodes: np.ndarray
+    u: np.ndarray
+    forces: np.ndarray
+    energy: float
+    residual: float
+    newton: int
+    cg: tuple
+    steps: int
+    node_shape: tuple
+    h: np.ndarray
+
+    def full(self, a: np.ndarray) -> np.ndarray:
+        """(n, 3) node values -> (Nx, Ny, Nz, 3), zero off the body."""
+        out = np.zeros((int(np.prod(self.node_shape)), 3))
+        out[self.nodes] = a
+        return out.reshape(tuple(self.node_shape) + (3,))
+
+
+class _Body:
+    """The solid voxels in the body's node numbering, and their kernels' arguments."""
+
+    def __init__(self, index: np.ndarray, h: np.ndarray, law: NeoHookean):
+        N = node_shape(index.shape, False)
+        self.N = N
+        self.nodes = np.flatnonzero(touched_nodes(index, False).ravel())
+        node_map = np.full(int(np.prod(N)), -1, np.int64)
+        node_map[self.nodes] = np.arange(len(self.nodes))
+        ijk = np.argwhere(index >= 0)
+        corners = ijk[:, None, :] + HEX8_CORNERS[None]
+        flat = (corners[..., 0] * N[1] + corners[..., 1]) * N[2] + corners[..., 2]
+        self.voxels = np.ascontiguousarray(node_map[flat])
+        self.node_map = node_map
+        self.dN, self.w = gauss_gradients(h)
+        self.mu, self.lam = float(law.mu), float(law.lam)
+        self.F = np.empty((len(self.voxels), 8, 3, 3))
+
+    def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
+        f = np.zeros_like(u)
+        energy, bad = internal_forces(u, self.voxels, self.dN, self.w, self.mu, self.lam, self.F, f)
+        return f, energy, bad
+
+    def tangent(self, v: np.ndarray) -> np.ndarray:
+        """K_t v at the Gauss points' F of the last :meth:`forces` call."""
+        y = np.zeros_like(v)
+        tangent_apply(np.ascontiguousarray(v), self.voxels, self.dN, self.w, self.mu, self.lam, self.F, y)
+        return y
+
+
+def solve_hyperelastic(phases, size, law: NeoHookean, *, prescribed, values, initial=None, rtol: float = 1e-8,
+                       max_newton: int = 60, max_substeps: int = 64, cg_maxiter: int = 2000,
+                       progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
+    """The equilibrium of the solid of ``phases`` under prescribed displacements (module docstring).
+
+    phases : (nx, ny, nz) int, 0 = void, k > 0 solid (every solid phase obeys ``law``).
+    size : (3,) [mm] the grid's edges; node (i, j, k) sits at (i hx, j hy, k hz).
+    prescribed : (nx + 1, ny + 1, nz + 1, 3) bool, the prescribed dofs (those on nodes the solid
+        touches count); values : the same shape [mm], their displacements.
+    initial : (nx + 1, ny + 1, nz + 1, 3) [mm] a start for the free dofs (a previous solution:
+        continuation), None: zero.
+    rtol : the free residual over the reactions' norm, in (0, 1e-2); max_newton : Newton
+        iterations per load step; max_substeps : the most load steps the predictor may take.
+    """
+    law = law if isinstance(law, NeoHookean) else NeoHookean(*law)
+    index, _, h, present = validate_grid(phases, size, {p: np.eye(6) for p in _solid_phases(phases)})
+    N = node_shape(index.shape, False)
+    fixed = _dofs(prescribed, "prescribed", N, bool)
+    target = _dofs(values, "values", N, float)
+    start = np.zeros(N + (3,)) if initial is None else _dofs(initial, "initial", N, float)
+    check_range("rtol", rtol, 0.0, 1e-2, lo_open=True, hi_open=True)
+    say = progress or (lambda *_: None)
+    with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bits on any load
+        return _solve(index, h, law, fixed, target, start, float(rtol), int(max_newton), int(max_substeps),
+                      int(cg_maxiter), say)
+
+
+def _solid_phases(phases) -> list[int]:
+    ph = np.asarray(phases)
+    if ph.ndim != 3 or not np.issubdtype(ph.dtype, np.integer):
+        raise ConfigError(f"phases: shape {ph.shape}, dtype {ph.dtype}: must be a 3-D integer array (0 = void)")
+    return [int(p) for p in np.unique(ph) if p > 0]
+
+
+def _dofs(a, name: str, N, dtype) -> np.ndarray:
+    arr = np.asarray(a)
+    if arr.shape != tuple(N) + (3,):
+        raise ConfigError(f"{name}: shape {arr.shape}: must be {tuple(N) + (3,)} (one value per node and dof)")
+    if dtype is bool:
+        if arr.dtype != bool:
+            raise ConfigError(f"{name}: dtype {arr.dtype}: must be bool")
+        return arr
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{name}: non-finite displacements")
+    return arr.astype(float)
+
+
+def _solve(index, h, law, fixed, target, start, rtol, max_newton, max_substeps, cg_maxiter, say):
+    body = _Body(index, h, law)
+    touched = touched_nodes(index, False)
+    fixed = fixed & touched[..., None]
+    if not fixed.any():
+        raise ConfigError("prescribed: no prescribed dof on the solid: the body would float")
+    op = VoxelOperator(index, law_table(law, h), np.ones(index.shape), False,
+                       (touched[..., None] & ~fixed).astype(float), h)
+    say("hyperelastic: hierarchy", 0, 2)
+    H = build_hierarchy(op, fixed, coarsening="split")
+    cop = H.fine
+    at = body.node_map[cop.active]  # hierarchy's compact nodes in the body's numbering
+    free_c = cop.free  # (a, 3) the free dofs of those nodes
+    fixed_b = fixed.reshape(-1, 3)[body.nodes]
+    u = start.reshape(-1, 3)[body.nodes].copy()
+    goal = target.reshape(-1, 3)[body.nodes]
+
+    def on_free(v_b):  # body numbering -> hierarchy compact, free dofs only
+        return v_b[at] * free_c
+
+    def to_body(v_c):
+        out = np.zeros((len(body.nodes), 3))
+        out[at] = v_c * free_c
+        return out
+
+    def apply(v):  # (a, 3, m) -> (a, 3, m): the tangent on the free dofs
+        out = np.empty_like(v)
+        for k in range(v.shape[2]):
+            out[..., k] = on_free(body.tangent(to_body(v[..., k])))
+        return out
+
+    def cg(b, tol):
+        res = pcg(apply, b, H.precondition, rtol=tol, maxiter=cg_maxiter, flexible=H.flexible)
+        cgs.append(int(res.iterations[0]))
+        if not res.converged[0]:
+            raise ConvergenceError(f"hyperelastic: a Newton step's CG reached {res.residual[0]:.2e} after "
+                                   f"{res.iterations[0]} iterations, asked {tol:g}", history=res.history[:, 0].tolist())
+        return to_body(res.x[..., 0])
+
+    cgs, newton, steps = [], 0, 0
+    # the round-off of the forces: eps times the stress of the displacement gradient (|H| at most
+    # max|u| / h) over a voxel face, summed over the nodes; under a large rigid motion the forces
+    # are differences of O(|H|) stresses, so no residual falls below this (1e3: the sums' depth)
+    face, n_dofs = float(np.prod(h)) ** (2 / 3), np.sqrt(3.0 * len(body.nodes))
+
+    def floor(u):
+        return 1e3 * np.finfo(float).eps * law.E * face * (1.0 + float(np.abs(u).max()) / float(h.min())) * n_dofs
+    f, energy, bad = body.forces(u)
+    if bad:
+        raise ConfigError(f"initial: {bad} Gauss points inverted (det F <= 0) in the starting state")
+    done, frac = 0.0, 1.0  # the share of the prescribed increment reached, the next step's share
+    u0p = u[fixed_b].copy()
+    while done < 1.0:
+        if steps >= max_substeps:
+            raise ConvergenceError(f"hyperelastic: the prescribed motion needed more than {max_substeps} load steps "
+                                   f"(reached {100 * done:.1f} %): it inverts elements near the prescribed dofs")
+        step = min(frac, 1.0 - done)
+        trial = u.copy()
+        dp = np.zeros_like(u)
+        dp[fixed_b] = (goal[fixed_b] - u0p) * step
+        du_f = cg(-on_free(body.tangent(dp))[..., None], 1e-6)  # the consistent predictor
+        trial += dp + du_f
+        f_t, e_t, bad = body.forces(trial)
+        if bad:
+            frac = step / 2
+            body.forces(u)  # the tangent back at the accepted state
+            continue
+        u, f, energy, steps = trial, f_t, e_t, steps + 1
+        done += step
+        say("hyperelastic: load steps", int(round(100 * done)), 100)
+        u, f, energy, its = _newton(body, u, f, energy, on_free, cg, rtol, max_newton, fixed_b, floor)
+        newton += its
+        frac = min(2 * step, 1.0)
+    ref = float(np.linalg.norm(f[fixed_b]))
+    # over the reactions, or over the round-off's scale where they vanish (a rigid motion)
+    resid = float(np.linalg.norm(on_free(f))) / max(ref, floor(u) / rtol)
+    say("hyperelastic: done", 2, 2)
+    return NonlinearSolution(body.nodes, u, f, float(energy), resid, newton, tuple(cgs), steps, tuple(body.N),
+                             np.asarray(h, float))
+
+
+def _newton(body, u, f, energy, on_free, cg, rtol, max_newton, fixed_b, floor):
+    """Newton iterations on the free dofs from ``u`` (forces ``f``, ``energy``) until the free
+    residual is at most ``rtol`` times the reactions' norm, or the forces' round-off ``floor(u)`` [N]."""
+    hist = []
+    for it in range(max_newton + 1):
+        r = on_free(f)
+        rn = float(np.linalg.norm(r))
+        ref = max(float(np.linalg.norm(f[fixed_b])), 1e-300)
+        hist.append(rn / ref)
+        if rn <= max(rtol * ref, floor(u)):
+            return u, f, energy, it
+        if it == max_newton:
+            break
+        du = cg(-r[..., None], min(max(min(0.1, rn / ref), rtol / 10), 0.1))
+        g = float(np.sum(f * du))  # dE/dalpha at alpha = 0: < 0 along a descent direction
+        alpha = 1.0
+        for _ in range(30):
+            trial = u + alpha * du
+            f_t, e_t, bad = body.forces(trial)
+            # Armijo on the energy; near the solution the energy's round-off hides the decrease,
+            # where a smaller residual decides
+            if not bad and (e_t <= energy + 1e-4 * alpha * g or float(np.linalg.norm(on_free(f_t))) < rn):
+                break
+            alpha *= 0.5
+        else:
+            body.forces(u)
+            raise ConvergenceError(f"hyperelastic: no descent along the Newton step (residual {rn / ref:.2e})",
+                                   history=hist)
+        u, f, energy = trial, f_t, e_t
+    raise ConvergenceError(f"hyperelastic: Newton reached {hist[-1]:.2e} after {max_newton} iterations, asked "
+                           f"{rtol:g}", history=hist)
+
+
+def law_table(law: NeoHookean, h) -> np.ndarray:
+    """(1, 24, 24) [N/mm] the linear voxel element of the law's small-strain tangent (the
+    preconditioner's operator, and the law's rest tangent)."""
+    from ...mechanics.material import Isotropic
+    from .element import phase_table
+
+    return phase_table(Isotropic(law.E, law.nu).stiffness(), h).K

@@ -1,0 +1,94 @@
+"""Rigid grips at finite poses on a hyperelastic voxel body: the wrenches they carry.
+
+The finite-strain counterpart of :mod:`.voxel_grips` (issue 62, item 2). Grip ``b`` holds its
+tied nodes in a rigid pose: rotation ``R_b`` (a rotation vector ``theta_b`` [rad]) about its
+reference point ``r_b`` and translation ``t_b`` [mm],
+
+    x_i = r_b + t_b + R_b (X_i - r_b),
+
+the other nodes of the kept solid find their equilibrium under the neo-Hookean walls
+(:func:`metasheet.fem.voxel.nonlinear.solve_hyperelastic`), and each grip carries the wrench
+
+    w_b = (sum_i f_i,  sum_i (x_i - r_b - t_b) x f_i)        [N, N mm]
+
+of the internal forces at its nodes: force, and moment about its reference point where it is
+now. At rest this is the linear DNS's condensed stiffness to first order, ``dw = K dq`` with
+``q = (t, theta)`` per grip in :mod:`.voxel_grips`' order (tested by central differences), and
+a rigid motion of every grip together carries no wrench (tested). The kept solid is
+:func:`.voxel_grips.held_solid`'s, as in the linear DNS.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..fem.voxel.hyperelastic import NeoHookean
+from ..fem.voxel.nonlinear import NonlinearSolution, solve_hyperelastic
+from ..mechanics.rotations import rotation_matrix
+from .voxel_grips import _bodies, _references, held_solid
+
+
+@dataclass(frozen=True)
+class GripWrenches:
+    """``wrenches`` (B, 6) [N, N mm] each grip's (force, moment about its moved reference point);
+    ``solution`` the body's :class:`~metasheet.fem.voxel.nonlinear.NonlinearSolution`;
+    ``kept_share`` the share of the solid the grips hold [-]."""
+
+    wrenches: np.ndarray
+    solution: NonlinearSolution
+    kept_share: float
+
+
+def grip_poses(rotations, translations, B: int) -> tuple[np.ndarray, np.ndarray]:
+    """((B, 3, 3) rotation matrices, (B, 3) translations [mm]) of ``rotations`` (B, 3) rotation
+    vectors [rad] and ``translations`` (B, 3) [mm]; a ConfigError naming the field otherwise."""
+    out = []
+    for name, a in (("rotations", rotations), ("translations", translations)):
+        a = np.asarray(a, float)
+        if a.shape != (B, 3) or not np.all(np.isfinite(a)):
+            raise ConfigError(f"{name}: shape {a.shape}: must be ({B}, 3) finite values, one row per grip")
+        out.append(a)
+    if np.any(np.linalg.norm(out[0], axis=1) > np.pi):
+        raise ConfigError("rotations: a rotation vector longer than pi rad: give each grip's rotation within "
+                          "[-180, 180] deg")
+    return np.stack([rotation_matrix(v) for v in out[0]]), out[1]
+
+
+def grip_wrenches(phases, size, law: NeoHookean, *, bodies, references, rotations, translations,
+                  initial=None, rtol: float = 1e-8, progress=None) -> GripWrenches:
+    """The grips' wrenches with every grip at its pose (module docstring).
+
+    phases : (nx, ny, nz) int, 0 = void, k > 0 solid; size : (3,) grid edges [mm];
+    bodies : (nx + 1, ny + 1, nz + 1) int, 0 free, b >= 1 tied to grip b - 1; references :
+    (B, 3) [mm] grid coordinates; rotations, translations : (B, 3) each grip's pose [rad, mm];
+    initial : (nx + 1, ny + 1, nz + 1, 3) [mm] a start for the free nodes (a nearby pose's
+    solution: continuation); rtol : Newton's relative residual.
+    """
+    ph = np.asarray(phases)
+    N = tuple(int(n) + 1 for n in ph.shape)
+    body, B = _bodies(bodies, N)
+    refs = _references(references, B)
+    R, t = grip_poses(rotations, translations, B)
+    solid = ph > 0
+    kept = held_solid(solid, body > 0)
+    if not kept.any():
+        raise ConfigError("bodies: no solid piece is held by a grip (three non-collinear tied nodes)")
+    h = np.asarray(size, float) / np.array(ph.shape)
+    X = np.stack(np.indices(N), -1) * h  # (Nx, Ny, Nz, 3) node positions [mm]
+    tied = body > 0
+    b = body[tied] - 1
+    values = np.zeros(N + (3,))
+    Xt = X[tied]
+    values[tied] = refs[b] + t[b] + np.einsum("nij,nj->ni", R[b], Xt - refs[b]) - Xt
+    prescribed = np.repeat(tied[..., None], 3, axis=3)
+    sol = solve_hyperelastic(np.where(kept, ph, 0), size, law, prescribed=prescribed, values=values,
+                             initial=initial, rtol=rtol, progress=progress)
+    f = sol.full(sol.forces)[tied]
+    x = (X + sol.full(sol.u))[tied]
+    arm = x - (refs + t)[b]
+    w = np.zeros((B, 6))
+    np.add.at(w, b, np.concatenate([f, np.cross(arm, f)], axis=1))
+    return GripWrenches(w, sol, float(kept.sum() / max(solid.sum(), 1)))
