@@ -74,8 +74,10 @@ def _solved(cache: Path, spec):
     return s
 
 
-def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, length_scale: float = 50.0) -> dict:
-    """Per voxel size the print's numbers, and each quantity's Richardson fit over the sizes."""
+def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, length_scale: float = 50.0,
+           labels=LABELS) -> dict | None:
+    """Per voxel size the print's numbers, and each quantity's Richardson fit over the sizes;
+    None when ``labels`` is one sheet only (its solves are kept in ``cache`` for a later run)."""
     from threadpoolctl import threadpool_limits
 
     from metasheet.sheet.dns import SheetPrint
@@ -91,7 +93,9 @@ def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, len
     rows = []
     for v in sorted(voxels, reverse=True):  # coarse first: the first numbers come soon
         sheets = [_solved(cache, SheetPrint(lab, seed, gauge, float(v), design, orient.sheet_params, fields[lab],
-                                            solid)) for lab in LABELS]
+                                            solid)) for lab in labels]
+        if tuple(labels) != LABELS:
+            continue
         with threadpool_limits(limits=1, user_api="blas"):
             st = dns_study(sheets, hom, robot, orient.sheet_params, length_scale=length_scale)
         r = st["realisations"][0]
@@ -103,6 +107,8 @@ def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, len
                      "softest_ratio": [min(r["sheets"][lab]["eigen_ratios"]) for lab in LABELS],
                      "rod_roll": r["robot"]["rod_rotation_deg_per_deg"],
                      "singular_values": r["robot"]["singular_values"]})
+    if tuple(labels) != LABELS:
+        return None
     out = {"outputs": str(outputs), "gauge": gauge, "seed": seed, "rows": rows,
            "homogenised": {"rod_roll": st["homogenised_robot"]["rod_rotation_deg_per_deg"],
                            "singular_values": st["homogenised_robot"]["singular_values"]}}
@@ -154,9 +160,14 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=None, help="foam seed (default: the cell design's)")
     ap.add_argument("--cache", type=Path, required=True, help="folder keeping each solved sheet (resume)")
     ap.add_argument("--json", type=Path, default=None, help="also write the numbers as JSON")
+    ap.add_argument("--labels", nargs="+", choices=LABELS, default=list(LABELS),
+                    help="solve these sheets only and keep them in --cache (two processes, one sheet each; "
+                         "a run with both then reads them)")
     add_save_option(ap)
     args = ap.parse_args()
-    res = ladder(args.outputs, args.voxels, args.gauge, args.seed, args.cache)
+    res = ladder(args.outputs, args.voxels, args.gauge, args.seed, args.cache, labels=tuple(args.labels))
+    if res is None:
+        return
     if args.json is not None:
         args.json.write_text(json.dumps(res, indent=1))
     with saved_output(__file__, args.save):

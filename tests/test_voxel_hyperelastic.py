@@ -109,6 +109,9 @@ def test_a_voxel_bar_in_uniaxial_stretch_meets_the_closed_form(stretch):
     np.testing.assert_allclose(sol.u, exact, rtol=0, atol=1e-8 * L)  # homogeneous: trilinear is exact
     end = sol.full(sol.forces)[-1, :, :, 0].sum()
     assert end == pytest.approx(P11 * size[1] * size[2], rel=1e-8)
+    # the walls' strain: Green-Lagrange along the bar, (stretch^2 - 1) / 2, or laterally in compression
+    want = max(stretch**2 - 1.0, l2**2 - 1.0) / 2
+    np.testing.assert_allclose(sol.strain, want, rtol=1e-7)
     assert sol.residual <= 1e-10 and sol.steps >= 1
 
 

@@ -183,3 +183,23 @@ def tangent_apply(v, voxels, dN, w, mu, lam, Fs, y):
                             m += FiT_dFT[i, l] * Finv[j, l]
                         s += (mu * dF[i, j] + lam * tr * Finv[j, i] + c * m) * dN[g, a, j]
                     y[n, i] += w[g] * s
+
+
+@njit(cache=True)
+def max_principal_strain(Fs, out):
+    """``out`` (m,): each voxel's largest principal Green-Lagrange strain over its Gauss points'
+    F (m, 8, 3, 3): the largest eigenvalue of ``(F^T F - I) / 2`` [-]."""
+    C = np.empty((3, 3))
+    for e in range(Fs.shape[0]):
+        best = -np.inf
+        for g in range(8):
+            for i in range(3):
+                for j in range(3):
+                    s = 0.0
+                    for k in range(3):
+                        s += Fs[e, g, k, i] * Fs[e, g, k, j]
+                    C[i, j] = 0.5 * (s - (1.0 if i == j else 0.0))
+            lam = np.linalg.eigvalsh(C)
+            if lam[2] > best:
+                best = lam[2]
+        out[e] = best

@@ -36,7 +36,7 @@ from threadpoolctl import threadpool_limits
 from ...errors import ConfigError, ConvergenceError, check_range
 from ..hex8 import HEX8_CORNERS
 from .element import validate_grid
-from .hyperelastic import NeoHookean, gauss_gradients, internal_forces, tangent_apply
+from .hyperelastic import NeoHookean, gauss_gradients, internal_forces, max_principal_strain, tangent_apply
 from .multigrid import build_hierarchy
 from .operator import VoxelOperator, node_shape, touched_nodes
 from .pcg import pcg
@@ -51,7 +51,9 @@ class NonlinearSolution:
         forces there (the reactions at the prescribed dofs, ~0 at the free ones).
     energy : the strain energy [mJ = N mm]; residual : the free dofs' final residual over the
         reactions' norm (or over the forces' round-off / rtol where they vanish) [-]; newton : Newton iterations (all load steps); cg : CG iterations of each
-        solve; steps : load steps taken; node_shape : (Nx, Ny, Nz); h : (3,) voxel edges [mm].
+        solve; steps : load steps taken; node_shape : (Nx, Ny, Nz); h : (3,) voxel edges [mm];
+        strain : (nx, ny, nz) each solid voxel's largest principal Green-Lagrange strain over its
+        Gauss points [-], NaN in the void.
     """
 
     nodes: np.ndarray
@@ -64,6 +66,7 @@ class NonlinearSolution:
     steps: int
     node_shape: tuple
     h: np.ndarray
+    strain: np.ndarray | None = None
 
     def full(self, a: np.ndarray) -> np.ndarray:
         """(n, 3) node values -> (Nx, Ny, Nz, 3), zero off the body."""
@@ -226,8 +229,12 @@ def _solve(index, h, law, fixed, target, start, rtol, max_newton, max_substeps, 
     # over the reactions, or over the round-off's scale where they vanish (a rigid motion)
     resid = float(np.linalg.norm(on_free(f))) / max(ref, floor(u) / rtol)
     say("hyperelastic: done", 2, 2)
+    per_voxel = np.empty(len(body.voxels))
+    max_principal_strain(body.F, per_voxel)
+    strain = np.full(index.shape, np.nan)
+    strain[index >= 0] = per_voxel  # argwhere's order, as the body's voxels
     return NonlinearSolution(body.nodes, u, f, float(energy), resid, newton, tuple(cgs), steps, tuple(body.N),
-                             np.asarray(h, float))
+                             np.asarray(h, float), strain)
 
 
 def _newton(body, u, f, energy, on_free, cg, rtol, max_newton, fixed_b, floor):

@@ -1,0 +1,98 @@
+"""The printed robot beyond rest: one print's two sheets as finite-strain voxel bodies on the
+rod and the horns (metasheet.robot.voxel_robot), at motor poses away from rest (issue 62, item 2).
+
+For each pose (every motor moved by the same offset: the rod's roll, as the paper's Fig. 7
+pulls and pushes) it reports the rod's motion from the nonlinear equilibrium beside the linear
+rest model's prediction (the linear DNS's condensed sheets), the iterations (the rod's
+quasi-Newton, the sheets' Newton) and the time. The linear grip stiffness of each sheet is read
+from a ``benchmarks/dns_convergence.py`` cache when it holds this print at this voxel size, else
+solved here (minutes per sheet).
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_printed_robot.py --outputs outputs/paper \
+        --voxel 0.3 --offsets 2 5 10 --cache outputs/dns_ladder --save
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import add_save_option, saved_output  # noqa: E402
+from dns_convergence import LABELS, _inputs, _solved  # noqa: E402
+
+
+def voxel_sheets(outputs: Path, voxel: float, gauge: str, seed: int | None, cache: Path):
+    """(robot, (VoxelSheet A, B), linear S at rest, the print's seed) of a pipeline's outputs."""
+    from metasheet.fem.voxel.hyperelastic import NeoHookean
+    from metasheet.robot.condensed import condensed_robot_S
+    from metasheet.robot.voxel_robot import VoxelSheet
+    from metasheet.sheet.dns import SheetPrint, grip_labels
+    from metasheet.sheet.grips import grip_references
+    from metasheet.sheet.printed_foam import printed_foam, tripod_region
+
+    design, orient, material, robot, fields = _inputs(outputs)
+    seed = design.seeds.seed if seed is None else seed
+    solid = design.material
+    law = NeoHookean(float(solid.E), float(solid.nu))
+    refs = grip_references(orient.sheet_params)
+    sheets, Ks = [], []
+    for lab in LABELS:
+        spec = SheetPrint(lab, seed, gauge, voxel, design, orient.sheet_params, fields[lab],
+                          solid.material().stiffness())
+        Ks.append(_solved(cache, spec).K)
+        foam = printed_foam(tripod_region(orient.sheet_params), fields[lab], design, voxel_mm=voxel, gauge=gauge,
+                            seed=seed)
+        h = np.asarray(foam.voxel_mm, float)
+        bodies = grip_labels(foam.phases.shape, foam.origin, h, orient.sheet_params)
+        sheets.append(VoxelSheet(foam.phases.astype(np.int64), np.asarray(foam.size, float),
+                                 np.asarray(foam.origin, float), bodies, refs, law))
+    return robot, tuple(sheets), condensed_robot_S(Ks[0], Ks[1], robot, refs), seed
+
+
+def main() -> None:
+    from metasheet.robot.voxel_robot import PrintedRobot
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--outputs", type=Path, required=True)
+    ap.add_argument("--voxel", type=float, default=0.3, help="voxel edge [mm]")
+    ap.add_argument("--gauge", choices=("seed", "point"), default="seed")
+    ap.add_argument("--seed", type=int, default=None)
+    ap.add_argument("--offsets", type=float, nargs="+", default=[2.0, 5.0], help="every motor moved by [deg]")
+    ap.add_argument("--cache", type=Path, required=True, help="dns_convergence.py's cache of linear solves")
+    add_save_option(ap)
+    args = ap.parse_args()
+    args.cache.mkdir(parents=True, exist_ok=True)
+    robot, sheets, S, seed = voxel_sheets(args.outputs, args.voxel, args.gauge, args.seed, args.cache)
+    J = -np.linalg.solve(S[:6, :6], S[:6, 6:])
+    ax = np.asarray(robot.axis, float) / np.linalg.norm(robot.axis)
+    printed = PrintedRobot(robot, sheets, S_rest=S, rtol=1e-6)
+    rest = np.degrees([s.rest_angle for s in robot.coupling.servos])
+    rows = []
+    for off in args.offsets:
+        t0, c0 = time.perf_counter(), time.process_time()
+        newton0 = printed.newton
+        pose = printed.equilibrium(rest + off)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        linear = J @ np.full(6, np.radians(off))
+        rows.append((off, float(np.degrees(pose.theta @ ax)), float(np.degrees(linear[3:] @ ax)),
+                     float(np.linalg.norm(pose.dp)), float(np.linalg.norm(linear[:3])), pose.iterations,
+                     printed.newton - newton0, wall, cpu, pose.residual))
+    with saved_output(__file__, args.save):
+        print(f"One print (seed {seed}, gauge {args.gauge!r}) of `{args.outputs}` at {args.voxel:g} mm voxels, both "
+              "sheets neo-Hookean (the cell design's base material), every motor moved by the offset from rest; "
+              "the linear column is the linear DNS's rest model.\n")
+        print("| offset [deg] | rod roll [deg] | linear | rod travel [mm] | linear | rod iterations | sheet Newton "
+              "iterations | wall [s] | CPU [s] | rod residual |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        for r in rows:
+            print(f"| {r[0]:g} | {r[1]:+.3f} | {r[2]:+.3f} | {r[3]:.3f} | {r[4]:.3f} | {r[5]} | {r[6]} | {r[7]:.0f} "
+                  f"| {r[8]:.0f} | {r[9]:.1e} |")
+
+
+if __name__ == "__main__":
+    main()

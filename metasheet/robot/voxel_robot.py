@@ -1,0 +1,169 @@
+"""The printed robot at any motor pose: its two printed sheets as finite-strain voxel bodies
+(:mod:`metasheet.sheet.voxel_grips_nonlinear`) held by the rod and the six horns (issue 62).
+
+The robot's geometry is the six-DOF robot's (:func:`metasheet.robot.builder.six_dof_robot`:
+its sheet frames ``Q_A``, ``Q_B`` and centres, the servos' axes and pivots, the effector's
+reference point), exactly as the linear rest model from condensed sheets uses it
+(:mod:`.condensed`), now with finite motions:
+
+* the centre grip of either sheet moves rigidly with the effector: the rod turned by ``R_e``
+  (rotation vector ``theta_e``) about its reference point ``o`` and moved by ``dp``;
+* arm k's grip moves rigidly with its horn: a rotation by the motor's change ``dphi`` about the
+  servo's axis through its pivot (position-controlled servos: the motor angles are given).
+
+Each sheet's grips carry wrenches; the rod is in equilibrium when the two centre grips' wrenches,
+taken to the world about the moved ``o``, sum to zero (no gravity: as the linear rest model).
+The six unknowns (``dp``, ``theta_e``) are found by a quasi-Newton iteration (Broyden's good
+update) started from the rest Schur complement's effector block, the linear condensed model's
+(given, or by finite differences). The sheets' voxel solutions warm-start each other pose to
+pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ConfigError, ConvergenceError
+from ..fem.voxel.hyperelastic import NeoHookean
+from ..mechanics.rotations import axis_rotation, rotation_matrix
+from ..sheet.voxel_grips_nonlinear import grip_wrenches
+from .condensed import _check_robot
+from .robots import Q_A, Q_B
+
+
+@dataclass(frozen=True)
+class VoxelSheet:
+    """One printed sheet as the printed robot holds it: ``phases`` (nx, ny, nz) int (0 void),
+    ``size`` (3,) [mm] the grid's edges, ``origin`` (3,) [mm] node (0, 0, 0) in the sheet's frame,
+    ``bodies`` (nx + 1, ny + 1, nz + 1) int grip labels (0 free, 1 centre, 2-4 arms 0-2:
+    :func:`metasheet.sheet.dns.grip_labels`), ``references`` (4, 3) [mm] the grips' reference
+    points in the sheet frame, ``law`` the walls' :class:`NeoHookean`."""
+
+    phases: np.ndarray
+    size: np.ndarray
+    origin: np.ndarray
+    bodies: np.ndarray
+    references: np.ndarray
+    law: NeoHookean
+
+
+@dataclass(frozen=True)
+class PrintedPose:
+    """The printed robot's equilibrium at ``motors_deg`` (6,): the effector's displacement ``dp``
+    (3,) [mm] and rotation vector ``theta`` (3,) [rad] from rest; ``residual`` the rod's
+    unbalanced wrench over the grips' wrench scale [-]; ``iterations`` of the rod's quasi-Newton;
+    ``wrenches`` (2, 4, 6) each sheet's grip wrenches in its frame [N, N mm]; ``newton`` the
+    sheets' Newton iterations in all; ``states`` each sheet's displacement field (warm starts)."""
+
+    motors_deg: np.ndarray
+    dp: np.ndarray
+    theta: np.ndarray
+    residual: float
+    iterations: int
+    wrenches: np.ndarray
+    newton: int
+    states: tuple = field(repr=False, default=())
+
+
+def sheet_grip_poses(Q, centre, references, origin, servos, dp, theta, dphi) -> tuple[np.ndarray, np.ndarray]:
+    """(rotations (4, 3) [rad], translations (4, 3) [mm]) of one sheet's grips in its own frame.
+
+    Q : (3, 3) the sheet's frame -> world; centre : (3,) its centre in the world [mm];
+    references : (4, 3) grip reference points, sheet frame [mm]; origin : (3,) the effector's
+    reference point at rest [mm]; servos : arm k's three :class:`~.rigid.Servo`; dp (3,) [mm],
+    theta (3,) [rad] the effector's motion; dphi (3,) [rad] the three motors' change from rest."""
+    w = np.asarray(references, float) @ Q.T + centre  # world reference points at rest
+    rot = np.zeros((4, 3))
+    trans = np.zeros((4, 3))
+    Re = rotation_matrix(theta)
+    moved = np.asarray(origin, float) + dp + Re @ (w[0] - origin)
+    rot[0], trans[0] = Q.T @ np.asarray(theta, float), Q.T @ (moved - w[0])
+    for k, sv in enumerate(servos):
+        a, p = np.asarray(sv.axis, float), np.asarray(sv.pivot, float)
+        moved = p + axis_rotation(a, float(dphi[k])) @ (w[k + 1] - p)
+        rot[k + 1], trans[k + 1] = Q.T @ (a * float(dphi[k])), Q.T @ (moved - w[k + 1])
+    return rot, trans
+
+
+class PrintedRobot:
+    """The two printed sheets on the six-DOF ``robot``'s rod and horns (module docstring).
+
+    ``sheets``: (sheet A, sheet B) :class:`VoxelSheet` (A on servos 0-2, B on 3-5);
+    ``S_rest``: the rest Schur complement (12, 12) of the linear condensed model
+    (:func:`metasheet.robot.condensed.condensed_robot_S` of the sheets' linear grip stiffness),
+    the rod iteration's first Jacobian; None: by finite differences at the first pose.
+    """
+
+    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8):
+        c, centres = _check_robot(robot)
+        if len(sheets) != 2 or not all(isinstance(s, VoxelSheet) for s in sheets):
+            raise ConfigError("sheets: expected (sheet A, sheet B), two VoxelSheet")
+        self.robot, self.sheets, self.rtol = robot, tuple(sheets), float(rtol)
+        self.frames = ((Q_A, centres[0], list(c.servos[:3])), (Q_B, centres[1], list(c.servos[3:])))
+        self.origin = np.asarray(c.origin, float)
+        self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
+        self.J0 = None if S_rest is None else np.asarray(S_rest, float)[:6, :6].copy()
+        self.states = [None, None]
+        self.newton = 0
+
+    def rod_wrench(self, q, motors_rad) -> tuple[np.ndarray, np.ndarray, float]:
+        """(the rod's unbalanced wrench (6,) [N, N mm about the moved effector point], the grips'
+        wrenches (2, 4, 6), their scale [N]) at effector motion ``q`` = (dp, theta) and motor angles."""
+        dphi = np.asarray(motors_rad, float) - self.rest_angles
+        dp, theta = q[:3], q[3:]
+        o = self.origin + dp
+        total, per, scale = np.zeros(6), np.zeros((2, 4, 6)), 0.0
+        for s, (sheet, (Q, centre, servos)) in enumerate(zip(self.sheets, self.frames)):
+            rot, trans = sheet_grip_poses(Q, centre, sheet.references, self.origin, servos, dp, theta,
+                                          dphi[3 * s:3 * s + 3])
+            g = grip_wrenches(sheet.phases, sheet.size, sheet.law, bodies=sheet.bodies,
+                              references=sheet.references - sheet.origin, rotations=rot, translations=trans,
+                              initial=self.states[s], rtol=self.rtol)
+            self.states[s] = g.solution.full(g.solution.u)
+            self.newton += g.solution.newton
+            per[s] = g.wrenches
+            F, M = Q @ g.wrenches[0, :3], Q @ g.wrenches[0, 3:]
+            r0 = Q @ (sheet.references[0] + trans[0]) + centre  # the moved centre reference, world
+            total += np.concatenate([F, M + np.cross(r0 - o, F)])
+            scale = max(scale, float(np.abs(g.wrenches[:, :3]).max()))
+        return total, per, scale
+
+    def equilibrium(self, motors_deg, q0=None, max_iterations: int = 40) -> PrintedPose:
+        """The rod's equilibrium at ``motors_deg`` (6,) [deg], from ``q0`` (6,) (None: rest or the
+        last pose's)."""
+        motors = np.radians(np.asarray(motors_deg, float))
+        if motors.shape != (6,) or not np.all(np.isfinite(motors)):
+            raise ConfigError(f"motors_deg: {np.asarray(motors_deg).tolist()}: six finite angles [deg]")
+        q = np.zeros(6) if q0 is None else np.asarray(q0, float).copy()
+        r, per, scale = self.rod_wrench(q, motors)
+        J = self.J0 if self.J0 is not None else self._fd_jacobian(q, motors, r)
+        hist = []
+        length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)  # moments over an arm's reach
+        w = np.array([1, 1, 1, 1 / length, 1 / length, 1 / length])
+        for it in range(max_iterations + 1):
+            rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
+            hist.append(rel)
+            if rel <= 10 * self.rtol or np.all(r == 0):
+                self.J0 = J
+                return PrintedPose(np.degrees(motors), q[:3].copy(), q[3:].copy(), rel, it, per, self.newton,
+                                   tuple(self.states))
+            step = np.linalg.solve(J, -r)
+            q_new = q + step
+            r_new, per, scale = self.rod_wrench(q_new, motors)
+            y = r_new - r
+            J = J + np.outer(y - J @ step, step) / float(step @ step)  # Broyden's good update
+            q, r = q_new, r_new
+        raise ConvergenceError(f"printed robot: the rod's equilibrium at motors {np.degrees(motors).round(3).tolist()} "
+                               f"deg reached {hist[-1]:.2e} after {max_iterations} iterations", history=hist)
+
+    def _fd_jacobian(self, q, motors, r0, h: float = 1e-4) -> np.ndarray:
+        J = np.zeros((6, 6))
+        for k in range(6):
+            e = np.zeros(6)
+            e[k] = h
+            J[:, k] = (self.rod_wrench(q + e, motors)[0] - r0) / h
+        self.rod_wrench(q, motors)  # the warm starts back at q
+        return J
+
