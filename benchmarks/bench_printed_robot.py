@@ -81,17 +81,18 @@ def main() -> None:
         linear = J @ np.full(6, np.radians(off))
         rows.append((off, float(np.degrees(pose.theta @ ax)), float(np.degrees(linear[3:] @ ax)),
                      float(np.linalg.norm(pose.dp)), float(np.linalg.norm(linear[:3])), pose.iterations,
-                     printed.newton - newton0, wall, cpu, pose.residual))
+                     printed.newton - newton0, wall, cpu, pose.residual, max(pose.wall_strain),
+                     min(a.distance for a in pose.approach)))
     with saved_output(__file__, args.save):
         print(f"One print (seed {seed}, gauge {args.gauge!r}) of `{args.outputs}` at {args.voxel:g} mm voxels, both "
               "sheets neo-Hookean (the cell design's base material), every motor moved by the offset from rest; "
               "the linear column is the linear DNS's rest model.\n")
         print("| offset [deg] | rod roll [deg] | linear | rod travel [mm] | linear | rod iterations | sheet Newton "
-              "iterations | wall [s] | CPU [s] | rod residual |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+              "iterations | wall [s] | CPU [s] | rod residual | wall strain | closest wall approach [mm] |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             print(f"| {r[0]:g} | {r[1]:+.3f} | {r[2]:+.3f} | {r[3]:.3f} | {r[4]:.3f} | {r[5]} | {r[6]} | {r[7]:.0f} "
-                  f"| {r[8]:.0f} | {r[9]:.1e} |")
+                  f"| {r[8]:.0f} | {r[9]:.1e} | {r[10]:.3f} | {r[11]:.3f} |")
 
 
 if __name__ == "__main__":

@@ -55,7 +55,10 @@ class PrintedPose:
     (3,) [mm] and rotation vector ``theta`` (3,) [rad] from rest; ``residual`` the rod's
     unbalanced wrench over the grips' wrench scale [-]; ``iterations`` of the rod's quasi-Newton;
     ``wrenches`` (2, 4, 6) each sheet's grip wrenches in its frame [N, N mm]; ``newton`` the
-    sheets' Newton iterations in all; ``states`` each sheet's displacement field (warm starts)."""
+    sheets' Newton iterations in all; ``wall_strain`` each sheet's largest principal
+    Green-Lagrange strain in its walls [-]; ``approach`` each sheet's closest approach of two
+    formerly separate wall surfaces (:class:`metasheet.fem.voxel.gaps.Approach`: self-contact);
+    ``states`` each sheet's displacement field (warm starts)."""
 
     motors_deg: np.ndarray
     dp: np.ndarray
@@ -64,6 +67,8 @@ class PrintedPose:
     iterations: int
     wrenches: np.ndarray
     newton: int
+    wall_strain: tuple = ()
+    approach: tuple = ()
     states: tuple = field(repr=False, default=())
 
 
@@ -106,6 +111,7 @@ class PrintedRobot:
         self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
         self.J0 = None if S_rest is None else np.asarray(S_rest, float)[:6, :6].copy()
         self.states = [None, None]
+        self.last = [None, None]
         self.newton = 0
 
     def rod_wrench(self, q, motors_rad) -> tuple[np.ndarray, np.ndarray, float]:
@@ -122,6 +128,7 @@ class PrintedRobot:
                               references=sheet.references - sheet.origin, rotations=rot, translations=trans,
                               initial=self.states[s], rtol=self.rtol)
             self.states[s] = g.solution.full(g.solution.u)
+            self.last[s] = g
             self.newton += g.solution.newton
             per[s] = g.wrenches
             F, M = Q @ g.wrenches[0, :3], Q @ g.wrenches[0, 3:]
@@ -147,8 +154,9 @@ class PrintedRobot:
             hist.append(rel)
             if rel <= 10 * self.rtol or np.all(r == 0):
                 self.J0 = J
+                strain, approach = self._walls()
                 return PrintedPose(np.degrees(motors), q[:3].copy(), q[3:].copy(), rel, it, per, self.newton,
-                                   tuple(self.states))
+                                   strain, approach, tuple(self.states))
             step = np.linalg.solve(J, -r)
             q_new = q + step
             r_new, per, scale = self.rod_wrench(q_new, motors)
@@ -157,6 +165,18 @@ class PrintedRobot:
             q, r = q_new, r_new
         raise ConvergenceError(f"printed robot: the rod's equilibrium at motors {np.degrees(motors).round(3).tolist()} "
                                f"deg reached {hist[-1]:.2e} after {max_iterations} iterations", history=hist)
+
+    def _walls(self) -> tuple[tuple, tuple]:
+        """Each sheet's largest wall strain and closest approach at the last solved pose."""
+        from ..fem.voxel.gaps import closest_approach
+
+        strain, approach = [], []
+        for g, u in zip(self.last, self.states):
+            sol = g.solution
+            kept = ~np.isnan(sol.strain)
+            strain.append(float(np.nanmax(sol.strain)))
+            approach.append(closest_approach(kept, sol.h, u))
+        return tuple(strain), tuple(approach)
 
     def _fd_jacobian(self, q, motors, r0, h: float = 1e-4) -> np.ndarray:
         J = np.zeros((6, 6))
