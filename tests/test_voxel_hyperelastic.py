@@ -152,7 +152,10 @@ def test_bad_input_is_named():
     fixed = np.zeros(N + (3,), bool)
     with pytest.raises(ConfigError, match="prescribed: no prescribed dof"):
         solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=np.zeros(N + (3,)))
+    fixed[0] = True
     with pytest.raises(ConfigError, match=r"values: shape \(2, 2\)"):
         solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=np.zeros((2, 2)))
+    with pytest.raises(ConfigError, match="rtol"):
+        solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=np.zeros(N + (3,)), rtol=0.5)
     with pytest.raises(ConfigError, match="nu"):
         NeoHookean(12.0, 0.5)

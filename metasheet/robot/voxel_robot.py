@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import ConfigError, ConvergenceError
 from ..fem.voxel.hyperelastic import NeoHookean
 from ..mechanics.rotations import axis_rotation, rotation_matrix
-from ..sheet.voxel_grips_nonlinear import grip_wrenches
+from ..sheet.voxel_grips_nonlinear import GripBody
 from .condensed import _check_robot
 from .robots import Q_A, Q_B
 
@@ -110,6 +110,8 @@ class PrintedRobot:
         self.origin = np.asarray(c.origin, float)
         self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
         self.J0 = None if S_rest is None else np.asarray(S_rest, float)[:6, :6].copy()
+        self.bodies = tuple(GripBody(s.phases, s.size, s.law, bodies=s.bodies, references=s.references - s.origin)
+                            for s in self.sheets)  # each sheet's multigrid built once
         self.states = [None, None]
         self.last = [None, None]
         self.newton = 0
@@ -124,9 +126,7 @@ class PrintedRobot:
         for s, (sheet, (Q, centre, servos)) in enumerate(zip(self.sheets, self.frames)):
             rot, trans = sheet_grip_poses(Q, centre, sheet.references, self.origin, servos, dp, theta,
                                           dphi[3 * s:3 * s + 3])
-            g = grip_wrenches(sheet.phases, sheet.size, sheet.law, bodies=sheet.bodies,
-                              references=sheet.references - sheet.origin, rotations=rot, translations=trans,
-                              initial=self.states[s], rtol=self.rtol)
+            g = self.bodies[s].wrenches(rot, trans, self.states[s], self.rtol)
             self.states[s] = g.solution.full(g.solution.u)
             self.last[s] = g
             self.newton += g.solution.newton

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..fem.voxel.hyperelastic import NeoHookean
-from ..fem.voxel.nonlinear import NonlinearSolution, solve_hyperelastic
+from ..fem.voxel.nonlinear import HyperelasticBody, NonlinearSolution
 from ..mechanics.rotations import rotation_matrix
 from .voxel_grips import _bodies, _references, held_solid
 
@@ -57,38 +57,51 @@ def grip_poses(rotations, translations, B: int) -> tuple[np.ndarray, np.ndarray]
     return np.stack([rotation_matrix(v) for v in out[0]]), out[1]
 
 
-def grip_wrenches(phases, size, law: NeoHookean, *, bodies, references, rotations, translations,
-                  initial=None, rtol: float = 1e-8, progress=None) -> GripWrenches:
-    """The grips' wrenches with every grip at its pose (module docstring).
+class GripBody:
+    """A voxel body with its grips, prepared once (the kept solid, the hyperelastic body and its
+    multigrid) and solved at any grip poses (:meth:`wrenches`).
 
     phases : (nx, ny, nz) int, 0 = void, k > 0 solid; size : (3,) grid edges [mm];
     bodies : (nx + 1, ny + 1, nz + 1) int, 0 free, b >= 1 tied to grip b - 1; references :
-    (B, 3) [mm] grid coordinates; rotations, translations : (B, 3) each grip's pose [rad, mm];
-    initial : (nx + 1, ny + 1, nz + 1, 3) [mm] a start for the free nodes (a nearby pose's
-    solution: continuation); rtol : Newton's relative residual.
+    (B, 3) [mm] grid coordinates.
     """
-    ph = np.asarray(phases)
-    N = tuple(int(n) + 1 for n in ph.shape)
-    body, B = _bodies(bodies, N)
-    refs = _references(references, B)
-    R, t = grip_poses(rotations, translations, B)
-    solid = ph > 0
-    kept = held_solid(solid, body > 0)
-    if not kept.any():
-        raise ConfigError("bodies: no solid piece is held by a grip (three non-collinear tied nodes)")
-    h = np.asarray(size, float) / np.array(ph.shape)
-    X = np.stack(np.indices(N), -1) * h  # (Nx, Ny, Nz, 3) node positions [mm]
-    tied = body > 0
-    b = body[tied] - 1
-    values = np.zeros(N + (3,))
-    Xt = X[tied]
-    values[tied] = refs[b] + t[b] + np.einsum("nij,nj->ni", R[b], Xt - refs[b]) - Xt
-    prescribed = np.repeat(tied[..., None], 3, axis=3)
-    sol = solve_hyperelastic(np.where(kept, ph, 0), size, law, prescribed=prescribed, values=values,
-                             initial=initial, rtol=rtol, progress=progress)
-    f = sol.full(sol.forces)[tied]
-    x = (X + sol.full(sol.u))[tied]
-    arm = x - (refs + t)[b]
-    w = np.zeros((B, 6))
-    np.add.at(w, b, np.concatenate([f, np.cross(arm, f)], axis=1))
-    return GripWrenches(w, sol, float(kept.sum() / max(solid.sum(), 1)))
+
+    def __init__(self, phases, size, law: NeoHookean, *, bodies, references):
+        ph = np.asarray(phases)
+        N = tuple(int(n) + 1 for n in ph.shape)
+        body, self.B = _bodies(bodies, N)
+        self.refs = _references(references, self.B)
+        solid = ph > 0
+        kept = held_solid(solid, body > 0)
+        if not kept.any():
+            raise ConfigError("bodies: no solid piece is held by a grip (three non-collinear tied nodes)")
+        self.kept_share = float(kept.sum() / max(solid.sum(), 1))
+        h = np.asarray(size, float) / np.array(ph.shape)
+        self.X = np.stack(np.indices(N), -1) * h  # (Nx, Ny, Nz, 3) node positions [mm]
+        self.tied = body > 0
+        self.b = body[self.tied] - 1
+        self.N = N
+        self.hyper = HyperelasticBody(np.where(kept, ph, 0), size, law, np.repeat(self.tied[..., None], 3, axis=3))
+
+    def wrenches(self, rotations, translations, initial=None, rtol: float = 1e-8, progress=None) -> GripWrenches:
+        """The grips' wrenches with every grip at its pose (module docstring): ``rotations``,
+        ``translations`` (B, 3) [rad, mm]; ``initial`` (nx + 1, ny + 1, nz + 1, 3) [mm] a start for
+        the free nodes (a nearby pose's solution); rtol : Newton's relative residual."""
+        R, t = grip_poses(rotations, translations, self.B)
+        b, refs = self.b, self.refs
+        values = np.zeros(self.N + (3,))
+        Xt = self.X[self.tied]
+        values[self.tied] = refs[b] + t[b] + np.einsum("nij,nj->ni", R[b], Xt - refs[b]) - Xt
+        sol = self.hyper.solve(values, initial, rtol=rtol, progress=progress)
+        f = sol.full(sol.forces)[self.tied]
+        arm = (self.X + sol.full(sol.u))[self.tied] - (refs + t)[b]
+        w = np.zeros((self.B, 6))
+        np.add.at(w, b, np.concatenate([f, np.cross(arm, f)], axis=1))
+        return GripWrenches(w, sol, self.kept_share)
+
+
+def grip_wrenches(phases, size, law: NeoHookean, *, bodies, references, rotations, translations,
+                  initial=None, rtol: float = 1e-8, progress=None) -> GripWrenches:
+    """The grips' wrenches with every grip at its pose, once (:class:`GripBody` prepared and solved)."""
+    return GripBody(phases, size, law, bodies=bodies, references=references).wrenches(
+        rotations, translations, initial, rtol, progress)

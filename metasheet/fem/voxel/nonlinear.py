@@ -105,31 +105,75 @@ class _Body:
         return y
 
 
-def solve_hyperelastic(phases, size, law: NeoHookean, *, prescribed, values, initial=None, rtol: float = 1e-8,
-                       max_newton: int = 60, max_substeps: int = 64, cg_maxiter: int = 2000,
-                       progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
-    """The equilibrium of the solid of ``phases`` under prescribed displacements (module docstring).
+class HyperelasticBody:
+    """The solid of ``phases`` with its prescribed dofs, prepared once (the voxels' node lists, the
+    linear split multigrid) and solved for any prescribed values (:meth:`solve`): a robot's pose
+    after pose, a ladder of motions.
 
     phases : (nx, ny, nz) int, 0 = void, k > 0 solid (every solid phase obeys ``law``).
     size : (3,) [mm] the grid's edges; node (i, j, k) sits at (i hx, j hy, k hz).
     prescribed : (nx + 1, ny + 1, nz + 1, 3) bool, the prescribed dofs (those on nodes the solid
-        touches count); values : the same shape [mm], their displacements.
-    initial : (nx + 1, ny + 1, nz + 1, 3) [mm] a start for the free dofs (a previous solution:
-        continuation), None: zero.
-    rtol : the free residual over the reactions' norm, in (0, 1e-2); max_newton : Newton
-        iterations per load step; max_substeps : the most load steps the predictor may take.
+        touches count).
     """
-    law = law if isinstance(law, NeoHookean) else NeoHookean(*law)
-    index, _, h, present = validate_grid(phases, size, {p: np.eye(6) for p in _solid_phases(phases)})
-    N = node_shape(index.shape, False)
-    fixed = _dofs(prescribed, "prescribed", N, bool)
-    target = _dofs(values, "values", N, float)
-    start = np.zeros(N + (3,)) if initial is None else _dofs(initial, "initial", N, float)
-    check_range("rtol", rtol, 0.0, 1e-2, lo_open=True, hi_open=True)
-    say = progress or (lambda *_: None)
-    with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bits on any load
-        return _solve(index, h, law, fixed, target, start, float(rtol), int(max_newton), int(max_substeps),
-                      int(cg_maxiter), say)
+
+    def __init__(self, phases, size, law: NeoHookean, prescribed):
+        self.law = law if isinstance(law, NeoHookean) else NeoHookean(*law)
+        index, _, h, _ = validate_grid(phases, size, {p: np.eye(6) for p in _solid_phases(phases)})
+        self.index, self.h = index, np.asarray(h, float)
+        self.N = node_shape(index.shape, False)
+        self.body = _Body(index, h, self.law)
+        touched = touched_nodes(index, False)
+        fixed = _dofs(prescribed, "prescribed", self.N, bool) & touched[..., None]
+        if not fixed.any():
+            raise ConfigError("prescribed: no prescribed dof on the solid: the body would float")
+        op = VoxelOperator(index, law_table(self.law, h), np.ones(index.shape), False,
+                           (touched[..., None] & ~fixed).astype(float), h)
+        with threadpool_limits(limits=1, user_api="blas"):
+            self.H = build_hierarchy(op, fixed, coarsening="split")
+        self.at = self.body.node_map[self.H.fine.active]  # the hierarchy's compact nodes, body numbering
+        self.free_c = self.H.fine.free  # (a, 3) their free dofs
+        self.fixed_b = fixed.reshape(-1, 3)[self.body.nodes]
+        # the round-off of the forces: eps times the stress of the displacement gradient (|H| at
+        # most max|u| / h) over a voxel face, summed over the dofs; under a large rigid motion the
+        # forces are differences of O(|H|) stresses, so no residual falls below it (1e3: the sums' depth)
+        self._roundoff = 1e3 * np.finfo(float).eps * self.law.E * float(np.prod(h)) ** (2 / 3) * \
+            np.sqrt(3.0 * len(self.body.nodes))
+
+    def floor(self, u: np.ndarray) -> float:
+        """The forces' round-off [N] at displacements ``u`` (n, 3) [mm]."""
+        return self._roundoff * (1.0 + float(np.abs(u).max()) / float(self.h.min()))
+
+    def on_free(self, v_b: np.ndarray) -> np.ndarray:
+        """Body numbering (n, 3) -> the hierarchy's compact free dofs (a, 3)."""
+        return v_b[self.at] * self.free_c
+
+    def to_body(self, v_c: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(self.body.nodes), 3))
+        out[self.at] = v_c * self.free_c
+        return out
+
+    def solve(self, values, initial=None, *, rtol: float = 1e-8, max_newton: int = 60, max_substeps: int = 64,
+              cg_maxiter: int = 2000, progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
+        """The equilibrium with the prescribed dofs at ``values`` (nx + 1, ny + 1, nz + 1, 3) [mm]
+        from ``initial`` (the same shape [mm]: a nearby solution, continuation; None: rest).
+        rtol : the free residual over the reactions' norm, in (0, 1e-2); max_newton : Newton
+        iterations per load step; max_substeps : the most load steps the predictor may take."""
+        target = _dofs(values, "values", self.N, float)
+        start = np.zeros(self.N + (3,)) if initial is None else _dofs(initial, "initial", self.N, float)
+        check_range("rtol", rtol, 0.0, 1e-2, lo_open=True, hi_open=True)
+        with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bits on any load
+            return _solve(self, target, start, float(rtol), int(max_newton), int(max_substeps), int(cg_maxiter),
+                          progress or (lambda *_: None))
+
+
+def solve_hyperelastic(phases, size, law: NeoHookean, *, prescribed, values, initial=None, rtol: float = 1e-8,
+                       max_newton: int = 60, max_substeps: int = 64, cg_maxiter: int = 2000,
+                       progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
+    """One equilibrium of the solid of ``phases`` under prescribed displacements (module
+    docstring; the arguments are :class:`HyperelasticBody`'s and :meth:`HyperelasticBody.solve`'s)."""
+    return HyperelasticBody(phases, size, law, prescribed).solve(
+        values, initial, rtol=rtol, max_newton=max_newton, max_substeps=max_substeps, cg_maxiter=cg_maxiter,
+        progress=progress)
 
 
 def _solid_phases(phases) -> list[int]:
@@ -152,68 +196,41 @@ def _dofs(a, name: str, N, dtype) -> np.ndarray:
     return arr.astype(float)
 
 
-def _solve(index, h, law, fixed, target, start, rtol, max_newton, max_substeps, cg_maxiter, say):
-    body = _Body(index, h, law)
-    touched = touched_nodes(index, False)
-    fixed = fixed & touched[..., None]
-    if not fixed.any():
-        raise ConfigError("prescribed: no prescribed dof on the solid: the body would float")
-    op = VoxelOperator(index, law_table(law, h), np.ones(index.shape), False,
-                       (touched[..., None] & ~fixed).astype(float), h)
-    say("hyperelastic: hierarchy", 0, 2)
-    H = build_hierarchy(op, fixed, coarsening="split")
-    cop = H.fine
-    at = body.node_map[cop.active]  # hierarchy's compact nodes in the body's numbering
-    free_c = cop.free  # (a, 3) the free dofs of those nodes
-    fixed_b = fixed.reshape(-1, 3)[body.nodes]
+def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, cg_maxiter, say):
+    body, fixed_b = hb.body, hb.fixed_b
     u = start.reshape(-1, 3)[body.nodes].copy()
     goal = target.reshape(-1, 3)[body.nodes]
-
-    def on_free(v_b):  # body numbering -> hierarchy compact, free dofs only
-        return v_b[at] * free_c
-
-    def to_body(v_c):
-        out = np.zeros((len(body.nodes), 3))
-        out[at] = v_c * free_c
-        return out
+    cgs = []
 
     def apply(v):  # (a, 3, m) -> (a, 3, m): the tangent on the free dofs
         out = np.empty_like(v)
         for k in range(v.shape[2]):
-            out[..., k] = on_free(body.tangent(to_body(v[..., k])))
+            out[..., k] = hb.on_free(body.tangent(hb.to_body(v[..., k])))
         return out
 
     def cg(b, tol):
-        res = pcg(apply, b, H.precondition, rtol=tol, maxiter=cg_maxiter, flexible=H.flexible)
+        res = pcg(apply, b, hb.H.precondition, rtol=tol, maxiter=cg_maxiter, flexible=hb.H.flexible)
         cgs.append(int(res.iterations[0]))
         if not res.converged[0]:
             raise ConvergenceError(f"hyperelastic: a Newton step's CG reached {res.residual[0]:.2e} after "
                                    f"{res.iterations[0]} iterations, asked {tol:g}", history=res.history[:, 0].tolist())
-        return to_body(res.x[..., 0])
+        return hb.to_body(res.x[..., 0])
 
-    cgs, newton, steps = [], 0, 0
-    # the round-off of the forces: eps times the stress of the displacement gradient (|H| at most
-    # max|u| / h) over a voxel face, summed over the nodes; under a large rigid motion the forces
-    # are differences of O(|H|) stresses, so no residual falls below this (1e3: the sums' depth)
-    face, n_dofs = float(np.prod(h)) ** (2 / 3), np.sqrt(3.0 * len(body.nodes))
-
-    def floor(u):
-        return 1e3 * np.finfo(float).eps * law.E * face * (1.0 + float(np.abs(u).max()) / float(h.min())) * n_dofs
     f, energy, bad = body.forces(u)
     if bad:
         raise ConfigError(f"initial: {bad} Gauss points inverted (det F <= 0) in the starting state")
+    newton, steps, tries = 0, 0, 0
     done, frac = 0.0, 1.0  # the share of the prescribed increment reached, the next step's share
     u0p = u[fixed_b].copy()
     while done < 1.0:
-        if steps >= max_substeps:
+        tries += 1
+        if steps >= max_substeps or tries > 4 * max_substeps:
             raise ConvergenceError(f"hyperelastic: the prescribed motion needed more than {max_substeps} load steps "
                                    f"(reached {100 * done:.1f} %): it inverts elements near the prescribed dofs")
         step = min(frac, 1.0 - done)
-        trial = u.copy()
         dp = np.zeros_like(u)
         dp[fixed_b] = (goal[fixed_b] - u0p) * step
-        du_f = cg(-on_free(body.tangent(dp))[..., None], 1e-6)  # the consistent predictor
-        trial += dp + du_f
+        trial = u + dp + cg(-hb.on_free(body.tangent(dp))[..., None], 1e-6)  # the consistent predictor
         f_t, e_t, bad = body.forces(trial)
         if bad:
             frac = step / 2
@@ -222,31 +239,31 @@ def _solve(index, h, law, fixed, target, start, rtol, max_newton, max_substeps, 
         u, f, energy, steps = trial, f_t, e_t, steps + 1
         done += step
         say("hyperelastic: load steps", int(round(100 * done)), 100)
-        u, f, energy, its = _newton(body, u, f, energy, on_free, cg, rtol, max_newton, fixed_b, floor)
+        u, f, energy, its = _newton(hb, u, f, energy, cg, rtol, max_newton)
         newton += its
         frac = min(2 * step, 1.0)
     ref = float(np.linalg.norm(f[fixed_b]))
     # over the reactions, or over the round-off's scale where they vanish (a rigid motion)
-    resid = float(np.linalg.norm(on_free(f))) / max(ref, floor(u) / rtol)
-    say("hyperelastic: done", 2, 2)
+    resid = float(np.linalg.norm(hb.on_free(f))) / max(ref, hb.floor(u) / rtol)
     per_voxel = np.empty(len(body.voxels))
     max_principal_strain(body.F, per_voxel)
-    strain = np.full(index.shape, np.nan)
-    strain[index >= 0] = per_voxel  # argwhere's order, as the body's voxels
+    strain = np.full(hb.index.shape, np.nan)
+    strain[hb.index >= 0] = per_voxel  # argwhere's order, as the body's voxels
     return NonlinearSolution(body.nodes, u, f, float(energy), resid, newton, tuple(cgs), steps, tuple(body.N),
-                             np.asarray(h, float), strain)
+                             hb.h, strain)
 
 
-def _newton(body, u, f, energy, on_free, cg, rtol, max_newton, fixed_b, floor):
+def _newton(hb, u, f, energy, cg, rtol, max_newton):
     """Newton iterations on the free dofs from ``u`` (forces ``f``, ``energy``) until the free
-    residual is at most ``rtol`` times the reactions' norm, or the forces' round-off ``floor(u)`` [N]."""
+    residual is at most ``rtol`` times the reactions' norm, or the forces' round-off [N]."""
+    body, on_free = hb.body, hb.on_free
     hist = []
     for it in range(max_newton + 1):
         r = on_free(f)
         rn = float(np.linalg.norm(r))
-        ref = max(float(np.linalg.norm(f[fixed_b])), 1e-300)
+        ref = max(float(np.linalg.norm(f[hb.fixed_b])), 1e-300)
         hist.append(rn / ref)
-        if rn <= max(rtol * ref, floor(u)):
+        if rn <= max(rtol * ref, hb.floor(u)):
             return u, f, energy, it
         if it == max_newton:
             break
