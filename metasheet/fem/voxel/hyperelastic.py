@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from ...errors import ConfigError, check_range
+from ...mechanics.material import Isotropic
 from ..hex8 import HEX8_CORNERS, _hex8_gradients
 
 
@@ -42,11 +43,13 @@ class NeoHookean:
 
     @property
     def mu(self) -> float:
-        return self.E / (2.0 * (1.0 + self.nu))
+        """Shear modulus [MPa], the small-strain material's."""
+        return Isotropic(self.E, self.nu).mu
 
     @property
     def lam(self) -> float:
-        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+        """First Lame parameter [MPa], the small-strain material's."""
+        return Isotropic(self.E, self.nu).lam
 
     def stress(self, F) -> np.ndarray:
         """P (..., 3, 3) [MPa] at deformation gradients F (..., 3, 3) with det F > 0."""
@@ -72,6 +75,17 @@ def gauss_gradients(h) -> tuple[np.ndarray, np.ndarray]:
     pts = 0.5 + g * (2 * HEX8_CORNERS - 1)  # the Gauss points in [0, 1]^3, in corner order
     dN = np.stack([_hex8_gradients(p, h) for p in pts])
     return dN, np.full(8, float(np.prod(h)) / 8.0)
+
+
+@njit(cache=True)
+def _gradient(v, voxels, e, dN, g, out):
+    """``out`` (3, 3): the gradient of the nodal field ``v`` (n, 3) at Gauss point ``g`` of voxel ``e``."""
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for a in range(8):
+                s += v[voxels[e, a], i] * dN[g, a, j]
+            out[i, j] = s
 
 
 @njit(cache=True)
@@ -107,13 +121,10 @@ def internal_forces(u, voxels, dN, w, mu, lam, F_out, f):
     bad = 0
     for e in range(voxels.shape[0]):
         for g in range(8):
+            _gradient(u, voxels, e, dN, g, Hg)
             for i in range(3):
                 for j in range(3):
-                    s = 0.0
-                    for a in range(8):
-                        s += u[voxels[e, a], i] * dN[g, a, j]
-                    Hg[i, j] = s
-                    F[i, j] = s + (1.0 if i == j else 0.0)
+                    F[i, j] = Hg[i, j] + (1.0 if i == j else 0.0)
                     F_out[e, g, i, j] = F[i, j]
             J = _inv_det(F, Finv)
             if J <= 0.0:
@@ -156,12 +167,7 @@ def tangent_apply(v, voxels, dN, w, mu, lam, Fs, y):
         for g in range(8):
             J = _inv_det(Fs[e, g], Finv)
             lnJ = np.log(J)
-            for i in range(3):
-                for j in range(3):
-                    s = 0.0
-                    for a in range(8):
-                        s += v[voxels[e, a], i] * dN[g, a, j]
-                    dF[i, j] = s
+            _gradient(v, voxels, e, dN, g, dF)
             tr = 0.0
             for i in range(3):
                 for j in range(3):
