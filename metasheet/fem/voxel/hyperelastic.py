@@ -104,10 +104,11 @@ def _inv_det(F, out):
 
 
 @njit(cache=True)
-def internal_forces(u, voxels, dN, w, mu, lam, F_out, f):
+def internal_forces(u, voxels, dN, w, mu, lam, F_out, Finv_out, c_out, f):
     """Internal nodal forces of displacements ``u`` (n, 3) [mm] on the solid ``voxels`` (m, 8)
-    (node numbers), added into ``f`` (n, 3) [N]; each Gauss point's F written to ``F_out``
-    (m, 8, 3, 3). Returns (strain energy [mJ], the number of Gauss points with det F <= 0:
+    (node numbers), added into ``f`` (n, 3) [N]; each Gauss point's F, F^-1 and
+    ``mu - lam ln J`` written to ``F_out``, ``Finv_out`` (m, 8, 3, 3) and ``c_out`` (m, 8) (what
+    :func:`tangent_apply` needs). Returns (strain energy [mJ], the number of Gauss points with det F <= 0:
     then the energy and forces are meaningless and the caller must step back).
 
     The stress is evaluated from the displacement gradient ``H = F - I`` without differences of
@@ -117,6 +118,7 @@ def internal_forces(u, voxels, dN, w, mu, lam, F_out, f):
     Finv = np.empty((3, 3))
     F = np.empty((3, 3))
     Hg = np.empty((3, 3))
+    P = np.empty((3, 3))
     energy = 0.0
     bad = 0
     for e in range(voxels.shape[0]):
@@ -143,52 +145,52 @@ def internal_forces(u, voxels, dN, w, mu, lam, F_out, f):
                     hh += Hg[i, j] * Hg[i, j]
             # tr(F^T F) - 3 = 2 tr H + |H|^2
             energy += w[g] * (0.5 * mu * (2.0 * trH + hh) - mu * lnJ + 0.5 * lam * lnJ * lnJ)
-            for a in range(8):
-                n = voxels[e, a]
-                for i in range(3):
-                    s = 0.0
-                    for j in range(3):
-                        fh = 0.0  # (F^-T H^T)_ij = sum_k Finv[k, i] H[j, k]
-                        for k in range(3):
-                            fh += Finv[k, i] * Hg[j, k]
-                        s += (mu * (Hg[i, j] + fh) + lam * lnJ * Finv[j, i]) * dN[g, a, j]
-                    f[n, i] += w[g] * s
+            for i in range(3):
+                for j in range(3):
+                    fh = 0.0  # (F^-T H^T)_ij = sum_k Finv[k, i] H[j, k]
+                    for k in range(3):
+                        fh += Finv[k, i] * Hg[j, k]
+                    P[i, j] = w[g] * (mu * (Hg[i, j] + fh) + lam * lnJ * Finv[j, i])
+                    Finv_out[e, g, i, j] = Finv[i, j]
+            c_out[e, g] = mu - lam * lnJ
+            _scatter(P, voxels, e, dN, g, f)
     return energy, bad
 
 
 @njit(cache=True)
-def tangent_apply(v, voxels, dN, w, mu, lam, Fs, y):
-    """``y += K_t(F) v``: the tangent stiffness at the Gauss points' ``Fs`` (m, 8, 3, 3) (from
-    :func:`internal_forces`, all with det F > 0) applied to ``v`` (n, 3) [mm], into ``y`` (n, 3) [N]."""
-    Finv = np.empty((3, 3))
+def _scatter(P, voxels, e, dN, g, f):
+    """``f[node a] += P . grad N_a`` at Gauss point ``g`` of voxel ``e`` (P already weighted)."""
+    for a in range(8):
+        n = voxels[e, a]
+        for i in range(3):
+            f[n, i] += P[i, 0] * dN[g, a, 0] + P[i, 1] * dN[g, a, 1] + P[i, 2] * dN[g, a, 2]
+
+
+@njit(cache=True)
+def tangent_apply(v, voxels, dN, w, mu, lam, Finv_s, c_s, y):
+    """``y += K_t v``: the tangent stiffness at the Gauss points' ``F^-1`` (m, 8, 3, 3) and
+    ``mu - lam ln J`` (m, 8) (from :func:`internal_forces`, all with det F > 0) applied to ``v``
+    (n, 3) [mm], into ``y`` (n, 3) [N]."""
     dF = np.empty((3, 3))
-    FiT_dFT = np.empty((3, 3))
+    A = np.empty((3, 3))
+    dP = np.empty((3, 3))
     for e in range(voxels.shape[0]):
         for g in range(8):
-            J = _inv_det(Fs[e, g], Finv)
-            lnJ = np.log(J)
+            Fi = Finv_s[e, g]
             _gradient(v, voxels, e, dN, g, dF)
             tr = 0.0
             for i in range(3):
                 for j in range(3):
-                    tr += Finv[i, j] * dF[j, i]
-            for i in range(3):  # F^-T dF^T: (i, l) = sum_k Finv[k, i] dF[l, k]
+                    tr += Fi[i, j] * dF[j, i]
+            for i in range(3):  # A = F^-T dF^T: (i, l) = sum_k Finv[k, i] dF[l, k]
                 for l in range(3):
-                    s = 0.0
-                    for k in range(3):
-                        s += Finv[k, i] * dF[l, k]
-                    FiT_dFT[i, l] = s
-            c = mu - lam * lnJ
-            for a in range(8):
-                n = voxels[e, a]
-                for i in range(3):
-                    s = 0.0
-                    for j in range(3):
-                        m = 0.0  # (F^-T dF^T F^-T)_ij
-                        for l in range(3):
-                            m += FiT_dFT[i, l] * Finv[j, l]
-                        s += (mu * dF[i, j] + lam * tr * Finv[j, i] + c * m) * dN[g, a, j]
-                    y[n, i] += w[g] * s
+                    A[i, l] = Fi[0, i] * dF[l, 0] + Fi[1, i] * dF[l, 1] + Fi[2, i] * dF[l, 2]
+            c = c_s[e, g]
+            for i in range(3):
+                for j in range(3):
+                    m = A[i, 0] * Fi[j, 0] + A[i, 1] * Fi[j, 1] + A[i, 2] * Fi[j, 2]  # (F^-T dF^T F^-T)_ij
+                    dP[i, j] = w[g] * (mu * dF[i, j] + lam * tr * Fi[j, i] + c * m)
+            _scatter(dP, voxels, e, dN, g, y)
 
 
 @njit(cache=True)

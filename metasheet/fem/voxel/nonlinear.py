@@ -92,16 +92,18 @@ class _Body:
         self.dN, self.w = gauss_gradients(h)
         self.mu, self.lam = float(law.mu), float(law.lam)
         self.F = np.empty((len(self.voxels), 8, 3, 3))
+        self.Finv = np.empty((len(self.voxels), 8, 3, 3))
+        self.c = np.empty((len(self.voxels), 8))
 
     def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         f = np.zeros_like(u)
-        energy, bad = internal_forces(u, self.voxels, self.dN, self.w, self.mu, self.lam, self.F, f)
+        energy, bad = internal_forces(u, self.voxels, self.dN, self.w, self.mu, self.lam, self.F, self.Finv, self.c, f)
         return f, energy, bad
 
     def tangent(self, v: np.ndarray) -> np.ndarray:
         """K_t v at the Gauss points' F of the last :meth:`forces` call."""
         y = np.zeros_like(v)
-        tangent_apply(np.ascontiguousarray(v), self.voxels, self.dN, self.w, self.mu, self.lam, self.F, y)
+        tangent_apply(np.ascontiguousarray(v), self.voxels, self.dN, self.w, self.mu, self.lam, self.Finv, self.c, y)
         return y
 
 
@@ -239,7 +241,7 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
         u, f, energy, steps = trial, f_t, e_t, steps + 1
         done += step
         say("hyperelastic: load steps", int(round(100 * done)), 100)
-        u, f, energy, its = _newton(hb, u, f, energy, cg, rtol, max_newton)
+        u, f, energy, its = _newton(hb, u, f, energy, cg, rtol, max_newton, say, cgs)
         newton += its
         frac = min(2 * step, 1.0)
     ref = float(np.linalg.norm(f[fixed_b]))
@@ -253,7 +255,7 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
                              hb.h, strain)
 
 
-def _newton(hb, u, f, energy, cg, rtol, max_newton):
+def _newton(hb, u, f, energy, cg, rtol, max_newton, say, cgs):
     """Newton iterations on the free dofs from ``u`` (forces ``f``, ``energy``) until the free
     residual is at most ``rtol`` times the reactions' norm, or the forces' round-off [N]."""
     body, on_free = hb.body, hb.on_free
@@ -263,6 +265,7 @@ def _newton(hb, u, f, energy, cg, rtol, max_newton):
         rn = float(np.linalg.norm(r))
         ref = max(float(np.linalg.norm(f[hb.fixed_b])), 1e-300)
         hist.append(rn / ref)
+        say(f"hyperelastic: Newton, residual {rn / ref:.1e} (CG {sum(cgs)} iterations so far)", it, max_newton)
         if rn <= max(rtol * ref, hb.floor(u)):
             return u, f, energy, it
         if it == max_newton:
