@@ -138,8 +138,9 @@ class PrintedRobot:
         return total, per, scale
 
     def equilibrium(self, motors_deg, q0=None, max_iterations: int = 40) -> PrintedPose:
-        """The rod's equilibrium at ``motors_deg`` (6,) [deg], from ``q0`` (6,) (None: rest or the
-        last pose's)."""
+        """The rod's equilibrium at ``motors_deg`` (6,) [deg], from the effector motion ``q0`` (6,)
+        (None: rest); the sheets start from the last pose's solution, the rod's Jacobian is the last
+        pose's Broyden update (the first: the linear rest model's)."""
         motors = np.radians(np.asarray(motors_deg, float))
         if motors.shape != (6,) or not np.all(np.isfinite(motors)):
             raise ConfigError(f"motors_deg: {np.asarray(motors_deg).tolist()}: six finite angles [deg]")
