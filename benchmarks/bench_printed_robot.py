@@ -70,7 +70,9 @@ def main() -> None:
     robot, sheets, S, seed = voxel_sheets(args.outputs, args.voxel, args.gauge, args.seed, args.cache)
     J = -np.linalg.solve(S[:6, :6], S[:6, 6:])
     ax = np.asarray(robot.axis, float) / np.linalg.norm(robot.axis)
-    printed = PrintedRobot(robot, sheets, S_rest=S, rtol=1e-6)
+    t_start = time.perf_counter()
+    printed = PrintedRobot(robot, sheets, S_rest=S, rtol=1e-6, progress=lambda d, k, n: print(
+        f"  {time.perf_counter() - t_start:7.0f} s  {d} ({k}/{n})", file=sys.stderr, flush=True))
     rest = np.degrees([s.rest_angle for s in robot.coupling.servos])
     rows = []
     for off in args.offsets:

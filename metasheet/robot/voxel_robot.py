@@ -99,13 +99,14 @@ class PrintedRobot:
     ``S_rest``: the rest Schur complement (12, 12) of the linear condensed model
     (:func:`metasheet.robot.condensed.condensed_robot_S` of the sheets' linear grip stiffness),
     the rod iteration's first Jacobian; None: by finite differences at the first pose.
+    ``progress``: called as ``progress(desc, done, total)`` by each sheet's solve (long on a print).
     """
 
-    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8):
+    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8, progress=None):
         c, centres = _check_robot(robot)
         if len(sheets) != 2 or not all(isinstance(s, VoxelSheet) for s in sheets):
             raise ConfigError("sheets: expected (sheet A, sheet B), two VoxelSheet")
-        self.robot, self.sheets, self.rtol = robot, tuple(sheets), float(rtol)
+        self.robot, self.sheets, self.rtol, self.progress = robot, tuple(sheets), float(rtol), progress
         self.frames = ((Q_A, centres[0], list(c.servos[:3])), (Q_B, centres[1], list(c.servos[3:])))
         self.origin = np.asarray(c.origin, float)
         self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
@@ -126,7 +127,9 @@ class PrintedRobot:
         for s, (sheet, (Q, centre, servos)) in enumerate(zip(self.sheets, self.frames)):
             rot, trans = sheet_grip_poses(Q, centre, sheet.references, self.origin, servos, dp, theta,
                                           dphi[3 * s:3 * s + 3])
-            g = self.bodies[s].wrenches(rot, trans, self.states[s], self.rtol)
+            say = None if self.progress is None else \
+                (lambda d, k, n, s=s: self.progress(f"sheet {'AB'[s]}: {d}", k, n))
+            g = self.bodies[s].wrenches(rot, trans, self.states[s], self.rtol, progress=say)
             self.states[s] = g.solution.full(g.solution.u)
             self.last[s] = g
             self.newton += g.solution.newton
