@@ -126,6 +126,7 @@ stages = ["orient"]
 [orient]
 scene = "authors"
 mesh_size = 15.0
+picture = false
 {extra}
 fibre_field = {{ {field} }}
 """

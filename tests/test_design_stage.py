@@ -31,6 +31,7 @@ E_l = 0.2
 [orient]
 scene = "authors"
 mesh_size = 15.0
+picture = false
 element = "p1"
 
 [design]

@@ -37,7 +37,7 @@ def synthetic_chart(tmp_path_factory):
 
 
 def run_orient(tmp_path, chart_dir, table):
-    p = orient_stage.OrientParams(mesh_size=10.0, grading={"table": table})
+    p = orient_stage.OrientParams(mesh_size=10.0, grading={"table": table}, picture=False)
     ctx = StageContext("orient", p, tmp_path, {"chart": chart_dir}, ROOT)
     orient_stage.run(ctx)
     return meshio.read(tmp_path / "sheet.vtu")

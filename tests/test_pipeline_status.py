@@ -16,7 +16,7 @@ def pipeline(project, E_t: float = 1.0, mesh: float = 20.0):
     (project / "pipelines").mkdir(exist_ok=True)
     f = project / "pipelines" / "s.toml"
     f.write_text(f'[pipeline]\nname = "s"\nstages = ["material", "orient"]\n[material]\nsource = "config"\n'
-                 f'E_t = {E_t}\n[orient]\nelement = "p1"\nmesh_size = {mesh}\n')
+                 f'E_t = {E_t}\n[orient]\nelement = "p1"\nmesh_size = {mesh}\npicture = false\n')
     return load_pipeline(f)
 
 

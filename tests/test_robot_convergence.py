@@ -72,7 +72,7 @@ def coarse_run(tmp_path_factory):
     (root / "pipelines").mkdir()
     f = root / "pipelines" / "c.toml"
     f.write_text('[pipeline]\nname = "c"\nstages = ["material", "orient", "robot", "report"]\n'
-                 '[material]\nsource = "config"\n[orient]\nscene = "metasheet"\nelement = "p1"\nmesh_size = 16.0\n'
+                 '[material]\nsource = "config"\n[orient]\nscene = "metasheet"\nelement = "p1"\nmesh_size = 16.0\npicture = false\n'
                  '[robot]\ncompare_models = false\npicture = false\n'
                  'convergence = [["p1", 12.0, 0, 0.0], ["p1", 9.0, 0, 0.0], '
                  '["p2", 16.0, 0, 0.0], ["p2", 13.0, 0, 0.0], ["p2", 11.0, 0, 0.0]]\n')

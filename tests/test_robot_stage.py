@@ -122,7 +122,7 @@ def test_pipeline_runs_the_robot_stage_without_its_picture(tmp_path):
 
     toml = tmp_path / "nopic.toml"
     toml.write_text('[pipeline]\nname = "nopic"\nstages = ["material", "orient", "robot"]\n'
-                    '[material]\nsource = "config"\n[orient]\nelement = "p1"\nmesh_size = 16.0\n'
+                    '[material]\nsource = "config"\n[orient]\nelement = "p1"\nmesh_size = 16.0\npicture = false\n'
                     '[robot]\npicture = false\n')
     with pytest.raises(SystemExit) as exit_info:
         main(["run", str(toml), "--out", str(tmp_path / "out")])

@@ -50,6 +50,7 @@ tip_box = [5.0, 15.0, 10.0]
 centre_radius = 3.0
 mesh_size = 4.0
 element = "p1"
+picture = false
 """
 
 ROBOT = """
@@ -73,6 +74,9 @@ picture = false
 [homogenize]
 picture = false
 fields = false
+
+[printmap]
+picture = false
 
 [material]
 source = "homogenize"
@@ -123,6 +127,9 @@ def test_stage_writes_the_comparison_and_the_report(run):
         assert (out / "sheet" / f).stat().st_size > 0
     report = (out / "report" / "report.md").read_text()
     assert "The printed sheet against the homogenised sheet" in report and d["verdict"] in report
+    # ``picture = false`` in [orient] and [printmap]: the stages complete without their pictures
+    for stage, png in (("orient", "sheet.png"), ("printmap", "printmap.png")):
+        assert (out / stage / "manifest.json").is_file() and not (out / stage / png).exists()
 
 
 def test_homogenised_robot_matches_the_robot_stage(run):

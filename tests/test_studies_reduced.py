@@ -293,6 +293,7 @@ stages = ["material", "orient", "reduce", "ranges", "report"]
 source = "config"
 [orient]
 mesh_size = 16
+picture = false
 [reduce]
 snapshots = 6
 box_deg = 10

@@ -122,6 +122,8 @@ class OrientParams(Params):
                                         "sharp;" + _SCENE)
     mesh_size: float = Field(5.0, ge=0.3, le=50, description="target tet edge [mm]; 5 gives ~2,900 tets")
     layers: int = Field(0, ge=0, le=16, description="elements through the thickness; 0: gmsh's free mesh")
+    picture: bool = Field(True, description="write sheet.png (the fibre streaks of both sheets: seconds of "
+                          "matplotlib, most of a small sheet's stage)")
     grip_size: float = Field(0.0, ge=0, le=50, description="element size at the grip borders (centre circle, "
                              "tip cuts), growing away from them [mm]; 0: uniform")
     element: Literal["p1", "p2"] = Field("p2", description="the robot's element on the sheets: linear "
@@ -368,18 +370,9 @@ def run(ctx: StageContext) -> dict:
         "files": dict(SHEET_FILES),
     }
     write_json_atomic(ctx.path("sheet.json"), info)
-    ctx.progress("picture", 3, 4)
-    from ...viz.sheet import sheet_picture
-
-    outline = geo.outline_polygon(sp)
-    extra = " + fibre_field" if p.fibre_field is not None else ""
-    panels = [
-        (f"normal sheet (pitch {fs['pitch_deg']:g} deg{extra})", lambda q: fibres_at(q, False),
-         normal.points[normal.attach > 0]),
-        ("mirrored sheet (reflection y -> -y)", lambda q: fibres_at(q, True),
-         mirrored.points[mirrored.attach > 0]),
-    ]
-    ctx.path("sheet.png").write_bytes(sheet_picture(outline, sp.hole_radius, panels))
+    if p.picture:
+        ctx.progress("picture", 3, 4)
+        _picture(ctx, p, sp, fs, normal, mirrored, fibres_at)
     ctx.progress("done", 4, 4)
     return {
         "n_tets": int(len(normal.tets)), "n_points": int(len(normal.points)),
@@ -387,6 +380,20 @@ def run(ctx: StageContext) -> dict:
         "min_volume_mm3": round(normal.quality.min_volume, 4),
         "attach_counts": counts, "constants_source": how, "material_source": source, "scene": p.scene,
     }
+
+
+def _picture(ctx: StageContext, p: OrientParams, sp, fs: dict, normal, mirrored, fibres_at) -> None:
+    """sheet.png: the fibre streaks of both sheets, their grips' nodes dotted."""
+    from ...viz.sheet import sheet_picture
+
+    extra = " + fibre_field" if p.fibre_field is not None else ""
+    panels = [
+        (f"normal sheet (pitch {fs['pitch_deg']:g} deg{extra})", lambda q: fibres_at(q, False),
+         normal.points[normal.attach > 0]),
+        ("mirrored sheet (reflection y -> -y)", lambda q: fibres_at(q, True),
+         mirrored.points[mirrored.attach > 0]),
+    ]
+    ctx.path("sheet.png").write_bytes(sheet_picture(geo.outline_polygon(sp), sp.hole_radius, panels))
 
 
 register(
@@ -397,7 +404,7 @@ register(
         requires=(),
         optional=("material", "chart", "cell", "homogenize"),
         reads=_reads,
-        outputs=(*SHEET_FILES.values(), "sheet.json", "sheet.png"),
+        outputs=(*SHEET_FILES.values(), "sheet.json"),
         doc="tripod sheet mesh + spiral fibre field (normal and mirrored) -> sheet.vtu, sheet.png",
     )
 )

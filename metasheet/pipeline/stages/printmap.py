@@ -56,6 +56,7 @@ class PrintmapParams(Params):
     solid_shells: int = Field(10, ge=1, le=100, description="shells of the solid parts (brush 1)")
     tolerance: float = Field(0.02, gt=0, le=1, description="round trip: largest relative difference of a constant [-]")
     angle_tolerance_deg: float = Field(2.0, gt=0, le=90, description="round trip: largest axis angle difference [deg]")
+    picture: bool = Field(True, description="write printmap.png (mid-plane slices of the fields)")
     uniform_as_value: bool = Field(True, description="write a setting equal over all the foam as an exact value "
                                    "instead of an 8-bit field (15 % as a field prints 38/255 = 14.9 %)")
 
@@ -256,10 +257,11 @@ def run(ctx: StageContext) -> dict:
                         for label, r in consistency.items()},
     }
     write_json_atomic(ctx.path("printmap.json"), info_out)
-    ctx.progress("picture", len(SHEETS), len(SHEETS) + 1)
-    from ...viz.sheet import printmap_picture
+    if p.picture:
+        ctx.progress("picture", len(SHEETS), len(SHEETS) + 1)
+        from ...viz.sheet import printmap_picture
 
-    _write_atomic(ctx.path("printmap.png"), printmap_picture(slices, values=uniform))
+        _write_atomic(ctx.path("printmap.png"), printmap_picture(slices, values=uniform))
     return {
         "infill": source.family,
         **{f"{k}_{name}_range": v["field_range"][name] for k, v in summary.items() for name in source.field_names},
@@ -290,8 +292,7 @@ register(
         requires=("orient",),
         optional=("cell", "homogenize", "chart"),
         outputs=("normal/print.lua", "normal/sheet.stl", "normal/solid.stl", "mirrored/print.lua",
-                 "mirrored/sheet.stl", "mirrored/solid.stl", "printmap.json", "print_consistency.json",
-                 "printmap.png"),
+                 "mirrored/sheet.stl", "mirrored/solid.stl", "printmap.json", "print_consistency.json"),
         doc="IceSL print maps (foam + solid brushes, 64^3 fields, Lua script) for both sheets, checked "
             "against the model -> normal/, mirrored/",
     )
