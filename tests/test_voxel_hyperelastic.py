@@ -93,10 +93,7 @@ def _uniaxial(stretch):
     return l2, P11
 
 
-@pytest.mark.parametrize("stretch", [1.5, 0.8])
-def test_a_voxel_bar_in_uniaxial_stretch_meets_the_closed_form(stretch):
-    phases, size, N = _bar()
-    L = size[0]
+def _bar_ends(N, L, stretch):
     fixed = np.zeros(N + (3,), bool)
     values = np.zeros(N + (3,))
     fixed[0, :, :, 0] = True   # the end x = 0 slides on its plane
@@ -104,6 +101,15 @@ def test_a_voxel_bar_in_uniaxial_stretch_meets_the_closed_form(stretch):
     values[-1, :, :, 0] = (stretch - 1.0) * L
     fixed[0, 0, :, 1] = True   # no rigid motion: the lines y = 0 and z = 0 of the end x = 0
     fixed[0, :, 0, 2] = True
+    return fixed, values
+
+
+@pytest.mark.parametrize("stretch", [1.5, 0.95])
+def test_a_voxel_bar_in_uniaxial_stretch_meets_the_closed_form(stretch):
+    """In tension, and in compression below the bar's buckling strain (next test)."""
+    phases, size, N = _bar()
+    L = size[0]
+    fixed, values = _bar_ends(N, L, stretch)
     sol = solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=values, rtol=1e-10)
     l2, P11 = _uniaxial(stretch)
     X = np.stack(np.unravel_index(sol.nodes, N), 1) * H
@@ -115,6 +121,27 @@ def test_a_voxel_bar_in_uniaxial_stretch_meets_the_closed_form(stretch):
     want = max(stretch**2 - 1.0, l2**2 - 1.0) / 2
     np.testing.assert_allclose(sol.strain, want, rtol=1e-7)
     assert sol.residual <= 1e-10 and sol.steps >= 1
+
+
+def test_a_bar_compressed_past_eulers_strain_buckles():
+    """The 6 x 2 x 2 voxel bar, its ends kept from turning (their x fixed), is a column of
+    slenderness L / r = 6 sqrt(12) / 2 = 10.4: Euler's strain for ends that cannot turn is
+    pi^2 (r / L)^2 = 9.1 %. Pressed by 20 %, the uniform state (the closed form) is an equilibrium
+    but not a minimum: the solver leaves it along the tangent's negative curvature and finds a
+    bent equilibrium of lower energy; pressed by 5 % (the test above) it stays straight."""
+    phases, size, N = _bar()
+    L = size[0]
+    fixed, values = _bar_ends(N, L, 0.8)
+    sol = solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=values, rtol=1e-10)
+    l2, _ = _uniaxial(0.8)
+    X = np.stack(np.unravel_index(sol.nodes, N), 1) * H
+    uniform = X * np.array([-0.2, l2 - 1.0, l2 - 1.0])
+    W = float(TPU.energy(np.diag([0.8, l2, l2])))  # the uniform state's energy density [mJ/mm^3]
+    assert sol.residual <= 1e-10
+    assert sol.energy < W * np.prod(size) * (1 - 1e-3)  # lower than the straight column's
+    mid = X[:, 0] == 3 * H[0]
+    lateral = np.hypot(*(sol.u - uniform)[mid][:, 1:].T).max()
+    assert lateral > 0.2 * size[1]  # bent by more than a fifth of its width at mid-length
 
 
 def _linear_solve(phases, size, fixed, values):

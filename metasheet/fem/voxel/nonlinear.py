@@ -10,12 +10,15 @@ vanish, which for a hyperelastic body is where the strain energy is stationary o
    free dofs by the tangent's answer to it (``K_ff du_f = -K_fp du_p``), the consistent linear
    prediction. Where a Gauss point would invert (det F <= 0) the increment is halved and the
    load taken in more steps (at most ``max_substeps``).
-2. **Newton.** ``K_t du = -r`` on the free dofs by CG to a relative tolerance that tightens with
-   the residual (``min(0.1, |r| / |f|)``, down to ``rtol / 10``), preconditioned by the split
-   multigrid of the *linear* elastic body (:func:`~.multigrid.build_hierarchy`, built once):
-   at rest the tangent is that operator, away from it a fixed, well-conditioned approximation
-   of it. A backtracking line search on the strain energy (Armijo, no inversion) keeps each step
-   a descent.
+2. **Newton in a trust region.** Each step minimises the tangent's quadratic model within a
+   radius [mm] by Steihaug's truncated CG (:mod:`.trust_region`), to a relative tolerance that
+   tightens with the residual (``min(0.1, |r| / |f|)``, down to ``rtol / 10``), preconditioned
+   by the split multigrid of the *linear* elastic body (:func:`~.multigrid.build_hierarchy`,
+   built once): at rest the tangent is that operator, away from it a fixed, well-conditioned
+   approximation of it. The step is kept where the energy falls by at least a tenth of the
+   model's prediction, and the radius follows that ratio. Thin walls that buckle make the
+   tangent indefinite; the trust region then follows the falling directions instead of
+   solving an indefinite system (a line search did not: it stalled on the printed sheet).
 3. **Stop** when the free dofs' residual is at most ``rtol`` times the internal forces' norm on
    the prescribed dofs (the reactions), or raise :class:`~metasheet.errors.ConvergenceError`
    with the history.
@@ -40,6 +43,7 @@ from .hyperelastic import NeoHookean, gauss_gradients, internal_forces, max_prin
 from .multigrid import build_hierarchy
 from .operator import VoxelOperator, node_shape, touched_nodes
 from .pcg import pcg
+from .trust_region import steihaug, update_radius
 
 
 @dataclass(frozen=True)
@@ -224,6 +228,7 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
     newton, steps, tries = 0, 0, 0
     done, frac = 0.0, 1.0  # the share of the prescribed increment reached, the next step's share
     u0p = u[fixed_b].copy()
+    radius = None  # the trust region's radius [mm], carried over the load steps
     while done < 1.0:
         tries += 1
         if steps >= max_substeps or tries > 4 * max_substeps:
@@ -238,10 +243,12 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
             frac = step / 2
             body.forces(u)  # the tangent back at the accepted state
             continue
+        moved = float(np.linalg.norm(hb.on_free(trial - u - dp)))
+        radius = max(radius or 0.0, moved, float(hb.h.min()))
         u, f, energy, steps = trial, f_t, e_t, steps + 1
         done += step
         say("hyperelastic: load steps", int(round(100 * done)), 100)
-        u, f, energy, its = _newton(hb, u, f, energy, cg, rtol, max_newton, say, cgs)
+        u, f, energy, its, radius = _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius)
         newton += its
         frac = min(2 * step, 1.0)
     ref = float(np.linalg.norm(f[fixed_b]))
@@ -255,37 +262,53 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
                              hb.h, strain)
 
 
-def _newton(hb, u, f, energy, cg, rtol, max_newton, say, cgs):
-    """Newton iterations on the free dofs from ``u`` (forces ``f``, ``energy``) until the free
-    residual is at most ``rtol`` times the reactions' norm, or the forces' round-off [N]."""
-    body, on_free = hb.body, hb.on_free
+def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
+    """Trust-region Newton iterations on the free dofs from ``u`` (forces ``f``, ``energy``)
+    until the free residual is at most ``rtol`` times the reactions' norm, or the forces'
+    round-off [N]. Each step is Steihaug's truncated CG on the tangent (:mod:`.trust_region`)
+    within ``radius`` [mm] (Euclidean over the free dofs), accepted where the energy falls by at
+    least a tenth of the model's prediction; the radius follows the model's quality. Returns
+    (u, f, energy, iterations, the last radius)."""
+    body, on_free, to_body = hb.body, hb.on_free, hb.to_body
     hist = []
+
+    def apply(v):  # (a, 3) -> (a, 3): the tangent on the free dofs
+        return on_free(body.tangent(to_body(v)))
+
+    def precondition(r):
+        return hb.H.precondition(r[..., None])[..., 0]
+
+    smallest = 1e-9 * float(hb.h.min())
     for it in range(max_newton + 1):
-        r = on_free(f)
-        rn = float(np.linalg.norm(r))
+        g = on_free(f)
+        gn = float(np.linalg.norm(g))
         ref = max(float(np.linalg.norm(f[hb.fixed_b])), 1e-300)
-        hist.append(rn / ref)
-        say(f"hyperelastic: Newton, residual {rn / ref:.1e} (CG {sum(cgs)} iterations so far)", it, max_newton)
-        if rn <= max(rtol * ref, hb.floor(u)):
-            return u, f, energy, it
+        hist.append(gn / ref)
+        say(f"hyperelastic: Newton, residual {gn / ref:.1e} (CG {sum(cgs)} iterations so far)", it, max_newton)
+        if gn <= max(rtol * ref, hb.floor(u)):
+            return u, f, energy, it, radius
         if it == max_newton:
             break
-        du = cg(-r[..., None], min(max(min(0.1, rn / ref), rtol / 10), 0.1))
-        g = float(np.sum(f * du))  # dE/dalpha at alpha = 0: < 0 along a descent direction
-        alpha = 1.0
-        for _ in range(30):
-            trial = u + alpha * du
-            f_t, e_t, bad = body.forces(trial)
-            # Armijo on the energy; near the solution the energy's round-off hides the decrease,
-            # where a smaller residual decides
-            if not bad and (e_t <= energy + 1e-4 * alpha * g or float(np.linalg.norm(on_free(f_t))) < rn):
-                break
-            alpha *= 0.5
+        step = steihaug(apply, g, precondition, radius, rtol=min(max(min(0.1, gn / ref), rtol / 10), 0.1),
+                        maxiter=cg_maxiter, flexible=hb.H.flexible)
+        cgs.append(step.iterations)
+        trial = u + to_body(step.p)
+        f_t, e_t, bad = body.forces(trial)
+        rho = -np.inf
+        if not bad and step.model < 0:
+            actual = energy - e_t
+            if -step.model < 1e-8 * abs(energy):  # below the energy's round-off: the trapezoid rule
+                actual = -0.5 * float(np.sum((g + on_free(f_t)) * step.p))
+            rho = actual / -step.model
+        norm = float(np.linalg.norm(step.p))
+        radius = update_radius(radius, rho, norm, step.ended in ("boundary", "curvature"), np.inf)
+        if rho > 0.1:
+            u, f, energy = trial, f_t, e_t
         else:
-            body.forces(u)
-            raise ConvergenceError(f"hyperelastic: no descent along the Newton step (residual {rn / ref:.2e})",
-                                   history=hist)
-        u, f, energy = trial, f_t, e_t
+            body.forces(u)  # the tangent back at the kept state
+        if radius < smallest:
+            raise ConvergenceError(f"hyperelastic: the trust region shrank below {smallest:.1e} mm at residual "
+                                   f"{gn / ref:.2e}: no step lowers the energy", history=hist)
     raise ConvergenceError(f"hyperelastic: Newton reached {hist[-1]:.2e} after {max_newton} iterations, asked "
                            f"{rtol:g}", history=hist)
 
