@@ -39,7 +39,10 @@ def sheet_picture(
         [mm] to unit fibres (q, 3); ``attach_points`` (a, 3) [mm] are drawn as grey dots
         (the servo-horn and effector node sets).
     """
+    from matplotlib.collections import LineCollection
     from matplotlib.path import Path as MplPath
+
+    from .streaks import streak_lines
 
     fig, axes = _figure(len(panels))
     path = MplPath(outline)
@@ -56,7 +59,9 @@ def sheet_picture(
         ang = np.mod(np.degrees(np.arctan2(f[:, 1], f[:, 0])), 180.0)
         A = np.where(inside, ang, np.nan).reshape(X.shape)
         im = ax.pcolormesh(X, Y, A, cmap="twilight", vmin=0, vmax=180, shading="auto", alpha=0.55)
-        ax.streamplot(xs, ys, U, V, density=2.2, color="k", linewidth=0.8, arrowstyle="-")
+        spacing = float(np.max(hi - lo)) / 48
+        ax.add_collection(LineCollection(streak_lines(xs, ys, U, V, spacing, 0.9 * spacing), colors="k",
+                                         linewidths=0.8))
         ax.plot(*np.vstack([outline, outline[:1]]).T, color="k", lw=2)
         t = np.linspace(0, 2 * np.pi, 90)
         ax.plot(hole_radius * np.cos(t), hole_radius * np.sin(t), color="k", lw=2)
