@@ -120,7 +120,7 @@ def test_a_voxel_bar_in_uniaxial_stretch_meets_the_closed_form(stretch):
     # the walls' strain: Green-Lagrange along the bar, (stretch^2 - 1) / 2, or laterally in compression
     want = max(stretch**2 - 1.0, l2**2 - 1.0) / 2
     np.testing.assert_allclose(sol.strain, want, rtol=1e-7)
-    assert sol.residual <= 1e-10 and sol.steps >= 1
+    assert sol.residual <= 1e-10 and sol.steps >= 1 and sol.stable
 
 
 def test_a_bar_compressed_past_eulers_strain_buckles():
@@ -137,7 +137,7 @@ def test_a_bar_compressed_past_eulers_strain_buckles():
     X = np.stack(np.unravel_index(sol.nodes, N), 1) * H
     uniform = X * np.array([-0.2, l2 - 1.0, l2 - 1.0])
     W = float(TPU.energy(np.diag([0.8, l2, l2])))  # the uniform state's energy density [mJ/mm^3]
-    assert sol.residual <= 1e-10
+    assert sol.residual <= 1e-10 and sol.stable
     assert sol.energy < W * np.prod(size) * (1 - 1e-3)  # lower than the straight column's
     mid = X[:, 0] == 3 * H[0]
     lateral = np.hypot(*(sol.u - uniform)[mid][:, 1:].T).max()

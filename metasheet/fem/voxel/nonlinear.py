@@ -12,14 +12,21 @@ vanish, which for a hyperelastic body is where the strain energy is stationary o
    load taken in more steps (at most ``max_substeps``).
 2. **Newton in a trust region.** Each step minimises the tangent's quadratic model within a
    radius [mm] by Steihaug's truncated CG (:mod:`.trust_region`), to a relative tolerance that
-   tightens with the residual (``min(0.1, |r| / |f|)``, down to ``rtol / 10``), preconditioned
+   tightens with the residual (``min(0.1, sqrt(|r| / |f|))``, down to ``rtol / 10``: Eisenstat
+   and Walker's superlinear choice; the linear multigrid preconditions the deformed tangent
+   poorly, and CG iterations are what a step costs), preconditioned
    by the split multigrid of the *linear* elastic body (:func:`~.multigrid.build_hierarchy`,
    built once): at rest the tangent is that operator, away from it a fixed, well-conditioned
    approximation of it. The step is kept where the energy falls by at least a tenth of the
    model's prediction, and the radius follows that ratio. Thin walls that buckle make the
    tangent indefinite; the trust region then follows the falling directions instead of
    solving an indefinite system (a line search did not: it stalled on the printed sheet).
-3. **Stop** when the free dofs' residual is at most ``rtol`` times the internal forces' norm on
+3. **Stable, not only balanced.** A Newton method converges to saddles too: a perfect column
+   pressed past its buckling load balances straight. At the end the tangent is probed once
+   for negative curvature (truncated CG from a fixed pseudo-random right-hand side, at most
+   100 iterations: CG is Lanczos, and the extreme eigenvalues come first); along one found,
+   the state moves to a lower energy and Newton resumes (at most three times).
+4. **Stop** when the free dofs' residual is at most ``rtol`` times the internal forces' norm on
    the prescribed dofs (the reactions), or raise :class:`~metasheet.errors.ConvergenceError`
    with the history.
 
@@ -57,7 +64,8 @@ class NonlinearSolution:
         reactions' norm (or over the forces' round-off / rtol where they vanish) [-]; newton : Newton iterations (all load steps); cg : CG iterations of each
         solve; steps : load steps taken; node_shape : (Nx, Ny, Nz); h : (3,) voxel edges [mm];
         strain : (nx, ny, nz) each solid voxel's largest principal Green-Lagrange strain over its
-        Gauss points [-], NaN in the void.
+        Gauss points [-], NaN in the void; stable : the stability probe found no negative
+        curvature (True), still found one after three escapes (False), or did not run (None).
     """
 
     nodes: np.ndarray
@@ -71,6 +79,7 @@ class NonlinearSolution:
     node_shape: tuple
     h: np.ndarray
     strain: np.ndarray | None = None
+    stable: bool | None = None
 
     def full(self, a: np.ndarray) -> np.ndarray:
         """(n, 3) node values -> (Nx, Ny, Nz, 3), zero off the body."""
@@ -159,27 +168,30 @@ class HyperelasticBody:
         return out
 
     def solve(self, values, initial=None, *, rtol: float = 1e-8, max_newton: int = 60, max_substeps: int = 64,
-              cg_maxiter: int = 2000, progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
+              cg_maxiter: int = 2000, probe: bool = True,
+              progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
         """The equilibrium with the prescribed dofs at ``values`` (nx + 1, ny + 1, nz + 1, 3) [mm]
         from ``initial`` (the same shape [mm]: a nearby solution, continuation; None: rest).
         rtol : the free residual over the reactions' norm, in (0, 1e-2); max_newton : Newton
-        iterations per load step; max_substeps : the most load steps the predictor may take."""
+        iterations per load step; max_substeps : the most load steps the predictor may take;
+        probe : check the equilibrium for stability and leave it where it is a saddle (module
+        docstring, step 3; up to 100 CG iterations more)."""
         target = _dofs(values, "values", self.N, float)
         start = np.zeros(self.N + (3,)) if initial is None else _dofs(initial, "initial", self.N, float)
         check_range("rtol", rtol, 0.0, 1e-2, lo_open=True, hi_open=True)
         with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bits on any load
             return _solve(self, target, start, float(rtol), int(max_newton), int(max_substeps), int(cg_maxiter),
-                          progress or (lambda *_: None))
+                          bool(probe), progress or (lambda *_: None))
 
 
 def solve_hyperelastic(phases, size, law: NeoHookean, *, prescribed, values, initial=None, rtol: float = 1e-8,
-                       max_newton: int = 60, max_substeps: int = 64, cg_maxiter: int = 2000,
+                       max_newton: int = 60, max_substeps: int = 64, cg_maxiter: int = 2000, probe: bool = True,
                        progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
     """One equilibrium of the solid of ``phases`` under prescribed displacements (module
     docstring; the arguments are :class:`HyperelasticBody`'s and :meth:`HyperelasticBody.solve`'s)."""
     return HyperelasticBody(phases, size, law, prescribed).solve(
         values, initial, rtol=rtol, max_newton=max_newton, max_substeps=max_substeps, cg_maxiter=cg_maxiter,
-        progress=progress)
+        probe=probe, progress=progress)
 
 
 def _solid_phases(phases) -> list[int]:
@@ -202,7 +214,7 @@ def _dofs(a, name: str, N, dtype) -> np.ndarray:
     return arr.astype(float)
 
 
-def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, cg_maxiter, say):
+def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, cg_maxiter, probe, say):
     body, fixed_b = hb.body, hb.fixed_b
     u = start.reshape(-1, 3)[body.nodes].copy()
     goal = target.reshape(-1, 3)[body.nodes]
@@ -251,6 +263,18 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
         u, f, energy, its, radius = _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius)
         newton += its
         frac = min(2 * step, 1.0)
+    stable = None
+    for _ in range(ESCAPES if probe else 0):
+        away = _escape(hb, u, energy, min(cg_maxiter, PROBE_ITERATIONS), radius, cgs)
+        if away is None:
+            stable = True
+            break
+        u, f, energy = away
+        say("hyperelastic: left a saddle along negative curvature", 0, 1)
+        u, f, energy, its, radius = _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius)
+        newton += its
+    else:
+        stable = False if probe else None
     ref = float(np.linalg.norm(f[fixed_b]))
     # over the reactions, or over the round-off's scale where they vanish (a rigid motion)
     resid = float(np.linalg.norm(hb.on_free(f))) / max(ref, hb.floor(u) / rtol)
@@ -259,7 +283,37 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
     strain = np.full(hb.index.shape, np.nan)
     strain[hb.index >= 0] = per_voxel  # argwhere's order, as the body's voxels
     return NonlinearSolution(body.nodes, u, f, float(energy), resid, newton, tuple(cgs), steps, tuple(body.N),
-                             hb.h, strain)
+                             hb.h, strain, stable)
+
+
+#: the stability probe: CG iterations at most, and saddles left at most, per solve
+PROBE_ITERATIONS, ESCAPES = 100, 3
+
+
+def _escape(hb, u, energy, maxiter, radius, cgs):
+    """A converged state checked for stability: truncated CG on the tangent from a fixed
+    pseudo-random right-hand side meets a direction of negative curvature if the tangent has
+    one it can see (CG is Lanczos: the extreme eigenvalues appear first). Returns (u, f,
+    energy) moved along it to a lower energy, or None when none is found (the tangent then
+    holds the state's)."""
+    body, to_body = hb.body, hb.to_body
+    v = hb.on_free(np.random.default_rng(0).standard_normal((len(body.nodes), 3)))
+    step = steihaug(lambda w: hb.on_free(body.tangent(to_body(w))), v,
+                    lambda r: hb.H.precondition(r[..., None])[..., 0], 1e6 * float(hb.h.max()),
+                    rtol=1e-3, maxiter=maxiter, flexible=hb.H.flexible)
+    cgs.append(step.iterations)
+    if step.direction is None:
+        return None
+    d = to_body(step.direction)
+    d *= max(radius, float(hb.h.min())) / float(np.linalg.norm(d))
+    for _ in range(20):
+        for sign in (1.0, -1.0):
+            f_t, e_t, bad = body.forces(u + sign * d)
+            if not bad and e_t < energy:
+                return u + sign * d, f_t, e_t
+        d *= 0.5
+    body.forces(u)
+    return None
 
 
 def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
@@ -289,7 +343,7 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
             return u, f, energy, it, radius
         if it == max_newton:
             break
-        step = steihaug(apply, g, precondition, radius, rtol=min(max(min(0.1, gn / ref), rtol / 10), 0.1),
+        step = steihaug(apply, g, precondition, radius, rtol=max(min(0.1, np.sqrt(gn / ref)), rtol / 10),
                         maxiter=cg_maxiter, flexible=hb.H.flexible)
         cgs.append(step.iterations)
         trial = u + to_body(step.p)

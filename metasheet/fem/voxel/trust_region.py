@@ -36,13 +36,15 @@ class TrustStep:
     p : (a, 3) [mm] the step; model : m(p) [N mm] (< 0 unless g = 0); iterations : CG
     iterations; ended : why CG stopped: "converged" (the model's gradient reached the
     tolerance inside the region), "boundary" (an iterate left the region), "curvature"
-    (a direction of non-positive curvature, followed to the boundary) or "maxiter".
+    (a direction of non-positive curvature, followed to the boundary) or "maxiter";
+    direction : (a, 3) that direction d (d . K d <= 0) when ended == "curvature", else None.
     """
 
     p: np.ndarray
     model: float
     iterations: int
     ended: str
+    direction: np.ndarray | None = None
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -85,7 +87,7 @@ def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray, precondit
         if dq <= 0.0:  # non-positive curvature: the model falls without bound along d
             tau = _to_boundary(p, d, radius)
             p, r = p + tau * d, r + tau * q
-            return TrustStep(p, model(p, r), it, "curvature")
+            return TrustStep(p, model(p, r), it, "curvature", d)
         alpha = rz / dq
         p_next = p + alpha * d
         if _dot(p_next, p_next) >= radius * radius:
