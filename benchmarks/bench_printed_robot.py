@@ -26,32 +26,41 @@ from _results import add_save_option, saved_output  # noqa: E402
 from dns_convergence import LABELS, _inputs, _solved  # noqa: E402
 
 
-def voxel_sheets(outputs: Path, voxel: float, gauge: str, seed: int | None, cache: Path):
-    """(robot, (VoxelSheet A, B), linear S at rest, the print's seed) of a pipeline's outputs."""
+def voxel_sheet(outputs: Path, voxel: float, gauge: str, seed: int | None, label: str):
+    """(robot, VoxelSheet, the print's seed): one sheet (``label`` in LABELS) of a pipeline's
+    outputs, printed at ``voxel`` [mm], its walls neo-Hookean with the cell design's material."""
     from metasheet.fem.voxel.hyperelastic import NeoHookean
-    from metasheet.robot.condensed import condensed_robot_S
     from metasheet.robot.voxel_robot import VoxelSheet
-    from metasheet.sheet.dns import SheetPrint, grip_labels
+    from metasheet.sheet.dns import grip_labels
     from metasheet.sheet.grips import grip_references
     from metasheet.sheet.printed_foam import printed_foam, tripod_region
 
     design, orient, material, robot, fields = _inputs(outputs)
     seed = design.seeds.seed if seed is None else seed
     solid = design.material
-    law = NeoHookean(float(solid.E), float(solid.nu))
-    refs = grip_references(orient.sheet_params)
+    foam = printed_foam(tripod_region(orient.sheet_params), fields[label], design, voxel_mm=voxel, gauge=gauge,
+                        seed=seed)
+    h = np.asarray(foam.voxel_mm, float)
+    bodies = grip_labels(foam.phases.shape, foam.origin, h, orient.sheet_params)
+    return robot, VoxelSheet(foam.phases.astype(np.int64), np.asarray(foam.size, float),
+                             np.asarray(foam.origin, float), bodies, grip_references(orient.sheet_params),
+                             NeoHookean(float(solid.E), float(solid.nu))), seed
+
+
+def voxel_sheets(outputs: Path, voxel: float, gauge: str, seed: int | None, cache: Path):
+    """(robot, (VoxelSheet A, B), linear S at rest, the print's seed) of a pipeline's outputs."""
+    from metasheet.robot.condensed import condensed_robot_S
+    from metasheet.sheet.dns import SheetPrint
+
+    design, orient, material, robot, fields = _inputs(outputs)
+    seed = design.seeds.seed if seed is None else seed
     sheets, Ks = [], []
     for lab in LABELS:
         spec = SheetPrint(lab, seed, gauge, voxel, design, orient.sheet_params, fields[lab],
-                          solid.material().stiffness())
+                          design.material.material().stiffness())
         Ks.append(_solved(cache, spec).K)
-        foam = printed_foam(tripod_region(orient.sheet_params), fields[lab], design, voxel_mm=voxel, gauge=gauge,
-                            seed=seed)
-        h = np.asarray(foam.voxel_mm, float)
-        bodies = grip_labels(foam.phases.shape, foam.origin, h, orient.sheet_params)
-        sheets.append(VoxelSheet(foam.phases.astype(np.int64), np.asarray(foam.size, float),
-                                 np.asarray(foam.origin, float), bodies, refs, law))
-    return robot, tuple(sheets), condensed_robot_S(Ks[0], Ks[1], robot, refs), seed
+        sheets.append(voxel_sheet(outputs, voxel, gauge, seed, lab)[1])
+    return robot, tuple(sheets), condensed_robot_S(Ks[0], Ks[1], robot, sheets[0].references), seed
 
 
 def main() -> None:
