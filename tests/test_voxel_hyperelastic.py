@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 
 from metasheet.errors import ConfigError
 from metasheet.fem.hex8 import HEX8_CORNERS
-from metasheet.fem.voxel.hyperelastic import NeoHookean, gauss_gradients, internal_forces, tangent_apply
+from metasheet.fem.voxel.hyperelastic import NeoHookean, colour_order, gauss_gradients, internal_forces, tangent_apply
 from metasheet.fem.voxel.nonlinear import law_table, solve_hyperelastic
 
 TPU = NeoHookean(12.0, 0.3)  # NinjaFlex's tensile modulus (the paper), a rubber-like Poisson ratio
@@ -17,19 +17,24 @@ H = np.array([0.3, 0.25, 0.2])
 ONE = np.arange(8).reshape(1, 8)  # one voxel, nodes in corner order
 
 
+def _colours(voxels):
+    """One colour per voxel: the voxels of these tests share nodes in any pattern."""
+    return np.arange(len(voxels), dtype=np.int64), np.arange(len(voxels) + 1, dtype=np.int64)
+
+
 def _forces(u, voxels=ONE, h=H, law=TPU):
     dN, w = gauss_gradients(h)
     F = np.empty((len(voxels), 8, 3, 3))
     Finv, c = np.empty_like(F), np.empty((len(voxels), 8))
     f = np.zeros_like(u)
-    energy, bad = internal_forces(u, voxels, dN, w, law.mu, law.lam, F, Finv, c, f)
+    energy, bad = internal_forces(u, voxels, *_colours(voxels), dN, w, law.mu, law.lam, F, Finv, c, f)
     return f, energy, bad, (F, Finv, c)
 
 
 def _tangent(v, state, voxels=ONE, h=H, law=TPU):
     dN, w = gauss_gradients(h)
     y = np.zeros_like(v)
-    tangent_apply(v, voxels, dN, w, law.mu, law.lam, state[1], state[2], y)
+    tangent_apply(v, voxels, *_colours(voxels), dN, w, law.mu, law.lam, state[1], state[2], y)
     return y
 
 
@@ -188,3 +193,30 @@ def test_bad_input_is_named():
         solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=np.zeros(N + (3,)), rtol=0.5)
     with pytest.raises(ConfigError, match="nu"):
         NeoHookean(12.0, 0.5)
+
+
+def test_coloured_kernels_give_the_same_bits_on_one_thread_and_two():
+    """A voxel of each colour shares no node with another of its colour, and the forces, energy
+    and tangent product of a random foam-like body are the same bits on 1 and 2 numba threads."""
+    import numba
+
+    from metasheet.fem.voxel.nonlinear import _Body
+
+    rng = np.random.default_rng(3)
+    index = np.where(rng.random((7, 6, 5)) < 0.6, 0, -1)
+    body = _Body(index, H, TPU)
+    for c in range(8):
+        nodes = body.voxels[body.order[body.starts[c]:body.starts[c + 1]]].ravel()
+        assert len(np.unique(nodes)) == len(nodes)
+    u = 0.02 * rng.standard_normal((len(body.nodes), 3))
+    v = rng.standard_normal((len(body.nodes), 3))
+    out = []
+    before = numba.get_num_threads()
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            f, energy, bad = body.forces(u)
+            out.append((f.tobytes(), energy, bad, body.tangent(v).tobytes()))
+    finally:
+        numba.set_num_threads(before)
+    assert out[0] == out[1] and out[0][2] == 0

@@ -13,8 +13,11 @@ isotropic C): the linear DNS is this model's rest linearisation.
 
 Every voxel is the same box, integrated with 2 x 2 x 2 Gauss points (the linear element's
 rule); local node ``a = ax + 2 ay + 4 az`` (:mod:`metasheet.fem.hex8`). The kernels run over a
-list of solid voxels, each given by its eight node numbers in any node numbering, sequentially:
-the same sums in the same order, so the same bits on any thread count and machine.
+list of solid voxels, each given by its eight node numbers in any node numbering, colour by
+colour (:func:`colour_order`: the eight parities of (i, j, k), so no two voxels of a colour share
+a node) and, within a colour, over both cores: every node's sum then takes its voxels in colour
+order whatever the thread count, and the energy is summed over the voxels in their order
+afterwards. The same bits on any thread count and machine.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ...errors import ConfigError, check_range
 from ...mechanics.material import Isotropic
@@ -103,57 +106,94 @@ def _inv_det(F, out):
     return det
 
 
-@njit(cache=True)
-def internal_forces(u, voxels, dN, w, mu, lam, F_out, Finv_out, c_out, f):
+#: chunks of a colour handed to the threads (scratch arrays are allocated per chunk); the
+#: results do not depend on it
+CHUNKS = 64
+
+
+def colour_order(ijk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(order (m,) int64, starts (9,) int64): the voxels ``ijk`` (m, 3) grouped by the parity of
+    their indices, colour c's voxels ``order[starts[c]:starts[c + 1]]`` in their own order. Two
+    voxels of one colour share no node."""
+    ijk = np.asarray(ijk, np.int64)
+    colour = (ijk[:, 0] % 2) * 4 + (ijk[:, 1] % 2) * 2 + ijk[:, 2] % 2
+    order = np.argsort(colour, kind="stable").astype(np.int64)
+    return order, np.searchsorted(colour[order], np.arange(9)).astype(np.int64)
+
+
+@njit(cache=True, parallel=True)
+def internal_forces(u, voxels, order, starts, dN, w, mu, lam, F_out, Finv_out, c_out, f):
     """Internal nodal forces of displacements ``u`` (n, 3) [mm] on the solid ``voxels`` (m, 8)
-    (node numbers), added into ``f`` (n, 3) [N]; each Gauss point's F, F^-1 and
-    ``mu - lam ln J`` written to ``F_out``, ``Finv_out`` (m, 8, 3, 3) and ``c_out`` (m, 8) (what
-    :func:`tangent_apply` needs). Returns (strain energy [mJ], the number of Gauss points with det F <= 0:
-    then the energy and forces are meaningless and the caller must step back).
+    (node numbers, coloured by ``order``, ``starts``: :func:`colour_order`), added into ``f``
+    (n, 3) [N]; each Gauss point's F, F^-1 and ``mu - lam ln J`` written to ``F_out``,
+    ``Finv_out`` (m, 8, 3, 3) and ``c_out`` (m, 8) (what :func:`tangent_apply` needs). Returns
+    (strain energy [mJ], the number of Gauss points with det F <= 0: then the energy and forces
+    are meaningless and the caller must step back).
 
     The stress is evaluated from the displacement gradient ``H = F - I`` without differences of
     O(1) terms, ``P = mu (H + F^-T H^T) + lam ln J F^-T`` with ``ln J = log1p(tr H + I2(H) +
     det H)``, so its relative error stays at round-off however small the strain (the forms
     with F lose the digits of |H| / 1 at small motions)."""
-    Finv = np.empty((3, 3))
-    F = np.empty((3, 3))
-    Hg = np.empty((3, 3))
-    P = np.empty((3, 3))
+    m = voxels.shape[0]
+    energies = np.zeros(m)
+    bads = np.zeros(m, np.int64)
+    for col in range(len(starts) - 1):
+        lo, hi = starts[col], starts[col + 1]
+        for ch in prange(CHUNKS):
+            Finv = np.empty((3, 3))
+            F = np.empty((3, 3))
+            Hg = np.empty((3, 3))
+            P = np.empty((3, 3))
+            for k in range(lo + (hi - lo) * ch // CHUNKS, lo + (hi - lo) * (ch + 1) // CHUNKS):
+                e = order[k]
+                energies[e], bads[e] = _voxel_forces(u, voxels, e, dN, w, mu, lam, F_out, Finv_out, c_out, f,
+                                                     Finv, F, Hg, P)
     energy = 0.0
     bad = 0
-    for e in range(voxels.shape[0]):
-        for g in range(8):
-            _gradient(u, voxels, e, dN, g, Hg)
-            for i in range(3):
-                for j in range(3):
-                    F[i, j] = Hg[i, j] + (1.0 if i == j else 0.0)
-                    F_out[e, g, i, j] = F[i, j]
-            J = _inv_det(F, Finv)
-            if J <= 0.0:
-                bad += 1
-                continue
-            trH = Hg[0, 0] + Hg[1, 1] + Hg[2, 2]
-            i2 = (Hg[0, 0] * Hg[1, 1] + Hg[1, 1] * Hg[2, 2] + Hg[0, 0] * Hg[2, 2]
-                  - Hg[0, 1] * Hg[1, 0] - Hg[1, 2] * Hg[2, 1] - Hg[0, 2] * Hg[2, 0])
-            detH = (Hg[0, 0] * (Hg[1, 1] * Hg[2, 2] - Hg[1, 2] * Hg[2, 1])
-                    - Hg[0, 1] * (Hg[1, 0] * Hg[2, 2] - Hg[1, 2] * Hg[2, 0])
-                    + Hg[0, 2] * (Hg[1, 0] * Hg[2, 1] - Hg[1, 1] * Hg[2, 0]))
-            lnJ = np.log1p(trH + i2 + detH)
-            hh = 0.0
-            for i in range(3):
-                for j in range(3):
-                    hh += Hg[i, j] * Hg[i, j]
-            # tr(F^T F) - 3 = 2 tr H + |H|^2
-            energy += w[g] * (0.5 * mu * (2.0 * trH + hh) - mu * lnJ + 0.5 * lam * lnJ * lnJ)
-            for i in range(3):
-                for j in range(3):
-                    fh = 0.0  # (F^-T H^T)_ij = sum_k Finv[k, i] H[j, k]
-                    for k in range(3):
-                        fh += Finv[k, i] * Hg[j, k]
-                    P[i, j] = w[g] * (mu * (Hg[i, j] + fh) + lam * lnJ * Finv[j, i])
-                    Finv_out[e, g, i, j] = Finv[i, j]
-            c_out[e, g] = mu - lam * lnJ
-            _scatter(P, voxels, e, dN, g, f)
+    for e in range(m):  # the voxels' order: the same sum on any thread count
+        energy += energies[e]
+        bad += bads[e]
+    return energy, bad
+
+
+@njit(cache=True)
+def _voxel_forces(u, voxels, e, dN, w, mu, lam, F_out, Finv_out, c_out, f, Finv, F, Hg, P):
+    """Voxel ``e``'s share of :func:`internal_forces`: (its energy [mJ], its inverted Gauss
+    points); ``Finv``, ``F``, ``Hg``, ``P`` (3, 3) scratch."""
+    energy = 0.0
+    bad = 0
+    for g in range(8):
+        _gradient(u, voxels, e, dN, g, Hg)
+        for i in range(3):
+            for j in range(3):
+                F[i, j] = Hg[i, j] + (1.0 if i == j else 0.0)
+                F_out[e, g, i, j] = F[i, j]
+        J = _inv_det(F, Finv)
+        if J <= 0.0:
+            bad += 1
+            continue
+        trH = Hg[0, 0] + Hg[1, 1] + Hg[2, 2]
+        i2 = (Hg[0, 0] * Hg[1, 1] + Hg[1, 1] * Hg[2, 2] + Hg[0, 0] * Hg[2, 2]
+              - Hg[0, 1] * Hg[1, 0] - Hg[1, 2] * Hg[2, 1] - Hg[0, 2] * Hg[2, 0])
+        detH = (Hg[0, 0] * (Hg[1, 1] * Hg[2, 2] - Hg[1, 2] * Hg[2, 1])
+                - Hg[0, 1] * (Hg[1, 0] * Hg[2, 2] - Hg[1, 2] * Hg[2, 0])
+                + Hg[0, 2] * (Hg[1, 0] * Hg[2, 1] - Hg[1, 1] * Hg[2, 0]))
+        lnJ = np.log1p(trH + i2 + detH)
+        hh = 0.0
+        for i in range(3):
+            for j in range(3):
+                hh += Hg[i, j] * Hg[i, j]
+        # tr(F^T F) - 3 = 2 tr H + |H|^2
+        energy += w[g] * (0.5 * mu * (2.0 * trH + hh) - mu * lnJ + 0.5 * lam * lnJ * lnJ)
+        for i in range(3):
+            for j in range(3):
+                fh = 0.0  # (F^-T H^T)_ij = sum_k Finv[k, i] H[j, k]
+                for k in range(3):
+                    fh += Finv[k, i] * Hg[j, k]
+                P[i, j] = w[g] * (mu * (Hg[i, j] + fh) + lam * lnJ * Finv[j, i])
+                Finv_out[e, g, i, j] = Finv[i, j]
+        c_out[e, g] = mu - lam * lnJ
+        _scatter(P, voxels, e, dN, g, f)
     return energy, bad
 
 
@@ -166,31 +206,39 @@ def _scatter(P, voxels, e, dN, g, f):
             f[n, i] += P[i, 0] * dN[g, a, 0] + P[i, 1] * dN[g, a, 1] + P[i, 2] * dN[g, a, 2]
 
 
-@njit(cache=True)
-def tangent_apply(v, voxels, dN, w, mu, lam, Finv_s, c_s, y):
+@njit(cache=True, parallel=True)
+def tangent_apply(v, voxels, order, starts, dN, w, mu, lam, Finv_s, c_s, y):
     """``y += K_t v``: the tangent stiffness at the Gauss points' ``F^-1`` (m, 8, 3, 3) and
     ``mu - lam ln J`` (m, 8) (from :func:`internal_forces`, all with det F > 0) applied to ``v``
-    (n, 3) [mm], into ``y`` (n, 3) [N]."""
-    dF = np.empty((3, 3))
-    A = np.empty((3, 3))
-    dP = np.empty((3, 3))
-    for e in range(voxels.shape[0]):
-        for g in range(8):
-            Fi = Finv_s[e, g]
-            _gradient(v, voxels, e, dN, g, dF)
-            tr = 0.0
-            for i in range(3):
-                for j in range(3):
-                    tr += Fi[i, j] * dF[j, i]
-            for i in range(3):  # A = F^-T dF^T: (i, l) = sum_k Finv[k, i] dF[l, k]
-                for l in range(3):
-                    A[i, l] = Fi[0, i] * dF[l, 0] + Fi[1, i] * dF[l, 1] + Fi[2, i] * dF[l, 2]
-            c = c_s[e, g]
-            for i in range(3):
-                for j in range(3):
-                    m = A[i, 0] * Fi[j, 0] + A[i, 1] * Fi[j, 1] + A[i, 2] * Fi[j, 2]  # (F^-T dF^T F^-T)_ij
-                    dP[i, j] = w[g] * (mu * dF[i, j] + lam * tr * Fi[j, i] + c * m)
-            _scatter(dP, voxels, e, dN, g, y)
+    (n, 3) [mm], into ``y`` (n, 3) [N]; voxels coloured as :func:`internal_forces`'s."""
+    for col in range(len(starts) - 1):
+        lo, hi = starts[col], starts[col + 1]
+        for ch in prange(CHUNKS):
+            dF = np.empty((3, 3))
+            A = np.empty((3, 3))
+            dP = np.empty((3, 3))
+            for k in range(lo + (hi - lo) * ch // CHUNKS, lo + (hi - lo) * (ch + 1) // CHUNKS):
+                _voxel_tangent(v, voxels, order[k], dN, w, mu, lam, Finv_s, c_s, y, dF, A, dP)
+
+
+@njit(cache=True)
+def _voxel_tangent(v, voxels, e, dN, w, mu, lam, Finv_s, c_s, y, dF, A, dP):
+    for g in range(8):
+        Fi = Finv_s[e, g]
+        _gradient(v, voxels, e, dN, g, dF)
+        tr = 0.0
+        for i in range(3):
+            for j in range(3):
+                tr += Fi[i, j] * dF[j, i]
+        for i in range(3):  # A = F^-T dF^T: (i, l) = sum_k Finv[k, i] dF[l, k]
+            for l in range(3):
+                A[i, l] = Fi[0, i] * dF[l, 0] + Fi[1, i] * dF[l, 1] + Fi[2, i] * dF[l, 2]
+        c = c_s[e, g]
+        for i in range(3):
+            for j in range(3):
+                m = A[i, 0] * Fi[j, 0] + A[i, 1] * Fi[j, 1] + A[i, 2] * Fi[j, 2]  # (F^-T dF^T F^-T)_ij
+                dP[i, j] = w[g] * (mu * dF[i, j] + lam * tr * Fi[j, i] + c * m)
+        _scatter(dP, voxels, e, dN, g, y)
 
 
 @njit(cache=True)

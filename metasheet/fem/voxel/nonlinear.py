@@ -46,7 +46,8 @@ from threadpoolctl import threadpool_limits
 from ...errors import ConfigError, ConvergenceError, check_range
 from ..hex8 import HEX8_CORNERS
 from .element import validate_grid
-from .hyperelastic import NeoHookean, gauss_gradients, internal_forces, max_principal_strain, tangent_apply
+from .hyperelastic import (NeoHookean, colour_order, gauss_gradients, internal_forces, max_principal_strain,
+                           tangent_apply)
 from .multigrid import build_hierarchy
 from .operator import VoxelOperator, node_shape, touched_nodes
 from .pcg import pcg
@@ -101,6 +102,7 @@ class _Body:
         corners = ijk[:, None, :] + HEX8_CORNERS[None]
         flat = (corners[..., 0] * N[1] + corners[..., 1]) * N[2] + corners[..., 2]
         self.voxels = np.ascontiguousarray(node_map[flat])
+        self.order, self.starts = colour_order(ijk)
         self.node_map = node_map
         self.dN, self.w = gauss_gradients(h)
         self.mu, self.lam = float(law.mu), float(law.lam)
@@ -110,13 +112,13 @@ class _Body:
 
     def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         f = np.zeros_like(u)
-        energy, bad = internal_forces(u, self.voxels, self.dN, self.w, self.mu, self.lam, self.F, self.Finv, self.c, f)
+        energy, bad = internal_forces(u, self.voxels, self.order, self.starts, self.dN, self.w, self.mu, self.lam, self.F, self.Finv, self.c, f)
         return f, energy, bad
 
     def tangent(self, v: np.ndarray) -> np.ndarray:
         """K_t v at the Gauss points' F of the last :meth:`forces` call."""
         y = np.zeros_like(v)
-        tangent_apply(np.ascontiguousarray(v), self.voxels, self.dN, self.w, self.mu, self.lam, self.Finv, self.c, y)
+        tangent_apply(np.ascontiguousarray(v), self.voxels, self.order, self.starts, self.dN, self.w, self.mu, self.lam, self.Finv, self.c, y)
         return y
 
 
@@ -305,6 +307,10 @@ def _escape(hb, u, energy, maxiter, radius, cgs):
     if step.direction is None:
         return None
     d = to_body(step.direction)
+    # curvature per unit length^2 against a voxel's stiffness E h: a null direction's round-off
+    # (a rigid motion the grips leave free, a loose voxel) is not a buckling mode
+    if float(np.sum(d * body.tangent(d))) > -1e-6 * hb.law.E * float(hb.h.min()) * float(np.sum(d * d)):
+        return None
     d *= max(radius, float(hb.h.min())) / float(np.linalg.norm(d))
     for _ in range(20):
         for sign in (1.0, -1.0):
@@ -351,7 +357,10 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
         rho = -np.inf
         if not bad and step.model < 0:
             actual = energy - e_t
-            if -step.model < 1e-8 * abs(energy):  # below the energy's round-off: the trapezoid rule
+            # below the energy's round-off (a sum of O(|H|^2) terms per Gauss point; the forces'
+            # round-off times the motion's scale bounds it): the trapezoid rule on the forces
+            noise = 10.0 * hb.floor(u) * max(float(np.abs(u).max()), float(hb.h.min()))
+            if -step.model < max(1e-8 * abs(energy), noise):
                 actual = -0.5 * float(np.sum((g + on_free(f_t)) * step.p))
             rho = actual / -step.model
         norm = float(np.linalg.norm(step.p))
