@@ -87,3 +87,17 @@ def test_the_radius_follows_the_models_quality():
     assert update_radius(1.0, 0.5, 1.0, True, 10.0) == 1.0
     with pytest.raises(ValueError, match="radius"):
         steihaug(lambda v: v, np.ones((2, 3)), lambda r: r, 0.0, rtol=1e-3, maxiter=3)
+
+
+def test_without_a_region_the_direction_is_reported_not_followed():
+    """radius = inf (the stability probe): CG stops at the first direction of non-positive
+    curvature and returns it, with the iterate before it."""
+    K = np.eye(12)
+    K[0, 0] = -1.0
+    g = np.zeros((4, 3))
+    g[0, :2] = (1.0, 2.0)
+    s = steihaug(lambda v: (K @ v.ravel()).reshape(v.shape), g, lambda r: r.copy(), np.inf, rtol=1e-12, maxiter=50)
+    assert s.ended == "curvature" and s.iterations == 2 and np.all(np.isfinite(s.p))
+    d = s.direction.ravel()
+    assert d @ K @ d < 0
+    np.testing.assert_allclose(s.p.ravel()[:2], -(5.0 / 3.0) * np.array([1.0, 2.0]), rtol=1e-12)

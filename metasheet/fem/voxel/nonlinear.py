@@ -301,7 +301,7 @@ def _escape(hb, u, energy, maxiter, radius, cgs):
     body, to_body = hb.body, hb.to_body
     v = hb.on_free(np.random.default_rng(0).standard_normal((len(body.nodes), 3)))
     step = steihaug(lambda w: hb.on_free(body.tangent(to_body(w))), v,
-                    lambda r: hb.H.precondition(r[..., None])[..., 0], 1e6 * float(hb.h.max()),
+                    lambda r: hb.H.precondition(r[..., None])[..., 0], np.inf,
                     rtol=1e-3, maxiter=maxiter, flexible=hb.H.flexible)
     cgs.append(step.iterations)
     if step.direction is None:

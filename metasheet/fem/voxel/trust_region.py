@@ -64,7 +64,8 @@ def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray, precondit
 
     apply : v (a, 3) -> K v (a, 3), symmetric; g : (a, 3) [N] the energy's gradient (zero off
     the unknowns); precondition : r (a, 3) -> z (a, 3), symmetric positive definite;
-    radius : [mm] > 0; rtol : CG stops inside the region when ``|g + K p| <= rtol |g|``;
+    radius : [mm] > 0 (inf: no region; CG then stops at a direction of non-positive curvature
+    without stepping along it, the search for one that a stability probe makes); rtol : CG stops inside the region when ``|g + K p| <= rtol |g|``;
     maxiter : CG iterations at most.
     """
     if not radius > 0:
@@ -85,6 +86,8 @@ def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray, precondit
         q = apply(d)
         dq = _dot(d, q)
         if dq <= 0.0:  # non-positive curvature: the model falls without bound along d
+            if not np.isfinite(radius):  # no region: report the direction, not a step along it
+                return TrustStep(p, model(p, r), it, "curvature", d)
             tau = _to_boundary(p, d, radius)
             p, r = p + tau * d, r + tau * q
             return TrustStep(p, model(p, r), it, "curvature", d)
