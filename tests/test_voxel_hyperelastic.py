@@ -18,8 +18,9 @@ ONE = np.arange(8).reshape(1, 8)  # one voxel, nodes in corner order
 
 
 def _colours(voxels):
-    """One colour per voxel: the voxels of these tests share nodes in any pattern."""
-    return np.arange(len(voxels), dtype=np.int64), np.arange(len(voxels) + 1, dtype=np.int64)
+    """One block and one colour per voxel: the voxels of these tests share nodes in any pattern."""
+    every = np.arange(len(voxels) + 1, dtype=np.int64)
+    return every[:-1], every, every
 
 
 def _forces(u, voxels=ONE, h=H, law=TPU):
@@ -196,18 +197,20 @@ def test_bad_input_is_named():
 
 
 def test_coloured_kernels_give_the_same_bits_on_one_thread_and_two():
-    """A voxel of each colour shares no node with another of its colour, and the forces, energy
+    """Two slabs of one colour share no node, and the forces, energy
     and tangent product of a random foam-like body are the same bits on 1 and 2 numba threads."""
     import numba
 
     from metasheet.fem.voxel.nonlinear import _Body
 
     rng = np.random.default_rng(3)
-    index = np.where(rng.random((7, 6, 5)) < 0.6, 0, -1)
+    index = np.where(rng.random((9, 6, 5)) < 0.6, 0, -1)
     body = _Body(index, H, TPU)
-    for c in range(8):
-        nodes = body.voxels[body.order[body.starts[c]:body.starts[c + 1]]].ravel()
-        assert len(np.unique(nodes)) == len(nodes)
+    assert len(body.colours) == 3 and body.colours[1] > 1  # two colours of several slabs
+    for c in range(2):
+        blocks = [set(body.voxels[body.order[body.starts[b]:body.starts[b + 1]]].ravel())
+                  for b in range(body.colours[c], body.colours[c + 1])]
+        assert all(not (x & y) for i, x in enumerate(blocks) for y in blocks[i + 1:])
     u = 0.02 * rng.standard_normal((len(body.nodes), 3))
     v = rng.standard_normal((len(body.nodes), 3))
     out = []

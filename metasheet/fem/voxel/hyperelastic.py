@@ -13,11 +13,11 @@ isotropic C): the linear DNS is this model's rest linearisation.
 
 Every voxel is the same box, integrated with 2 x 2 x 2 Gauss points (the linear element's
 rule); local node ``a = ax + 2 ay + 4 az`` (:mod:`metasheet.fem.hex8`). The kernels run over a
-list of solid voxels, each given by its eight node numbers in any node numbering, colour by
-colour (:func:`colour_order`: the eight parities of (i, j, k), so no two voxels of a colour share
-a node) and, within a colour, over both cores: every node's sum then takes its voxels in colour
-order whatever the thread count, and the energy is summed over the voxels in their order
-afterwards. The same bits on any thread count and machine.
+list of solid voxels, each given by its eight node numbers in any node numbering, in slabs
+along x (:func:`colour_order`): the even slabs at once over the cores, then the odd ones (two
+slabs of one colour share no node), each slab's voxels in their order. Every node's sum then
+takes its voxels in the same order whatever the thread count, and the energy is summed over the
+voxels in their order afterwards. The same bits on any thread count and machine.
 """
 
 from __future__ import annotations
@@ -106,25 +106,31 @@ def _inv_det(F, out):
     return det
 
 
-#: chunks of a colour handed to the threads (scratch arrays are allocated per chunk); the
-#: results do not depend on it
-CHUNKS = 64
+#: slabs per colour a grid is cut into along x (at least one voxel thick each)
+SLABS = 64
 
 
-def colour_order(ijk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(order (m,) int64, starts (9,) int64): the voxels ``ijk`` (m, 3) grouped by the parity of
-    their indices, colour c's voxels ``order[starts[c]:starts[c + 1]]`` in their own order. Two
-    voxels of one colour share no node."""
+def colour_order(ijk: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(order (m,), starts (b + 1,), colours (3,)) int64: the voxels ``ijk`` (m, 3) in slabs along
+    x, alternately coloured 0 and 1; block k is ``order[starts[k]:starts[k + 1]]`` (its voxels in
+    their own order: the memory stays local), colour c's blocks ``colours[c]:colours[c + 1]``.
+    Two slabs of one colour are a slab apart: they share no node, and run at once. The cut
+    depends on the grid only, not on the thread count."""
     ijk = np.asarray(ijk, np.int64)
-    colour = (ijk[:, 0] % 2) * 4 + (ijk[:, 1] % 2) * 2 + ijk[:, 2] % 2
-    order = np.argsort(colour, kind="stable").astype(np.int64)
-    return order, np.searchsorted(colour[order], np.arange(9)).astype(np.int64)
+    nx = int(ijk[:, 0].max()) + 1 if len(ijk) else 1
+    width = max(1, -(-nx // (2 * SLABS)))
+    slab = ijk[:, 0] // width
+    key = (slab % 2) * (nx + 1) + slab  # colour-major, then slab
+    order = np.argsort(key, kind="stable").astype(np.int64)
+    blocks, starts = np.unique(key[order], return_index=True)
+    colours = np.searchsorted(blocks, [0, nx + 1, 2 * (nx + 1)])
+    return order, np.append(starts, len(order)).astype(np.int64), colours.astype(np.int64)
 
 
 @njit(cache=True, parallel=True)
-def internal_forces(u, voxels, order, starts, dN, w, mu, lam, F_out, Finv_out, c_out, f):
+def internal_forces(u, voxels, order, starts, colours, dN, w, mu, lam, F_out, Finv_out, c_out, f):
     """Internal nodal forces of displacements ``u`` (n, 3) [mm] on the solid ``voxels`` (m, 8)
-    (node numbers, coloured by ``order``, ``starts``: :func:`colour_order`), added into ``f``
+    (node numbers, in coloured blocks ``order``, ``starts``, ``colours``: :func:`colour_order`), added into ``f``
     (n, 3) [N]; each Gauss point's F, F^-1 and ``mu - lam ln J`` written to ``F_out``,
     ``Finv_out`` (m, 8, 3, 3) and ``c_out`` (m, 8) (what :func:`tangent_apply` needs). Returns
     (strain energy [mJ], the number of Gauss points with det F <= 0: then the energy and forces
@@ -137,14 +143,13 @@ def internal_forces(u, voxels, order, starts, dN, w, mu, lam, F_out, Finv_out, c
     m = voxels.shape[0]
     energies = np.zeros(m)
     bads = np.zeros(m, np.int64)
-    for col in range(len(starts) - 1):
-        lo, hi = starts[col], starts[col + 1]
-        for ch in prange(CHUNKS):
+    for col in range(len(colours) - 1):
+        for b in prange(colours[col], colours[col + 1]):
             Finv = np.empty((3, 3))
             F = np.empty((3, 3))
             Hg = np.empty((3, 3))
             P = np.empty((3, 3))
-            for k in range(lo + (hi - lo) * ch // CHUNKS, lo + (hi - lo) * (ch + 1) // CHUNKS):
+            for k in range(starts[b], starts[b + 1]):
                 e = order[k]
                 energies[e], bads[e] = _voxel_forces(u, voxels, e, dN, w, mu, lam, F_out, Finv_out, c_out, f,
                                                      Finv, F, Hg, P)
@@ -207,17 +212,16 @@ def _scatter(P, voxels, e, dN, g, f):
 
 
 @njit(cache=True, parallel=True)
-def tangent_apply(v, voxels, order, starts, dN, w, mu, lam, Finv_s, c_s, y):
+def tangent_apply(v, voxels, order, starts, colours, dN, w, mu, lam, Finv_s, c_s, y):
     """``y += K_t v``: the tangent stiffness at the Gauss points' ``F^-1`` (m, 8, 3, 3) and
     ``mu - lam ln J`` (m, 8) (from :func:`internal_forces`, all with det F > 0) applied to ``v``
     (n, 3) [mm], into ``y`` (n, 3) [N]; voxels coloured as :func:`internal_forces`'s."""
-    for col in range(len(starts) - 1):
-        lo, hi = starts[col], starts[col + 1]
-        for ch in prange(CHUNKS):
+    for col in range(len(colours) - 1):
+        for b in prange(colours[col], colours[col + 1]):
             dF = np.empty((3, 3))
             A = np.empty((3, 3))
             dP = np.empty((3, 3))
-            for k in range(lo + (hi - lo) * ch // CHUNKS, lo + (hi - lo) * (ch + 1) // CHUNKS):
+            for k in range(starts[b], starts[b + 1]):
                 _voxel_tangent(v, voxels, order[k], dN, w, mu, lam, Finv_s, c_s, y, dF, A, dP)
 
 

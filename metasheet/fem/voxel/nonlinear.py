@@ -102,7 +102,7 @@ class _Body:
         corners = ijk[:, None, :] + HEX8_CORNERS[None]
         flat = (corners[..., 0] * N[1] + corners[..., 1]) * N[2] + corners[..., 2]
         self.voxels = np.ascontiguousarray(node_map[flat])
-        self.order, self.starts = colour_order(ijk)
+        self.order, self.starts, self.colours = colour_order(ijk)
         self.node_map = node_map
         self.dN, self.w = gauss_gradients(h)
         self.mu, self.lam = float(law.mu), float(law.lam)
@@ -112,13 +112,14 @@ class _Body:
 
     def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         f = np.zeros_like(u)
-        energy, bad = internal_forces(u, self.voxels, self.order, self.starts, self.dN, self.w, self.mu, self.lam, self.F, self.Finv, self.c, f)
+        energy, bad = internal_forces(u, self.voxels, self.order, self.starts, self.colours, self.dN, self.w, self.mu, self.lam, self.F, self.Finv, self.c, f)
         return f, energy, bad
 
     def tangent(self, v: np.ndarray) -> np.ndarray:
         """K_t v at the Gauss points' F of the last :meth:`forces` call."""
         y = np.zeros_like(v)
-        tangent_apply(np.ascontiguousarray(v), self.voxels, self.order, self.starts, self.dN, self.w, self.mu, self.lam, self.Finv, self.c, y)
+        tangent_apply(np.ascontiguousarray(v), self.voxels, self.order, self.starts, self.colours,
+                      self.dN, self.w, self.mu, self.lam, self.Finv, self.c, y)
         return y
 
 
