@@ -49,6 +49,7 @@ def _motor_columns(h: float, motors, d: float = 1e-3):
     # no motion, no force (the degrees' round trip leaves the motors 1e-16 rad from rest at most)
     assert at_rest.iterations == 0 and np.abs(at_rest.wrenches).max() < 1e-12
     assert max(at_rest.wall_strain) < 1e-12 and not any(a.closed for a in at_rest.approach)
+    assert at_rest.stable == (True, True)  # the rest tangent is positive: the probe finds no saddle
     J_lin = -np.linalg.solve(S[:6, :6], S[:6, 6:])  # dq_e / dq_a of the linear rest model
     def central(k, step):
         e = np.zeros(6)

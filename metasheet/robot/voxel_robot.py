@@ -58,7 +58,8 @@ class PrintedPose:
     sheets' Newton iterations in all; ``wall_strain`` each sheet's largest principal
     Green-Lagrange strain in its walls [-]; ``approach`` each sheet's closest approach of two
     formerly separate wall surfaces (:class:`metasheet.fem.voxel.gaps.Approach`: self-contact);
-    ``states`` each sheet's displacement field (warm starts)."""
+    ``states`` each sheet's displacement field (warm starts); ``stable`` each sheet's stability
+    probe at the balance (:attr:`~metasheet.fem.voxel.nonlinear.NonlinearSolution.stable`)."""
 
     motors_deg: np.ndarray
     dp: np.ndarray
@@ -70,6 +71,7 @@ class PrintedPose:
     wall_strain: tuple = ()
     approach: tuple = ()
     states: tuple = field(repr=False, default=())
+    stable: tuple = ()
 
 
 def sheet_grip_poses(Q, centre, references, origin, servos, dp, theta, dphi) -> tuple[np.ndarray, np.ndarray]:
@@ -117,9 +119,10 @@ class PrintedRobot:
         self.last = [None, None]
         self.newton = 0
 
-    def rod_wrench(self, q, motors_rad) -> tuple[np.ndarray, np.ndarray, float]:
+    def rod_wrench(self, q, motors_rad, probe: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
         """(the rod's unbalanced wrench (6,) [N, N mm about the moved effector point], the grips'
-        wrenches (2, 4, 6), their scale [N]) at effector motion ``q`` = (dp, theta) and motor angles."""
+        wrenches (2, 4, 6), their scale [N]) at effector motion ``q`` = (dp, theta) and motor angles;
+        ``probe``: each sheet's equilibrium checked for stability (its solve's last step)."""
         dphi = np.asarray(motors_rad, float) - self.rest_angles
         dp, theta = q[:3], q[3:]
         o = self.origin + dp
@@ -129,7 +132,7 @@ class PrintedRobot:
                                           dphi[3 * s:3 * s + 3])
             say = None if self.progress is None else \
                 (lambda d, k, n, s=s: self.progress(f"sheet {'AB'[s]}: {d}", k, n))
-            g = self.bodies[s].wrenches(rot, trans, self.states[s], self.rtol, progress=say)
+            g = self.bodies[s].wrenches(rot, trans, self.states[s], self.rtol, progress=say, probe=probe)
             self.states[s] = g.solution.full(g.solution.u)
             self.last[s] = g
             self.newton += g.solution.newton
@@ -153,16 +156,26 @@ class PrintedRobot:
         hist = []
         length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)  # moments over an arm's reach
         w = np.array([1, 1, 1, 1 / length, 1 / length, 1 / length])
+        probes = 0
         for it in range(max_iterations + 1):
             rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
             hist.append(rel)
             # the sheets' force round-off bounds what the rod can balance (a pose at rest: no force at all)
             floor = sum(b.hyper.floor(self.states[k].reshape(-1, 3)) for k, b in enumerate(self.bodies))
-            if rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor:
+            balanced = rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor
+            if balanced and probes < 2:
+                # the sheets' stability checked once the rod balances (a probe per rod iteration would
+                # cost a CG solve each); a sheet that leaves a saddle moves the balance on
+                probes += 1
+                r, per, scale = self.rod_wrench(q, motors, probe=True)
+                rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
+                balanced = rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor
+            if balanced:
                 self.J0 = J
                 strain, approach = self._walls()
                 return PrintedPose(np.degrees(motors), q[:3].copy(), q[3:].copy(), rel, it, per, self.newton,
-                                   strain, approach, tuple(self.states))
+                                   strain, approach, tuple(self.states),
+                                   tuple(g.solution.stable for g in self.last))
             step = np.linalg.solve(J, -r)
             q_new = q + step
             r_new, per, scale = self.rod_wrench(q_new, motors)

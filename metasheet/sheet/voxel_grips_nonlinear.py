@@ -83,16 +83,18 @@ class GripBody:
         self.N = N
         self.hyper = HyperelasticBody(np.where(kept, ph, 0), size, law, np.repeat(self.tied[..., None], 3, axis=3))
 
-    def wrenches(self, rotations, translations, initial=None, rtol: float = 1e-8, progress=None) -> GripWrenches:
+    def wrenches(self, rotations, translations, initial=None, rtol: float = 1e-8, progress=None,
+                 probe: bool = True) -> GripWrenches:
         """The grips' wrenches with every grip at its pose (module docstring): ``rotations``,
         ``translations`` (B, 3) [rad, mm]; ``initial`` (nx + 1, ny + 1, nz + 1, 3) [mm] a start for
-        the free nodes (a nearby pose's solution); rtol : Newton's relative residual."""
+        the free nodes (a nearby pose's solution); rtol : Newton's relative residual; probe : the
+        equilibrium checked for stability (:meth:`HyperelasticBody.solve`)."""
         R, t = grip_poses(rotations, translations, self.B)
         b, refs = self.b, self.refs
         values = np.zeros(self.N + (3,))
         Xt = self.X[self.tied]
         values[self.tied] = refs[b] + t[b] + np.einsum("nij,nj->ni", R[b], Xt - refs[b]) - Xt
-        sol = self.hyper.solve(values, initial, rtol=rtol, progress=progress)
+        sol = self.hyper.solve(values, initial, rtol=rtol, probe=probe, progress=progress)
         f = sol.full(sol.forces)[self.tied]
         arm = (self.X + sol.full(sol.u))[self.tied] - (refs + t)[b]
         w = np.zeros((self.B, 6))
