@@ -34,7 +34,8 @@ def solve(gb, robot, sheet, sheet_index: int, deg: float, rtol: float, history: 
     c = robot.coupling
     centres = np.asarray(robot.info["sheet_centres_mm"], float)
     servos = list(c.servos[3 * sheet_index:3 * sheet_index + 3])
-    rot, trans = sheet_grip_poses((Q_A, Q_B)[sheet_index], centres[sheet_index], sheet.references, np.asarray(c.origin, float), servos,
+    rot, trans = sheet_grip_poses((Q_A, Q_B)[sheet_index], centres[sheet_index], sheet.references,
+                                  np.asarray(c.origin, float), servos,
                                   np.zeros(3), np.zeros(3), np.radians([deg] * 3))
     t0 = time.perf_counter()
 

@@ -112,7 +112,8 @@ class _Body:
 
     def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         f = np.zeros_like(u)
-        energy, bad = internal_forces(u, self.voxels, self.order, self.starts, self.colours, self.dN, self.w, self.mu, self.lam, self.F, self.Finv, self.c, f)
+        energy, bad = internal_forces(u, self.voxels, self.order, self.starts, self.colours, self.dN, self.w, self.mu,
+                                      self.lam, self.F, self.Finv, self.c, f)
         return f, energy, bad
 
     def tangent(self, v: np.ndarray) -> np.ndarray:

@@ -58,14 +58,16 @@ def _to_boundary(p: np.ndarray, d: np.ndarray, radius: float) -> float:
     return (np.sqrt(disc) - pd) / dd
 
 
-def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray, precondition: Callable[[np.ndarray], np.ndarray],
-             radius: float, *, rtol: float, maxiter: int, flexible: bool = False) -> TrustStep:
+def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray,
+             precondition: Callable[[np.ndarray], np.ndarray], radius: float, *, rtol: float, maxiter: int,
+             flexible: bool = False) -> TrustStep:
     """The Steihaug-Toint step for the model ``g . p + 1/2 p . K p`` within ``|p| <= radius``.
 
     apply : v (a, 3) -> K v (a, 3), symmetric; g : (a, 3) [N] the energy's gradient (zero off
     the unknowns); precondition : r (a, 3) -> z (a, 3), symmetric positive definite;
     radius : [mm] > 0 (inf: no region; CG then stops at a direction of non-positive curvature
-    without stepping along it, the search for one that a stability probe makes); rtol : CG stops inside the region when ``|g + K p| <= rtol |g|``;
+    without stepping along it, the search for one that a stability probe makes);
+    rtol : CG stops inside the region when ``|g + K p| <= rtol |g|``;
     maxiter : CG iterations at most.
     """
     if not radius > 0:
