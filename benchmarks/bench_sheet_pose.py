@@ -49,6 +49,7 @@ def solve(gb, robot, sheet, sheet_index: int, deg: float, rtol: float, history: 
 
 
 def main() -> None:
+    from metasheet.fem.voxel.gaps import closest_approach
     from metasheet.sheet.voxel_grips_nonlinear import GripBody
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -68,6 +69,7 @@ def main() -> None:
     W, wall, sol = solve(gb, robot, sheet, index, args.deg, args.rtol, history)
     W_lin, wall_lin, _ = solve(gb, robot, sheet, index, args.deg / 1000, args.rtol, None)
     W_lin *= 1000.0
+    gap = closest_approach(~np.isnan(sol.strain), sol.h, sol.full(sol.u))
     with saved_output(__file__, args.save):
         print(f"One print (seed {seed}, gauge {args.gauge!r}) of `{args.outputs}`, the {args.sheet} sheet at "
               f"{args.voxel:g} mm voxels ({int((sheet.phases > 0).sum()):,} solid voxels), neo-Hookean walls; the "
@@ -78,7 +80,9 @@ def main() -> None:
         print("| time [s] | " + " | ".join(f"{t:.0f}" for _, t in history) + " |")
         print(f"\nThe solve: {wall:.0f} s wall, {sol.newton} Newton steps, CG {sum(sol.cg)} iterations "
               f"(per step: {', '.join(str(c) for c in sol.cg)}), stable: {sol.stable}. The solve at "
-              f"{args.deg / 1000:g} deg: {wall_lin:.0f} s.\n")
+              f"{args.deg / 1000:g} deg: {wall_lin:.0f} s. The walls: largest principal Green-Lagrange "
+              f"strain {float(np.nanmax(sol.strain)):.3f}; closest approach of two surfaces apart at rest "
+              f"{gap.distance:.3f} mm (from {gap.rest_distance:.3f} mm; closed: {gap.closed}).\n")
         print(f"| grip | force, {args.deg:g} deg / linear | moment, {args.deg:g} deg / linear |")
         print("|---|---|---|")
         for k, name in enumerate(GRIPS):
