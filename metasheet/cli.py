@@ -38,10 +38,12 @@ from rich.progress import (
 from rich.text import Text
 
 from .errors import ConfigError, MetasheetError
-from .goto import format_result, goto_robot, goto_tolerances, parse_pose, pipeline_robot, pose_text, stall_text
+from .goto import command_robot, format_result, goto_tolerances, parse_pose, pose_text, stall_text
 from .pipeline.config import MAX_WORKERS
+from .cli_export import export_app
 from .cli_files import FILE_COMMANDS
 from .cli_output import console, docs, say, stdout, table
+from .cli_path import robot_path
 from .runtime.stop_signals import Stopped, exit_now, stop_on_signals
 from . import supervise
 
@@ -62,6 +64,7 @@ app = typer.Typer(
 )
 robot_app = typer.Typer(help="Drive the robot model.", epilog=docs("robot"), no_args_is_help=True, **_TYPER)
 app.add_typer(robot_app, name="robot")
+app.add_typer(export_app, name="export")
 _STATE = {"debug": False}
 
 
@@ -301,24 +304,13 @@ def robot_goto(
     Exits with status 4 when the goal is not reached, after printing the closest pose
     and the remaining error.
     """
-    from .errors import ConfigError, UnreachableError
+    from .errors import UnreachableError
     from .robot.inverse_settings import InverseSettings
     from .serve.loading import GOTO_MODELS
     from .serve.models import goto
 
     goal = parse_pose(pose)
-    if model not in GOTO_MODELS:
-        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(GOTO_MODELS)}")
-    if pipeline is not None:
-        if orient is not None:
-            raise ConfigError("--orient: give either --pipeline (the pipeline's robot) or --orient, not both")
-        robot, info = pipeline_robot(pipeline, out, model, material_model, column)
-    elif model != "full":
-        raise ConfigError(f"--model {model}: needs --pipeline (a pipeline with the reduce stage, run first)")
-    elif column != "prediction":
-        raise ConfigError(f"--column {column}: needs --pipeline (the pipeline's mesh and scene)")
-    else:
-        robot, info = goto_robot(orient, mesh_size, material_model), None
+    robot, info = command_robot(pipeline, out, model, orient, mesh_size, material_model, column, GOTO_MODELS)
     tol_mm, tol_deg = goto_tolerances(column, tol_mm, tol_deg)
     res, note = goto(robot, goal, InverseSettings(pos_tol=tol_mm, rot_tol_deg=tol_deg))
     used = "full" if info is None or note else info.model
@@ -332,6 +324,10 @@ def robot_goto(
             f"goal not reached ({res.status}): remaining error {res.pos_error:.3f} mm, {res.rot_error:.3f} deg; "
             f"closest pose {pose_text(res.pose)}; " + why.splitlines()[0]
         )
+
+
+robot_app.command("path", epilog=docs("robot path"),
+                  short_help="A path of poses as motor angles over time for the servos (a motor program).")(robot_path)
 
 
 @app.command(epilog=docs("serve"), short_help="Drive the pipeline's robot from a browser.")

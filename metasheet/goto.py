@@ -69,6 +69,28 @@ def pipeline_robot(pipeline: Path, out: Path | None = None, model: str = "full",
     return robot, info
 
 
+def command_robot(pipeline: Path | None, out: Path | None, model: str, orient: Path | None, mesh_size: float,
+                  material_model: str | None, column: str, models: tuple) -> tuple:
+    """``(robot, RobotInfo or None)`` the robot commands (``robot goto``, ``robot path``) drive
+    for their options: the pipeline's (:func:`pipeline_robot`), else :func:`goto_robot`'s;
+    ``models``: the ``--model`` values the command takes. ConfigError naming the option that
+    conflicts (a model or a fixed-material column needs the pipeline)."""
+    from .errors import ConfigError
+    from .pipeline.column import column as column_of
+
+    if model not in models:
+        raise ConfigError(f"--model: {model!r}: allowed values are {', '.join(models)}")
+    if pipeline is not None:
+        if orient is not None:
+            raise ConfigError("--orient: give either --pipeline (the pipeline's robot) or --orient, not both")
+        return pipeline_robot(pipeline, out, model, material_model, column)
+    if model != "full":
+        raise ConfigError(f"--model {model}: needs --pipeline (a pipeline with the reduce stage, run first)")
+    if column_of(column, field="--column").fixes_material:
+        raise ConfigError(f"--column {column}: needs --pipeline (the pipeline's mesh and scene)")
+    return goto_robot(orient, mesh_size, material_model), None
+
+
 def goto_tolerances(column: str, tol_mm: float | None, tol_deg: float | None) -> tuple[float, float]:
     """The position [mm] and rotation [deg] tolerances of a goto: those given, else the column's
     (:class:`metasheet.pipeline.column.Column`; the reproduction's are the paper's test, Section

@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-NAMES = ("cell_constants", "chart_lookup", "sheet_printmap", "jacobian_silicone_vs_foam", "goto", "small_workspace")
+NAMES = ("cell_constants", "chart_lookup", "sheet_printmap", "jacobian_silicone_vs_foam", "goto", "small_workspace",
+         "motor_program")
 
 
 def load(name: str):
@@ -139,6 +140,21 @@ def test_goto(tmp_path):
     # silicone cannot roll the rod: it stalls with (nearly) the whole 6 deg roll missing
     assert sil["status"] in ("stalled", "max_steps")
     assert sil["rot_error_deg"] == pytest.approx(6.0, abs=0.1)
+
+
+def test_motor_program(tmp_path):
+    n = run("motor_program", tmp_path)
+    a, p = np.array(n["angles_deg"]), np.array(n["pulses_us"])
+    # a 9.4 mm circle at 6 mm/s, sampled at 5 Hz: 9 samples to 1.6 s, each reached (0.1 mm), within the servos
+    assert n["samples"] == 9 and n["duration_s"] == pytest.approx(1.6) and n["reached"] == 9 and n["ok"]
+    assert n["max_error_mm"] <= 0.1 and n["max_speed_deg_s"] < 600.0
+    # the bottom of the circle lies in the robot's mirror plane (y = 0): sheet B's motors mirror A's
+    # (0 <-> 3, 1 <-> 5, 2 <-> 4); measured 68.53, 57.41, 52.63 deg on the 14 mm sheets
+    np.testing.assert_allclose(a[4, [3, 5, 4]], a[4, :3], atol=1e-6)
+    np.testing.assert_allclose(a[4, :3], [68.53, 57.41, 52.63], atol=0.05)
+    # back where it started, within the tolerance's worth of motor angle; the pulses are the stated map
+    np.testing.assert_allclose(a[-1], a[0], atol=0.2)
+    np.testing.assert_allclose(p, 500.0 + a / 180.0 * 2000.0, rtol=1e-12)
 
 
 @pytest.mark.slow

@@ -107,6 +107,26 @@ def test_branches_write_the_axis():
     assert n == 0
 
 
+def test_the_one_pass_seam_counts_equal_writing_every_offset():
+    """The period-180 counts of choose_branch, one pass of arcs, against writing each of the 180
+    branches (the definition), on random pairs with whole-degree angles and 0 / 90 / 180 deg
+    differences mixed in (the ties the pass hands back to writing)."""
+    rng = np.random.default_rng(3)
+    for spread in (1.0, 30.0, 120.0):
+        ta = rng.uniform(-400.0, 400.0, 2000)
+        tb = ta + rng.normal(0.0, spread, ta.size)
+        k = rng.permutation(ta.size)[:600]
+        ta[k[:200]] = np.round(ta[k[:200]])
+        tb[k[200:300]] = ta[k[200:300]] + 90.0
+        tb[k[300:400]] = ta[k[300:400]] + 180.0
+        tb[k[400:500]] = ta[k[400:500]]
+        tb[k[500:]] = np.round(tb[k[500:]])
+        each = [np.count_nonzero(np.abs(angles.AngleBranch(180.0, float(c)).write(ta)
+                                        - angles.AngleBranch(180.0, float(c)).write(tb)) > angles.SEAM_JUMP)
+                for c in range(180)]
+        assert angles._seam_counts_by_offset(ta, tb).tolist() == each
+
+
 @pytest.mark.parametrize("which", ["normal", "mirrored"])
 def test_solid_parts_cover_the_tied_nodes(maps, which):
     sheet, pf = maps[which]

@@ -102,12 +102,55 @@ def choose_branch(theta_deg: np.ndarray, foam: np.ndarray, *, step: float = 1.0)
     a, b = _neighbour_pairs(foam)
     t = np.asarray(theta_deg, dtype=float).ravel()
     ta, tb = t[a], t[b]
-    best, best_n = None, None
-    for br in branch_candidates(step):
-        k = int(np.count_nonzero(np.abs(br.write(ta) - br.write(tb)) > SEAM_JUMP))
-        if best_n is None or k < best_n:
-            best, best_n = br, k
-    return best, int(best_n)
+    candidates = branch_candidates(step)
+    counts = [int(np.count_nonzero(np.abs(br.write(ta) - br.write(tb)) > SEAM_JUMP)) for br in candidates[:2]]
+    if step == 1.0:
+        counts += _seam_counts_by_offset(ta, tb).tolist()
+    else:
+        counts += [int(np.count_nonzero(np.abs(br.write(ta) - br.write(tb)) > SEAM_JUMP)) for br in candidates[2:]]
+    best = int(np.argmin(counts))  # the first of equal counts
+    return candidates[best], int(counts[best])
+
+
+#: an angle within this of a whole degree, or a difference within this of 0 or 90 deg, is
+#: counted by writing it (:meth:`AngleBranch.write`), as the other pairs' arcs assume no tie
+_TIE = 1e-6
+
+
+def _seam_counts_by_offset(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """(180,) for the period-180 branches of offsets 0, 1, ..., 179 deg, the count of pairs
+    (ta, tb) [deg] whose written angles differ by more than :data:`SEAM_JUMP`: the counts of
+    writing every pair at every offset, in one pass.
+
+    With a = ta mod 180, b = tb mod 180 and a < b, the written pair is (a, b) shifted for an
+    offset c outside (a, b], and (a + 180, b) for c inside (a, b]: its difference is a - b
+    or a - b + 180, one or the other more than 90 deg apart (and symmetrically for a > b), so
+    each pair adds its verdict outside the arc to every offset and the change inside the arc
+    to the offsets in it (a difference array). Pairs within :data:`_TIE` of a whole degree or
+    of a difference of 0 or 90 deg are written at every offset instead: rounding decides them.
+    """
+    a, b = np.mod(ta, 180.0), np.mod(tb, 180.0)
+    d = a - b
+    near = ((np.abs(a - np.round(a)) < _TIE) | (np.abs(b - np.round(b)) < _TIE)
+            | (np.abs(np.abs(d) - 90.0) < _TIE) | (np.abs(d) < _TIE) | (np.abs(np.abs(d) - 180.0) < _TIE))
+    counts = np.zeros(180, dtype=np.int64)
+    if np.any(near):
+        na, nb = ta[near], tb[near]
+        counts += np.array([np.count_nonzero(np.abs(AngleBranch(180.0, float(c)).write(na)
+                                                    - AngleBranch(180.0, float(c)).write(nb)) > SEAM_JUMP)
+                            for c in range(180)])
+    a, b, d = a[~near], b[~near], d[~near]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    inside = np.where(a < b, d + 180.0, d - 180.0)  # the difference for offsets in (lo, hi]
+    out_seam, in_seam = np.abs(d) > SEAM_JUMP, np.abs(inside) > SEAM_JUMP
+    counts += int(np.count_nonzero(out_seam))
+    change = in_seam.astype(np.int64) - out_seam.astype(np.int64)
+    first, last = np.floor(lo).astype(np.int64) + 1, np.floor(hi).astype(np.int64)  # whole c in (lo, hi]
+    step = np.zeros(181, dtype=np.int64)
+    np.add.at(step, first, change)
+    np.add.at(step, last + 1, -change)
+    counts += np.cumsum(step)[:180]
+    return counts
 
 
 def seam_report(written_deg: np.ndarray, foam: np.ndarray, box: GridBox) -> dict:

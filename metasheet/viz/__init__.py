@@ -32,6 +32,21 @@ def one_at_a_time(fn):
     return wrapper
 
 
+def image_png(image) -> bytes:
+    """An (h, w, 3 or 4) uint8 image (a pyvista screenshot) as PNG bytes without metadata (the
+    same image gives the same bytes)."""
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.image as mpimg
+
+    buf = io.BytesIO()
+    mpimg.imsave(buf, image, format="png", metadata={"Software": None})
+    return buf.getvalue()
+
+
 def figure_png(fig, *, dpi: int = 100, tight: bool = True) -> bytes:
     """A matplotlib figure as PNG bytes, with fixed metadata (the same figure gives the same
     bytes); the figure is closed."""

@@ -5,11 +5,10 @@ Functions return PNG bytes (pyvista off screen); the stage layer writes them.
 
 from __future__ import annotations
 
-import io
 import itertools
 
 import numpy as np
-from . import one_at_a_time
+from . import image_png, one_at_a_time
 
 #: Colours of phases 1, 2, ... (void is not drawn), and their names for the captions.
 PHASE_COLOURS = ("#d9a441", "#4a7fb5", "#8fb54a", "#b54a6d")
@@ -17,14 +16,7 @@ COLOUR_NAMES = ("tan", "blue", "green", "red")
 
 
 def _png(image: np.ndarray) -> bytes:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.image as mpimg
-
-    buf = io.BytesIO()
-    mpimg.imsave(buf, image, format="png", metadata={"Software": None})
-    return buf.getvalue()
+    return image_png(image)
 
 
 def _tile_offsets(size: np.ndarray, tiles: int) -> list[np.ndarray]:
