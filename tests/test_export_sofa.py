@@ -189,3 +189,20 @@ def test_the_command_writes_the_folder(tiny, tmp_path):
     assert "runSofa" in res.output and "SOFA will differ" in res.output  # the tiny tree's model is 'ours'
     assert (tmp_path / "cli" / "scene.py").is_file()
     assert (tmp_path / "cli" / "scene.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_an_isotropic_sheet_exports_as_the_degenerate_five_constants(tiny, tmp_path):
+    from dataclasses import replace
+
+    from metasheet.export.sofa import export_robot
+    from metasheet.mechanics.material import Isotropic
+    from metasheet.pipeline.artefacts import read_orient
+    from metasheet.robot.builder import six_dof_robot
+
+    sheets = replace(read_orient(tiny[0] / "orient").sheets(need_constants=False), constants=None,
+                     constants_mirrored=None)
+    silicone = Isotropic(0.25, 0.45)
+    robot = six_dof_robot(sheets, silicone, density=1.07e-9)
+    rows = np.loadtxt(export_robot(robot, sheets, silicone, "ours", tmp_path / "sil") / "elements.txt")
+    mu = 0.25 / (2 * 1.45)
+    assert np.allclose(rows[:, 4:], [250.0, 250.0, 0.45, 0.45, mu * 1e3], rtol=1e-14)

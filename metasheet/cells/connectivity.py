@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import ConfigError, InfeasibleError
 
@@ -144,6 +143,8 @@ def periodic_labels(solid: np.ndarray):
     solid = np.asarray(solid, dtype=bool)
     if solid.ndim != 3:
         raise ConfigError(f"phases: shape is {solid.shape} and should be (nx, ny, nz)")
+    from scipy import ndimage  # here: 0.3 s of every command's start
+
     lab, n = ndimage.label(solid)  # default structure: face connectivity
     uf = _OffsetUnionFind(n + 1)
     for ax in range(3):

@@ -144,8 +144,9 @@ def export_robot(robot, sheets, material, model: str, to: Path, *, source: dict 
     fibers = np.vstack([sheets.fibers @ Q_A.T, sheets.fibers_mirrored @ Q_B.T])
     if material is None:
         consts = np.vstack([sheets.constants, sheets.constants_mirrored])
-    else:
-        consts = np.broadcast_to([getattr(material, n) for n in CONSTANTS], (len(fibers), 5))
+    else:  # an isotropic material as the degenerate transverse-isotropic one (E_l = E_t, ...)
+        five = material.as_transverse() if hasattr(material, "as_transverse") else material
+        consts = np.broadcast_to([getattr(five, n) for n in CONSTANTS], (len(fibers), 5))
     consts = consts * np.where(_STRESS, KPA_PER_MPA, 1.0)
     sheet_id = np.repeat([0, 1], [tets_a, len(fibers) - tets_a])
     attach = np.concatenate([sheets.sheet.attach, sheets.mirrored.attach])

@@ -21,8 +21,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
-from scipy.optimize import least_squares
 
 from ..errors import ConfigError, InfeasibleError
 from ..mechanics.material import CONSTANT_NAMES
@@ -171,6 +169,8 @@ _INTERP_CACHE: dict[int, tuple[ChartInterpolant, dict]] = {}
 def _interpolators(chart: ChartInterpolant) -> dict:
     hit = _INTERP_CACHE.get(id(chart))
     if hit is None or hit[0] is not chart:
+        from scipy.interpolate import RegularGridInterpolator  # here: 0.2 s of every command's start
+
         f = {k: RegularGridInterpolator(chart.grid, np.log(v) if k in _LOG else v) for k, v in chart.values.items()}
         hit = _INTERP_CACHE[id(chart)] = (chart, f)
     return hit[1]
@@ -225,6 +225,8 @@ def lookup(chart_table, *, E_t: float | None = None, E_l: float | None = None,
         def res(x):
             a = 100.0 - 100.0 * value("E_l", x) / value("E_t", x)
             return [(value("relative_density", x) - relative_density) / relative_density, (a - alpha) / 100.0]
+
+    from scipy.optimize import least_squares
 
     best = None
     for x0 in itertools.product(np.linspace(lo[0], hi[0], 4), np.linspace(lo[1], hi[1], 4)):

@@ -22,7 +22,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from ..errors import ConfigError
 
@@ -124,6 +123,8 @@ def _pooled(means: np.ndarray, k: np.ndarray, rel_sd: float, dof: int) -> np.nda
 
 
 def _t(dof: int) -> float:
+    from scipy import stats  # here: scipy.stats costs every command 0.3 s to import
+
     return float(stats.t.ppf(0.5 + CONFIDENCE / 2, dof))
 
 
@@ -135,4 +136,6 @@ def _bartlett(rel: list[np.ndarray]) -> float:
     """Bartlett's p-value for equal variances of the groups, NaN where it cannot run."""
     if len(rel) < 2 or any(np.var(r, ddof=1) == 0.0 for r in rel):
         return float("nan")
+    from scipy import stats
+
     return float(stats.bartlett(*rel).pvalue)

@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from . import voigt  # the Voigt/Mandel rotations live there only (not re-exported)
 from ..conventions import VOIGT_PAIRS
@@ -325,6 +324,8 @@ def _fit_axis_search(C: np.ndarray) -> TransverseFit:
         th, ph = angles
         a = np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
         return _misfit_about(Cm, a)[0]
+
+    from scipy.optimize import minimize  # here: scipy.optimize costs every command 0.5 s to import
 
     best_err, a = np.inf, candidates[0]
     for start in candidates[np.argsort(errs)[:4]]:  # a few starts: the misfit has local minima
