@@ -56,10 +56,18 @@ def build(folder, monkeypatch, **switches):
     return root
 
 
-def test_the_files_alone_rebuild_the_robot_with_the_same_jacobian(robots):
+def test_the_files_alone_rebuild_the_robot_with_the_same_jacobian(tiny, robots):
     direct, back = robots
     J0, J1 = kinematics_at(direct, direct.rest_state()).J, kinematics_at(back, back.rest_state()).J
     assert np.abs(J1 - J0).max() <= 1e-10 * np.abs(J0).max()
+    # the tiny tree's model is 'ours': robot.json states how far the scene's robot (the authors'
+    # force field, read back here) is from it
+    gap = json.loads((tiny[1] / "robot.json").read_text())["model_gap"]
+    s = kinematics_at(back, back.rest_state()).singular_values
+    assert np.allclose(gap["singular_values_authors"], s, rtol=1e-10)
+    s_ours = np.array(gap["singular_values_ours"])
+    assert gap["largest_relative_difference"] == pytest.approx(np.max(np.abs(s - s_ours) / s_ours), rel=1e-9)
+    assert gap["largest_relative_difference"] > 0.01  # the two tensors differ on this foam
     assert np.abs(back.coupling.rest - direct.coupling.rest).max() <= 1e-12
     for a, b in zip(direct.coupling.servos, back.coupling.servos):
         assert np.array_equal(a.nodes, b.nodes)
@@ -176,7 +184,8 @@ def test_the_reproduction_column_exports_the_published_foam(tiny, tmp_path):
     rows = np.loadtxt(folder / "elements.txt")
     foam = paper.PAPER_FOAM
     assert np.allclose(rows[:, 4:], [foam.E_t * 1e3, foam.E_l * 1e3, foam.nu_t, foam.nu_tl, foam.mu_l * 1e3], rtol=1e-15)
-    assert json.loads((folder / "robot.json").read_text())["material_model"] == "authors"
+    data = json.loads((folder / "robot.json").read_text())
+    assert data["material_model"] == "authors" and "model_gap" not in data  # the scene is the robot
 
 
 def test_the_command_writes_the_folder(tiny, tmp_path):

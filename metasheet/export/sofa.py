@@ -119,7 +119,8 @@ def scene_text(text: str, anisotropic: bool, inverse: bool, program: str | None)
 def export_robot(robot, sheets, material, model: str, to: Path, *, source: dict | None = None,
                  rod_mass_g: float = 10.0, horn_mass_g: float = 10.0, dt_s: float = 0.01,
                  rayleigh_stiffness: float = 0.01, max_step_deg: float = 5.0, anisotropic: bool = True,
-                 inverse: bool = True, program: Path | None = None, picture: bool = False) -> Path:
+                 inverse: bool = True, program: Path | None = None, picture: bool = False,
+                 notes: dict | None = None) -> Path:
     """Write the scene folder ``to`` for ``robot`` (built by :func:`~metasheet.robot.builder.
     six_dof_robot` from the P1 ``sheets``; ``material`` None: the sheets' own constants) and
     return it. Written beside ``to`` under a temporary name and renamed: an interrupted export
@@ -128,7 +129,8 @@ def export_robot(robot, sheets, material, model: str, to: Path, *, source: dict 
     stiffness and the QP's motor step limit [deg] go to the scene as they are; ``anisotropic``
     False: the scene's isotropic fallback (no Anisotropy plugin); ``inverse`` False: the servos
     follow ``program`` (a ``metasheet robot path`` program.csv, copied in) or hold rest;
-    ``picture``: also ``scene.png`` (:func:`metasheet.viz.scene.scene_picture`)."""
+    ``picture``: also ``scene.png`` (:func:`metasheet.viz.scene.scene_picture`); ``notes``:
+    more entries for ``robot.json`` (:func:`model_gap`'s)."""
     from ..version import __version__
     from .sofa_scene import __file__ as scene_file
 
@@ -184,7 +186,7 @@ def export_robot(robot, sheets, material, model: str, to: Path, *, source: dict 
                 "grip_nodes": [int(i) for i in c.effector_nodes], "mass_kg": rod_mass_g / 1000.0,
                 "maze_mesh": "maze.obj"},
         "servos": servos, "servo_convention": "angle 0 = horn horizontal reaching inwards, pi/2 = vertical",
-        "source": source or {},
+        "source": source or {}, **(notes or {}),
     }
     to = Path(to)
     tmp = to.with_name(to.name + ".partial")
@@ -300,9 +302,26 @@ def export_sofa(outputs: Path, to: Path, *, column: str = "prediction", mesh_siz
     sheets = replace(parts.sheets, element="p1")
     material = None if sheets.has_constants else parts.material
     robot = six_dof_robot_of(sheets, material, parts, sc)
+    notes = {} if parts.model == "authors" else {"model_gap": model_gap(robot, six_dof_robot_of(
+        sheets, material, replace(parts, model="authors"), sc), parts.model)}
     source = {"outputs": str(outputs.resolve()), "column": column, "mesh_size_mm": mesh_size,
               "element": "p1", "orient_element": orient.element}
-    return export_robot(robot, sheets, material, parts.model, to, source=source, **options)
+    return export_robot(robot, sheets, material, parts.model, to, source=source, notes=notes, **options)
+
+
+def model_gap(robot, authors, model: str) -> dict:
+    """How far the scene's robot (``authors``: the same sheets under the authors' force field)
+    is from metasheet's (``robot``, material model ``model``) at rest: the singular values of
+    the direct Jacobian [mm/rad] (:mod:`metasheet.robot.kinematics`) of both, and their largest
+    relative difference."""
+    from ..robot.kinematics import kinematics_at
+
+    s_m = kinematics_at(robot, robot.rest_state()).singular_values
+    s_a = kinematics_at(authors, authors.rest_state()).singular_values
+    return {"what": f"rest Jacobian's singular values [mm/rad]: metasheet's model {model!r} against the authors' "
+                    "force field (the scene's) on the exported sheets",
+            f"singular_values_{model}": s_m.tolist(), "singular_values_authors": s_a.tolist(),
+            "largest_relative_difference": float(np.max(np.abs(s_a - s_m) / s_m))}
 
 
 def six_dof_robot_of(sheets, material, parts, scene):

@@ -126,9 +126,12 @@ def _seam_counts_by_offset(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
     offset c outside (a, b], and (a + 180, b) for c inside (a, b]: its difference is a - b
     or a - b + 180, one or the other more than 90 deg apart (and symmetrically for a > b), so
     each pair adds its verdict outside the arc to every offset and the change inside the arc
-    to the offsets in it (a difference array). Pairs within :data:`_TIE` of a whole degree or
-    of a difference of 0 or 90 deg are written at every offset instead: rounding decides them.
+    to the offsets in it (a difference array). Equal angles are never a seam; pairs within
+    :data:`_TIE` of a whole degree or of a difference of 0 or 90 deg are written at every
+    offset instead: rounding decides them.
     """
+    same = ta == tb  # written alike at every offset: never a seam
+    ta, tb = ta[~same], tb[~same]
     a, b = np.mod(ta, 180.0), np.mod(tb, 180.0)
     d = a - b
     near = ((np.abs(a - np.round(a)) < _TIE) | (np.abs(b - np.round(b)) < _TIE)
