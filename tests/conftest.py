@@ -2,8 +2,16 @@
 once per session. Keep this file small and general."""
 
 import os
+import sys
 
 import pytest
+
+# bytecode caches for the test session, where PYTHONDONTWRITEBYTECODE turns them off: without
+# them every test process compiles the test modules again (pytest's assertion rewriting: 9 of
+# a worker's 16 s of collection) and every `metasheet` subprocess the sources it imports (about
+# 0.5 s each); the caches go to the git-ignored __pycache__ folders (docs/performance.md)
+sys.dont_write_bytecode = False
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 # idle OpenMP threads (numba's kernels) sleep instead of spinning: xdist fills the cores with
 # test processes, and spinning threads took CPU from them (scheduling only: same results)

@@ -3,6 +3,7 @@ numbers, and its files alone rebuild metasheet's robot (the same Jacobian)."""
 
 import importlib.util
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -44,8 +45,10 @@ def robots(tiny):
 
 
 def build(folder, monkeypatch, **switches):
-    """The exported scene.py run on the stand-in (``switches``: its module constants)."""
+    """The exported scene.py run on the stand-in (``switches``: its module constants); no
+    bytecode cache is left in the export folder."""
     install(monkeypatch)
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
     spec = importlib.util.spec_from_file_location("exported_scene", folder / "scene.py")
     scene = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(scene)
