@@ -43,6 +43,8 @@ from .pipeline.config import MAX_WORKERS
 from .cli_export import export_app
 from .cli_files import FILE_COMMANDS
 from .cli_output import console, docs, say, stdout, table
+from .cli_robot_options import (ColumnOption, MaterialModelOption, MeshSizeOption, OrientOption, OutOption,
+                                PipelineOption)
 from .cli_path import robot_path
 from .runtime.stop_signals import Stopped, exit_now, stop_on_signals
 from . import supervise
@@ -275,23 +277,15 @@ def diff(
 def robot_goto(
     pose: Annotated[list[str], typer.Argument(
         metavar="POSE", help="X Y Z [mm] RX RY RZ [deg] of the rod centre (use -- before negatives)")],
-    pipeline: Annotated[Optional[Path], typer.Option("--pipeline", help="pipeline TOML file whose robot to drive "
-                                                     "(its robot stage's scene, material stage's density and model; "
-                                                     "run it first)")] = None,
-    out: Annotated[Optional[Path], typer.Option("--out", help="output root the pipeline ran with (default: "
-                                                "outputs/ of the project)")] = None,
+    pipeline: PipelineOption = None,
+    out: OutOption = None,
     model: Annotated[str, typer.Option("--model", help="robot model with --pipeline: 'full' (FEM), 'reduced' (the "
                                        "reduce stage's) or 'surface' (its equilibrium surface, the real-time "
                                        "model); outside their training box the full model solves")] = "full",
-    orient: Annotated[Optional[Path], typer.Option("--orient", help="without --pipeline: an orient stage's output "
-                                                   "directory (the paper's scene and foam density)")] = None,
-    mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no "
-                                             "--pipeline or --orient")] = 8.0,
-    material_model: Annotated[Optional[str], typer.Option("--material-model", help="material model 'ours' or "
-                                                          "'authors' (default: the material stage's, else 'ours')")] = None,
-    column: Annotated[str, typer.Option("--column", help="with --pipeline: 'prediction' (the material stage's "
-                                        "constants) or 'reproduction' (the published constants under the authors' "
-                                        "force field, on the same mesh and scene)")] = "prediction",
+    orient: OrientOption = None,
+    mesh_size: MeshSizeOption = 8.0,
+    material_model: MaterialModelOption = None,
+    column: ColumnOption = "prediction",
     tol_mm: Annotated[Optional[float], typer.Option("--tol-mm", min=1e-6, max=100.0, help="position tolerance "
                                                     "[mm]; default 0.1, the reproduction column's the paper's "
                                                     "test: 1")] = None,

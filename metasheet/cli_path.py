@@ -11,6 +11,8 @@ import numpy as np
 import typer
 
 from .cli_output import console, say
+from .cli_robot_options import (ColumnOption, MaterialModelOption, MeshSizeOption, OrientOption, OutOption,
+                                PipelineOption)
 from .errors import ConfigError, UnreachableError, check_range
 
 #: Speed of a path without times when --speed is not given [mm/s].
@@ -78,20 +80,14 @@ def robot_path(
     rate: Annotated[float, typer.Option("--rate", help="samples per second [Hz], at most 1000")] = 10.0,
     to: Annotated[Optional[Path], typer.Option("--to", help="folder to write program.csv, program.json and "
                                                "program.png into (needed unless --dry-run)")] = None,
-    pipeline: Annotated[Optional[Path], typer.Option("--pipeline", help="pipeline TOML file whose robot to drive "
-                                                     "(run it first)")] = None,
-    out: Annotated[Optional[Path], typer.Option("--out", help="output root the pipeline ran with (default: "
-                                                "outputs/ of the project)")] = None,
+    pipeline: PipelineOption = None,
+    out: OutOption = None,
     model: Annotated[str, typer.Option("--model", help="with --pipeline: 'full' (FEM) or 'reduced' (the reduce "
                                        "stage's; outside its training box the full model solves)")] = "full",
-    orient: Annotated[Optional[Path], typer.Option("--orient", help="without --pipeline: an orient stage's output "
-                                                   "directory (the paper's scene and foam density)")] = None,
-    mesh_size: Annotated[float, typer.Option("--mesh-size", min=2.0, max=20.0, help="sheet mesh size [mm] when no "
-                                             "--pipeline or --orient")] = 8.0,
-    material_model: Annotated[Optional[str], typer.Option("--material-model", help="material model 'ours' or "
-                                                          "'authors' (default: the material stage's, else 'ours')")] = None,
-    column: Annotated[str, typer.Option("--column", help="with --pipeline: 'prediction' or 'reproduction' (as "
-                                        "robot goto)")] = "prediction",
+    orient: OrientOption = None,
+    mesh_size: MeshSizeOption = 8.0,
+    material_model: MaterialModelOption = None,
+    column: ColumnOption = "prediction",
     tol_mm: Annotated[Optional[float], typer.Option("--tol-mm", min=1e-6, max=100.0, help="position tolerance of "
                                                     "each sample [mm]; default robot goto's (--maze: the [maze] "
                                                     "table's, 1)")] = None,

@@ -164,7 +164,8 @@ LAYERS = (
     ("rom", "design"),                                                # the reduced robot, the sheet's design
     ("studies", "report"),                                            # the paper's studies, the report
     ("pipeline", "supervise"),                                        # stages, files, the watched run
-    ("api", "serve", "goto", "export", "cli_output", "cli_files", "cli_export", "cli_path"),  # what users call
+    ("api", "serve", "goto", "export",                                # what users call
+     "cli_output", "cli_files", "cli_export", "cli_path", "cli_robot_options"),
     ("cli", "__main__", "(root)"),                                    # the command, the top level
 )
 
