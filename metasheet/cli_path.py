@@ -73,6 +73,8 @@ def robot_path(
     ray: Annotated[Optional[int], typer.Option("--ray", help="ray K of the workspace study's star grid instead "
                                                "(the pipeline's [workspace] table, else the defaults: rays 0-61): "
                                                "its goals outwards from rest, at the rest orientation")] = None,
+    tilt_deg: Annotated[Optional[float], typer.Option("--tilt-deg", help="with --maze: the maze's tilt [deg], (0, "
+                                                      "45] (default the [maze] table's, else 8)")] = None,
     speed: Annotated[Optional[float], typer.Option("--speed", help="speed along the path [mm/s]; default 10 "
                                                    "(--maze: the marble's, default the [maze] table's)")] = None,
     rot_speed: Annotated[float, typer.Option("--rot-speed", help="rotation speed [deg/s]: a segment takes the longer "
@@ -135,6 +137,10 @@ def robot_path(
     check_range("--rot-speed", rot_speed, 0.0, 1e5, lo_open=True)
     if speed is not None:
         check_range("--speed", speed, 0.0, 1e4, lo_open=True)
+    if tilt_deg is not None:
+        if not maze:
+            raise ConfigError("--tilt-deg: only with --maze (the maze's tilt)")
+        check_range("--tilt-deg", tilt_deg, 0.0, 45.0, lo_open=True)
     check_range("--max-speed", max_speed, 0.0, None, lo_open=True)
     csv_path = pth.read_path_csv(path_csv) if path_csv is not None else None
     maze_p = None
@@ -142,7 +148,7 @@ def robot_path(
         from .pipeline.stages.maze import MazeParams
 
         maze_p = _stage_params(pipeline, "maze") or MazeParams()
-        maze_p = maze_p if speed is None else maze_p.model_copy(update={"speed": speed})
+        maze_p = maze_p.model_copy(update={k: v for k, v in (("speed", speed), ("tilt_deg", tilt_deg)) if v is not None})
         tol_mm, tol_deg = (maze_p.tol_mm if tol_mm is None else tol_mm), (maze_p.tol_deg if tol_deg is None else tol_deg)
 
     from .goto import goto_tolerances

@@ -293,7 +293,9 @@ def test_the_command_refuses_bad_options_before_solving(tmp_path, capsys):
                           ([str(path), "--to", "x", "--rate", "0"], "--rate: 0.0: allowed range is (0, 1000]"),
                           ([str(path), "--to", "x", "--speed", "-1"], "--speed: -1.0: allowed range is (0, 10000]"),
                           (["--program", str(path)], "--program: checks an existing program.csv: give --dry-run"),
-                          ([str(path), "--to", "x", "--model", "surface"], "--model: 'surface': allowed values")):
+                          ([str(path), "--to", "x", "--model", "surface"], "--model: 'surface': allowed values"),
+                          ([str(path), "--to", "x", "--tilt-deg", "5"], "--tilt-deg: only with --maze"),
+                          (["--maze", "--to", "x", "--tilt-deg", "60"], "--tilt-deg: 60.0: allowed range is (0, 45]")):
         rc, text = _cli(capsys, *args)
         assert rc == 2 and message in text, (args, text)
 
