@@ -161,7 +161,7 @@ LAYERS = (
     ("fem", "cells"),                                                 # elements and solvers, cells
     ("homogenize", "sheet"),                                          # homogenisation, the sheet
     ("robot", "viz"),                                                 # the robot FEM, the pictures
-    ("rom", "design"),                                                # the reduced robot, the sheet's design
+    ("rom", "design", "dynamics"),                                    # the reduced robot, the sheet's design, time
     ("studies", "report"),                                            # the paper's studies, the report
     ("pipeline", "supervise"),                                        # stages, files, the watched run
     ("api", "serve", "goto", "export",                                # what users call
