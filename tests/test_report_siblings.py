@@ -19,8 +19,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_the_paper_pipeline_reads_its_model_studies_from_their_own_pipelines():
-    """paper.toml holds no chart, no size study and no mesh study; the report names the three
-    pipelines that do, each shipped under its run name, the convergence one on the paper's robot."""
+    """paper.toml holds no chart, no size study, no mesh study and no dynamics; the report names the
+    four pipelines that do, each shipped under its run name, the convergence one on the paper's robot."""
     paper = load_pipeline(ROOT / "pipelines" / "paper.toml")
     assert "chart" not in paper.order and paper.params["robot"].convergence == []
     assert paper.params["homogenize"].sizes == [] and paper.params["homogenize"].realisations == 4
@@ -30,7 +30,7 @@ def test_the_paper_pipeline_reads_its_model_studies_from_their_own_pipelines():
         pl = load_pipeline(ROOT / "pipelines" / f"{run}.toml")
         assert pl.name == run and stage in pl.order
         beside[stage] = pl
-    assert set(beside) == {"chart", "homogenize", "robot"}
+    assert set(beside) == {"chart", "homogenize", "robot", "dynamics"}
     assert beside["homogenize"].params["homogenize"].sizes
     conv = beside["robot"]
     for stage in ("cell", "homogenize", "material", "orient"):  # the paper's robot, stage by stage

@@ -53,6 +53,15 @@ def maze_inertia(geometry: MazeGeometry, *, rod_length: float, rod_radius: float
     return combine(*parts)
 
 
+def segment_arrivals(geometry: MazeGeometry, t: np.ndarray, u: np.ndarray, ends) -> np.ndarray:
+    """Per path segment, whether the marble's centre (``u`` (K, 2) [mm] at times ``t`` (K,) [s])
+    is within half a corridor width of the segment's end vertex at ``ends[i]`` [s], the end of
+    the segment's hold (where the program turns to the next corridor)."""
+    ends = np.asarray(ends, float)
+    at = np.stack([np.interp(ends, t, u[:, k]) for k in range(2)], axis=1)
+    return np.linalg.norm(at - geometry.path[1:len(ends) + 1], axis=1) <= 0.5 * geometry.width
+
+
 def path_verdict(geometry: MazeGeometry, u: np.ndarray) -> tuple[int, bool]:
     """How many of the path's vertices after the first the marble's centre track ``u`` (K, 2)
     [mm] passed in order (within half a corridor width), and whether that is all of them."""
@@ -69,7 +78,9 @@ def path_verdict(geometry: MazeGeometry, u: np.ndarray) -> tuple[int, bool]:
 class MazePlayed:
     """run : the robot in time (:class:`.response.Playback`); quasi : its quasi-static path at the
     program's samples; gap_mm, gap_deg : (samples,) the run's distance from it; marble : the
-    :class:`.marble.MarbleRun`; vertices : path vertices passed in order; solved : all of them."""
+    :class:`.marble.MarbleRun`; vertices : path vertices passed in order; solved : all of them;
+    arrivals : per segment, the marble at its end vertex when the segment's hold ends (None
+    without ``ends``)."""
 
     run: Playback
     quasi: Playback
@@ -78,19 +89,22 @@ class MazePlayed:
     marble: MarbleRun
     vertices: int
     solved: bool
+    arrivals: np.ndarray | None = None
 
 
 def play_maze(dyn, qs, rest, times, angles, geometry: MazeGeometry, *, h: float, top: float,
               marble: MarbleSettings = MarbleSettings(), speed: float = 1.0, progress=None,
-              keep_x: list | None = None, keep_every: int = 1) -> MazePlayed:
+              keep_x: list | None = None, keep_every: int = 1, ends=None) -> MazePlayed:
     """Play the motor program (``times`` (T,) [s], ``angles`` (T, na) [rad]) on ``dyn`` from the
     equilibrium ``rest`` in steps of ``h`` [s], ``speed`` times faster; compare with ``qs``'s
     quasi-static path; roll the marble from the path's start on the plate whose top face is
-    ``top`` [mm] above the rod's reference point (``keep_x``, ``keep_every``: :func:`.response.play`)."""
+    ``top`` [mm] above the rod's reference point (``keep_x``, ``keep_every``: :func:`.response.play`;
+    ``ends`` [s] each segment's hold end in the program's time, for :func:`segment_arrivals`)."""
     run, _ = play(dyn, rest, times, angles, h, speed=speed, progress=progress, keep_x=keep_x, keep_every=keep_every)
     quasi = quasi_static_path(qs, rest, np.asarray(times, float) / speed, angles)
     mm, deg = pose_gap(run, quasi)
     motion = plate_motion(run.t, run.pose, top=top)
     m = roll(motion, geometry, geometry.path[0], marble)
     n, solved = path_verdict(geometry, m.u)
-    return MazePlayed(run, quasi, mm, deg, m, n, solved)
+    arrivals = None if ends is None else segment_arrivals(geometry, m.t, m.u, np.asarray(ends, float) / speed)
+    return MazePlayed(run, quasi, mm, deg, m, n, solved, arrivals)

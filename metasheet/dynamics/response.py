@@ -9,12 +9,13 @@ motion); their torques are an output.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, check_range
+from ..errors import ConfigError, ConvergenceError, check_range
 from ..mechanics.rotations import rotation_vector
 from .robot import DynamicRobot, DynamicState
 
@@ -38,8 +39,14 @@ class Playback:
 
     @property
     def pose(self) -> np.ndarray:
-        """(T, 6) [mm, rad] the rod's position and rotation vector."""
-        return np.hstack([self.p, np.array([rotation_vector(R) for R in self.R])])
+        """(T, 6) [mm, rad] the rod's position and rotation vector (NaN where not solved)."""
+        rot = np.array([rotation_vector(R) if np.all(np.isfinite(R)) else np.full(3, np.nan) for R in self.R])
+        return np.hstack([self.p, rot])
+
+    @property
+    def unsolved(self) -> int:
+        """Samples whose equilibrium was not found (:func:`quasi_static_path`)."""
+        return int(np.sum(~np.isfinite(self.p[:, 0])))
 
 
 def check_program(times, angles, na: int) -> tuple[np.ndarray, np.ndarray]:
@@ -104,25 +111,36 @@ def _playback(rows: list[DynamicState]) -> Playback:
 def quasi_static_path(qs: DynamicRobot, start: DynamicState, times, angles, *, substeps: int = 1) -> Playback:
     """The equilibria along the program (``qs`` a :class:`DynamicRobot` with the
     :class:`~.schemes.QuasiStatic` scheme and the same rigid body), at each sample, continued from
-    one to the next (``substeps`` equal motor increments between samples)."""
+    one to the next (``substeps`` equal motor increments between samples). A sample whose
+    equilibrium the solve does not find (soft sheets snapping under a large motor jump: the
+    inertia that carries the dynamic run through is absent here) is NaN, and the next sample
+    continues from the last one found (:attr:`Playback.unsolved` counts them)."""
     tt, aa = check_program(times, angles, qs.robot.coupling.n_act)
     rows, ds = [], start
     for i, t in enumerate(tt):
         prev = aa[i - 1] if i else ds.state.angles
-        for j in range(1, substeps + 1):
-            ds = qs.step(ds, prev + (aa[i] - prev) * j / substeps, 1.0)
-        rows.append(DynamicState(ds.state, ds.kin.__class__(ds.kin.x, ds.kin.v, ds.kin.a, float(t)),
-                                 ds.torques, ds.newton, ds.tangents))
+        h = (t - tt[i - 1]) / substeps if i else 1.0
+        try:
+            for j in range(1, substeps + 1):
+                ds = qs.step(ds, prev + (aa[i] - prev) * j / substeps, h)
+        except ConvergenceError:
+            nan = np.full(3, np.nan)
+            lost = dataclasses.replace(ds.state, p=nan, R=np.full((3, 3), np.nan), angles=aa[i])
+            rows.append(DynamicState(lost, dataclasses.replace(ds.kin, t=float(t)), ds.torques * np.nan, -1, 0))
+            continue
+        rows.append(DynamicState(ds.state, dataclasses.replace(ds.kin, t=float(t)), ds.torques, ds.newton,
+                                 ds.tangents))
     return _playback(rows)
 
 
 def pose_gap(run: Playback, reference: Playback) -> tuple[np.ndarray, np.ndarray]:
     """Per sample of ``reference``, the distance [mm] and angle [deg] between ``run``'s rod pose
-    (interpolated linearly in time) and the reference's."""
+    (interpolated linearly in time) and the reference's (NaN where the reference is)."""
     p = np.stack([np.interp(reference.t, run.t, run.p[:, k]) for k in range(3)], axis=1)
     idx = np.abs(run.t[None, :] - reference.t[:, None]).argmin(axis=1)  # the run's step nearest each sample
     mm = np.linalg.norm(p - reference.p, axis=1)
-    deg = np.array([np.degrees(np.linalg.norm(rotation_vector(run.R[i] @ Rr.T))) for i, Rr in zip(idx, reference.R)])
+    deg = np.array([np.degrees(np.linalg.norm(rotation_vector(run.R[i] @ Rr.T))) if np.all(np.isfinite(Rr))
+                    else np.nan for i, Rr in zip(idx, reference.R)])
     return mm, deg
 
 

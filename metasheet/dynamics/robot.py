@@ -221,7 +221,25 @@ class DynamicRobot:
         zero = np.zeros_like(x)
         return DynamicState(state, Kinematics(x, zero, zero.copy(), float(t)), np.zeros(self.robot.coupling.n_act))
 
-    def step(self, ds: DynamicState, angles, h: float, *, tol: float = 1e-6, max_iter: int = 30) -> DynamicState:
+    def step(self, ds: DynamicState, angles, h: float, *, tol: float = 1e-6, max_iter: int = 30,
+             max_halvings: int = 5) -> DynamicState:
+        """One time step of ``h`` [s] to motor ``angles`` (na,) [rad] (:meth:`_step`); when its
+        Newton solve fails, two half steps (the motors at their midpoint between), up to
+        ``max_halvings`` times deep: a fast motor move on soft sheets (silicone's impossible
+        maze segments) can snap them within one step. ConvergenceError when even the smallest
+        step fails."""
+        try:
+            return self._step(ds, angles, h, tol=tol, max_iter=max_iter)
+        except ConvergenceError:
+            if max_halvings <= 0:
+                raise
+        self._lin, self._K = None, None  # the failed solve's tangent is no guide
+        a = np.asarray(angles, float)
+        mid = self.step(ds, 0.5 * (ds.state.angles + a), 0.5 * h, tol=tol, max_iter=max_iter,
+                        max_halvings=max_halvings - 1)
+        return self.step(mid, a, 0.5 * h, tol=tol, max_iter=max_iter, max_halvings=max_halvings - 1)
+
+    def _step(self, ds: DynamicState, angles, h: float, *, tol: float, max_iter: int) -> DynamicState:
         """One time step of ``h`` [s] to motor ``angles`` (na,) [rad] at ``t + h`` (the horns'
         prescribed positions). Newton on the step body, the tangent kept while each iteration
         cuts the residual at least fourfold (from one step to the next too), each step halved

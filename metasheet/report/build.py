@@ -14,6 +14,7 @@ from .columns import columns_section, scene_facts_section
 from .constants import constants_section
 from .convergence import HEADING as CONVERGENCE_HEADING, convergence_section
 from .design import design_section
+from .dynamics import HEADING as DYNAMICS_HEADING, dynamics_section
 from .model import model_section
 from .reduce import reduce_section
 from .sheet import sheet_dns_section
@@ -326,6 +327,10 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
                          f"{z['strain_limit']:g}, where the homogenised constants no longer hold.")
         if z["silicone_impossible_segments"] == []:
             diffs.append("Maze: silicone sheets solved every segment; the paper could not solve its maze with them.")
+    dyn_lines, dyn_diffs = dynamics_section(s.get("dynamics") or {}, pictures)
+    lines += source_lines(beside.get("dynamics"), "robot")[0] + dyn_lines
+    lines += missing_lines(beside.get("dynamics"), DYNAMICS_HEADING)
+    diffs += dyn_diffs
     standin = [k for k in ("workspace", "ranges", "anisotropy", "maze") if k in s and s[k].get("model") == "standin"]
     if standin:
         diffs.append(f"{', '.join(standin)}: computed on the analytic stand-in robot (model = 'standin'), "

@@ -45,7 +45,7 @@ class DynamicsSettings:
     step_deg: float = 1.0
     step_s: float = 0.4
     servo_speed: float = 600.0
-    frame_s: float = 0.1
+    frame_s: float = 0.2
 
     def __post_init__(self):
         check_range("dt", self.dt, 0.0, 0.1, lo_open=True)
@@ -73,6 +73,7 @@ class Unit:
     angles: tuple = ()
     speed: float = 1.0
     frames: bool = False
+    ends: tuple = ()
 
 
 _CACHE: dict = {}
@@ -129,14 +130,18 @@ def _maze(unit: Unit) -> dict:
     every = max(1, int(round(s.frame_s / s.dt)))
     frames = [] if unit.frames else None
     res = play_maze(dyn, qs, rest, times, angles, geo, h=s.dt, top=s.top, marble=s.marble, speed=unit.speed,
-                    keep_x=frames, keep_every=every)
+                    keep_x=frames, keep_every=every, ends=unit.ends or None)
     m = res.marble
     return {"speed": unit.speed, "t": res.run.t, "pose": res.run.pose, "angles": res.run.angles,
             "torques": res.run.torques, "newton": res.run.newton, "tangents": res.run.tangents,
-            "quasi_t": res.quasi.t, "quasi_pose": res.quasi.pose, "gap_mm": res.gap_mm, "gap_deg": res.gap_deg,
+            "quasi_t": res.quasi.t, "quasi_pose": res.quasi.pose, "quasi_unsolved": res.quasi.unsolved,
+            "gap_mm": res.gap_mm, "gap_deg": res.gap_deg,
             "marble_t": m.t, "marble_u": m.u, "marble_world": m.world, "marble_progress": m.progress,
             "normal_force": m.normal_force, "contacts": [list(c) for c in m.contacts], "lifted_off": m.lifted_off,
-            "vertices": res.vertices, "solved": res.solved, "frames_x": None if frames is None else np.array(frames),
+            "vertices": res.vertices, "solved": res.solved,
+            "arrivals": None if res.arrivals is None else res.arrivals.tolist(),
+            "motor_speed_deg_s": float(np.degrees(np.abs(np.diff(angles, axis=0)) / np.diff(times)[:, None]).max()
+                                       * unit.speed), "frames_x": None if frames is None else np.array(frames),
             "frames_every": every, "tets": robot.body.tets, "geometry": geo, "path_length": _length(geo)}
 
 

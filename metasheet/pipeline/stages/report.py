@@ -5,8 +5,9 @@ Reads the summaries (``<stage>.json``, or the manifest's summary) of whichever s
 ran, copies their pictures next to ``report.md`` so the page is self-contained.
 
 The studies of our own model that are not the paper's figures run as pipelines of their
-own (issue 59): the design chart, the cell-size study and the robot's mesh convergence.
-``[report] chart``, ``cell_size`` and ``convergence`` name those pipelines' runs; the report
+own (issue 59): the design chart, the cell-size study and the robot's mesh convergence; so
+does the robot in time (issue 64, the maze played). ``[report] chart``, ``cell_size``,
+``convergence`` and ``dynamics`` name those pipelines' runs; the report
 reads their outputs beside its own (``<out root>/<run>/<stage>/``) when this pipeline does
 not hold them itself, and otherwise names the command that makes them. Their outputs are
 inputs of the report's cache key (:attr:`~metasheet.pipeline.registry.Stage.siblings`).
@@ -31,7 +32,8 @@ STUDIES = ("workspace", "ranges", "anisotropy", "maze")
 #: [report] key -> (the stage of that pipeline the report reads, the file it needs, what it holds)
 SIBLINGS = {"chart": ("chart", "chart.csv", "the design chart"),
             "cell_size": ("homogenize", "convergence.json", "the cell-size study"),
-            "convergence": ("robot", "convergence.json", "the robot's mesh convergence")}
+            "convergence": ("robot", "convergence.json", "the robot's mesh convergence"),
+            "dynamics": ("dynamics", "dynamics.json", "the maze played in time")}
 _BESIDE = ("run name of the pipeline beside this one (the same output root) whose {} the report shows when "
            "this pipeline has none; '': none")
 
@@ -41,8 +43,9 @@ class ReportParams(Params):
     chart: str = Field("", description=_BESIDE.format("chart stage (chart.csv)"))
     cell_size: str = Field("", description=_BESIDE.format("cell-size study (homogenize/convergence.json)"))
     convergence: str = Field("", description=_BESIDE.format("mesh convergence (robot/convergence.json)"))
+    dynamics: str = Field("", description=_BESIDE.format("maze played in time (dynamics/dynamics.json)"))
 
-    @field_validator("chart", "cell_size", "convergence")
+    @field_validator("chart", "cell_size", "convergence", "dynamics")
     @classmethod
     def _run_name(cls, name: str) -> str:
         return check_run_name(name) if name else name
@@ -105,6 +108,11 @@ def run(ctx: StageContext) -> dict:
         summaries["meshes"] = _robot_meshes(ctx)
         if notes["convergence"]:
             notes["convergence"]["differs"] = _differs(conv, ctx.inputs.get("robot"), ("orient", "material"))
+    dyn, notes["dynamics"] = _source(ctx, "dynamics")
+    if dyn is not None:  # the robot in time: this pipeline's dynamics stage, or the maze-dynamics pipeline's
+        summaries["dynamics"] = _dynamics(dyn, pictures, ctx)
+        if notes["dynamics"]:
+            notes["dynamics"]["differs"] = _differs(dyn, ctx.inputs.get("robot"), ("orient", "material"))
     summaries["siblings"] = {k: v for k, v in notes.items() if v}
     if "reduce" in ctx.inputs and (ctx.inputs["reduce"] / "reduce.json").exists():
         summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
@@ -185,6 +193,27 @@ def _columns(ctx: StageContext, name: str, pictures: dict) -> dict:
     return out
 
 
+def _dynamics(d: Path, pictures: dict, ctx: StageContext) -> dict:
+    """Column -> the dynamics stage's summary (its folder and ``<column>/``), its pictures copied
+    as ``dynamics_<column>_<name>`` and listed under "dynamics/<column>/<name>"."""
+    from ...report.dynamics import COPIED
+    from ..column import COLUMNS
+
+    out = {}
+    for folder in (d, *(d / c for c in COLUMNS)):
+        if not (folder / "dynamics.json").exists():
+            continue
+        z = json.loads((folder / "dynamics.json").read_text())
+        col = z.get("column", "prediction")
+        out[col] = z
+        for name in COPIED:
+            if (folder / name).exists():
+                target = f"dynamics_{col}_{name}"
+                shutil.copyfile(folder / name, ctx.path(target))
+                pictures[f"dynamics/{col}/{name}"] = target
+    return out
+
+
 def _robot_meshes(ctx: StageContext) -> dict:
     """Stage -> the robot mesh it ran on (element, mesh_size, layers, grip_size): the orient
     stage's for the robot stage, with each study's own overrides (its manifest's params)."""
@@ -217,7 +246,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
-              "ranges", "anisotropy", "maze", "sheet", "design"),
+              "ranges", "anisotropy", "maze", "sheet", "design", "dynamics"),
     siblings=sibling_folders, outputs=("report.md",),
     doc="Markdown report of the studies, labelled with the paper's figures",
 ))
