@@ -94,14 +94,15 @@ class MazePlayed:
 
 def play_maze(dyn, qs, rest, times, angles, geometry: MazeGeometry, *, h: float, top: float,
               marble: MarbleSettings = MarbleSettings(), speed: float = 1.0, progress=None,
-              keep_x: list | None = None, keep_every: int = 1, ends=None) -> MazePlayed:
+              keep_x: list | None = None, keep_every: int = 1, ends=None, quasi_x: list | None = None) -> MazePlayed:
     """Play the motor program (``times`` (T,) [s], ``angles`` (T, na) [rad]) on ``dyn`` from the
     equilibrium ``rest`` in steps of ``h`` [s], ``speed`` times faster; compare with ``qs``'s
     quasi-static path; roll the marble from the path's start on the plate whose top face is
     ``top`` [mm] above the rod's reference point (``keep_x``, ``keep_every``: :func:`.response.play`;
-    ``ends`` [s] each segment's hold end in the program's time, for :func:`segment_arrivals`)."""
+    ``ends`` [s] each segment's hold end in the program's time, for :func:`segment_arrivals`;
+    ``quasi_x`` a list that receives the quasi-static path's node positions per sample)."""
     run, _ = play(dyn, rest, times, angles, h, speed=speed, progress=progress, keep_x=keep_x, keep_every=keep_every)
-    quasi = quasi_static_path(qs, rest, np.asarray(times, float) / speed, angles)
+    quasi = quasi_static_path(qs, rest, np.asarray(times, float) / speed, angles, keep_x=quasi_x)
     mm, deg = pose_gap(run, quasi)
     motion = plate_motion(run.t, run.pose, top=top)
     m = roll(motion, geometry, geometry.path[0], marble)

@@ -108,13 +108,15 @@ def _playback(rows: list[DynamicState]) -> Playback:
                     np.array([r.tangents for r in rows]))
 
 
-def quasi_static_path(qs: DynamicRobot, start: DynamicState, times, angles, *, substeps: int = 1) -> Playback:
+def quasi_static_path(qs: DynamicRobot, start: DynamicState, times, angles, *, substeps: int = 1,
+                      keep_x: list | None = None) -> Playback:
     """The equilibria along the program (``qs`` a :class:`DynamicRobot` with the
     :class:`~.schemes.QuasiStatic` scheme and the same rigid body), at each sample, continued from
     one to the next (``substeps`` equal motor increments between samples). A sample whose
     equilibrium the solve does not find (soft sheets snapping under a large motor jump: the
     inertia that carries the dynamic run through is absent here) is NaN, and the next sample
-    continues from the last one found (:attr:`Playback.unsolved` counts them)."""
+    continues from the last one found (:attr:`Playback.unsolved` counts them). ``keep_x``: a list
+    that receives each sample's node positions (n, 3) [mm] (the last found for a NaN sample)."""
     tt, aa = check_program(times, angles, qs.robot.coupling.n_act)
     rows, ds = [], start
     for i, t in enumerate(tt):
@@ -127,9 +129,13 @@ def quasi_static_path(qs: DynamicRobot, start: DynamicState, times, angles, *, s
             nan = np.full(3, np.nan)
             lost = dataclasses.replace(ds.state, p=nan, R=np.full((3, 3), np.nan), angles=aa[i])
             rows.append(DynamicState(lost, dataclasses.replace(ds.kin, t=float(t)), ds.torques * np.nan, -1, 0))
+            if keep_x is not None:
+                keep_x.append(ds.state.x.copy())
             continue
         rows.append(DynamicState(ds.state, dataclasses.replace(ds.kin, t=float(t)), ds.torques, ds.newton,
                                  ds.tangents))
+        if keep_x is not None:
+            keep_x.append(ds.state.x.copy())
     return _playback(rows)
 
 

@@ -8,6 +8,7 @@ over the executor's workers.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,6 +16,7 @@ import numpy as np
 from ..dynamics.marble import MarbleSettings
 from ..dynamics.maze_geometry import MazeGeometry, maze_from_path
 from ..dynamics.maze_run import maze_inertia, play_maze
+from ..dynamics.modal import fastest_speed, modal_model, path_coordinates, rod_gap
 from ..dynamics.response import quasi_static_path, step_response
 from ..dynamics.robot import DynamicRobot
 from ..dynamics.robot_modes import robot_modes
@@ -28,7 +30,8 @@ class DynamicsSettings:
     """scheme ("implicit_euler" | "generalized_alpha"), rho_inf [-], dt [s] the robot's step;
     alpha [1/s], beta [s] Rayleigh; marble; corridor, wall_height, plate_thickness, rod_radius
     [mm] the maze; n_modes; step_mm [mm], step_deg [deg], step_s [s], servo_speed [deg/s] the
-    step responses; frame_s [s] the animation's frame period."""
+    step responses; frame_s [s] the animation's frame period; fast_tol_mm [mm] the fastest
+    playback's distance from the quasi-static path; speeds: the speed-ups the full model plays."""
 
     scheme: str = "generalized_alpha"
     rho_inf: float = 0.8
@@ -46,6 +49,8 @@ class DynamicsSettings:
     step_s: float = 0.4
     servo_speed: float = 600.0
     frame_s: float = 0.2
+    fast_tol_mm: float = 1.0
+    speeds: tuple = ()
 
     def __post_init__(self):
         check_range("dt", self.dt, 0.0, 0.1, lo_open=True)
@@ -129,8 +134,10 @@ def _maze(unit: Unit) -> dict:
     times, angles = np.asarray(unit.times, float), np.asarray(unit.angles, float)
     every = max(1, int(round(s.frame_s / s.dt)))
     frames = [] if unit.frames else None
+    quasi_x = [] if unit.frames else None
     res = play_maze(dyn, qs, rest, times, angles, geo, h=s.dt, top=s.top, marble=s.marble, speed=unit.speed,
-                    keep_x=frames, keep_every=every, ends=unit.ends or None)
+                    keep_x=frames, keep_every=every, ends=unit.ends or None, quasi_x=quasi_x)
+    modal = None if quasi_x is None else _modal(unit, qs, rest, res.quasi, np.array(quasi_x))
     m = res.marble
     return {"speed": unit.speed, "t": res.run.t, "pose": res.run.pose, "angles": res.run.angles,
             "torques": res.run.torques, "newton": res.run.newton, "tangents": res.run.tangents,
@@ -142,7 +149,26 @@ def _maze(unit: Unit) -> dict:
             "arrivals": None if res.arrivals is None else res.arrivals.tolist(),
             "motor_speed_deg_s": float(np.degrees(np.abs(np.diff(angles, axis=0)) / np.diff(times)[:, None]).max()
                                        * unit.speed), "frames_x": None if frames is None else np.array(frames),
-            "frames_every": every, "tets": robot.body.tets, "geometry": geo, "path_length": _length(geo)}
+            "frames_every": every, "tets": robot.body.tets, "geometry": geo, "path_length": _length(geo),
+            "modal": modal}
+
+
+def _modal(unit: Unit, qs, rest, quasi, x_path: np.ndarray) -> dict | None:
+    """The modal model (:mod:`metasheet.dynamics.modal`) on this program: its fastest playback
+    within ``fast_tol_mm`` and its gap at each speed the full model plays (the check)."""
+    s = unit.settings
+    if quasi.unsolved:
+        return None
+    modes = robot_modes(qs, rest.state, n=s.n_modes)
+    model = modal_model(modes, s.alpha, s.beta)
+    pts = np.array([qs.points(p, R) for p, R in zip(quasi.p, quasi.R)])
+    m = path_coordinates(modes.shapes, modes.effector, qs.M, x_path, pts, qs.m_pts, rest.state.p)
+    times = np.asarray(unit.times, float)
+    t0 = time.perf_counter()
+    fastest = fastest_speed(model, times, m, s.dt, s.fast_tol_mm)
+    per_run = (time.perf_counter() - t0) / max(1, len(fastest["evaluations"]))
+    gaps = {str(v): rod_gap(model, times, m, s.dt, v) for v in (1.0, *s.speeds)}
+    return {"fastest": fastest, "gaps_mm": gaps, "modes": len(model.omega), "seconds_per_playback": per_run}
 
 
 def _length(geo: MazeGeometry) -> float:

@@ -85,7 +85,7 @@ class DynamicsParams(StudyRobotParams):
                                 wall_height=self.wall_height, plate_thickness=self.plate_thickness,
                                 rod_radius=self.rod_radius, n_modes=self.n_modes, step_mm=self.step_mm,
                                 step_deg=self.step_deg, step_s=self.step_s, servo_speed=self.servo_speed,
-                                frame_s=self.frame_s)
+                                frame_s=self.frame_s, fast_tol_mm=self.fast_tol_mm, speeds=tuple(self.speeds))
 
 
 def read_program(path, rest_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
@@ -182,7 +182,7 @@ def _write(ctx: StageContext, p: DynamicsParams, foam, modes, sil, sil_modes, fa
         "steps": [{k: st[k] for k in ("dof", "size", "final", "rise_s", "overshoot_pct", "settling_s")}
                   for st in modes["steps"]],
         "maze": _verdict(foam), "silicone": None if sil is None else _verdict(sil),
-        "fastest": fastest, "duration_s": float(foam["quasi_t"][-1]),
+        "fastest": fastest, "modal": foam["modal"], "duration_s": float(foam["quasi_t"][-1]),
     }
     write_pictures(ctx, p, foam, modes, sil, summary)
     write_json_atomic(ctx.path("dynamics.json"), summary)
