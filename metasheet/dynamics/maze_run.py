@@ -77,7 +77,8 @@ def path_verdict(geometry: MazeGeometry, u: np.ndarray) -> tuple[int, bool]:
 @dataclass(frozen=True)
 class MazePlayed:
     """run : the robot in time (:class:`.response.Playback`); quasi : its quasi-static path at the
-    program's samples; gap_mm, gap_deg : (samples,) the run's distance from it; marble : the
+    program's samples; gap_mm, gap_deg : (steps,) the run's distance from it at each step (the
+    path joined linearly between its samples); marble : the
     :class:`.marble.MarbleRun`; vertices : path vertices passed in order; solved : all of them;
     arrivals : per segment, the marble at its end vertex when the segment's hold ends (None
     without ``ends``)."""

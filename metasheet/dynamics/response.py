@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError, check_range
-from ..mechanics.rotations import rotation_vector
+from ..mechanics.rotations import rotation_matrix, rotation_vector
 from .robot import DynamicRobot, DynamicState
 
 
@@ -140,13 +140,20 @@ def quasi_static_path(qs: DynamicRobot, start: DynamicState, times, angles, *, s
 
 
 def pose_gap(run: Playback, reference: Playback) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample of ``reference``, the distance [mm] and angle [deg] between ``run``'s rod pose
-    (interpolated linearly in time) and the reference's (NaN where the reference is)."""
-    p = np.stack([np.interp(reference.t, run.t, run.p[:, k]) for k in range(3)], axis=1)
-    idx = np.abs(run.t[None, :] - reference.t[:, None]).argmin(axis=1)  # the run's step nearest each sample
-    mm = np.linalg.norm(p - reference.p, axis=1)
-    deg = np.array([np.degrees(np.linalg.norm(rotation_vector(run.R[i] @ Rr.T))) if np.all(np.isfinite(Rr))
-                    else np.nan for i, Rr in zip(idx, reference.R)])
+    """At each of ``run``'s steps, the distance [mm] and angle [deg] between its rod pose and the
+    ``reference`` path's, joined linearly between the reference's samples (positions, and
+    rotations by their rotation vectors); NaN beyond the reference's ends or next to a sample it
+    did not solve."""
+    t = run.t
+    ref = reference.pose
+    inside = (t >= reference.t[0] - 1e-12) & (t <= reference.t[-1] + 1e-12)
+    q = np.stack([np.interp(t, reference.t, ref[:, k]) for k in range(6)], axis=1)
+    q[~inside] = np.nan
+    mm = np.linalg.norm(run.p - q[:, :3], axis=1)
+    deg = np.full(len(t), np.nan)
+    ok = np.all(np.isfinite(q), axis=1)
+    for i in np.flatnonzero(ok):
+        deg[i] = np.degrees(np.linalg.norm(rotation_vector(run.R[i] @ rotation_matrix(q[i, 3:]).T)))
     return mm, deg
 
 

@@ -41,9 +41,23 @@ def _fastest(f: Mapping) -> str:
     last = max(tried)
     servo = "within" if t["within_servo_speed"] else "beyond"
     more = "" if f["speed"] < last else f" (the fastest tried: {last:g}x)"
+    solved = [f"{x['speed']:g}x" for x in f["tried"] if x["solved"]]
     return (f"{f['speed']:g}x ({_f(f['duration_s'])} s) within {f['tol_mm']:g} mm{more}; the motors then turn at "
-            f"{t['motor_speed_deg_s']:.3g} deg/s, {servo} the servos' {f['servo_speed_deg_s']:g} deg/s; "
-            f"the marble {'solves' if t['solved'] else 'does not solve'} the maze at that speed")
+            f"{t['motor_speed_deg_s']:.3g} deg/s, {servo} the servos' {f['servo_speed_deg_s']:g} deg/s; the marble "
+            f"solves the maze at {', '.join(solved) if solved else 'none of the speeds tried'}")
+
+
+def _modal(m: Mapping | None, tol: float) -> str:
+    if not m:
+        return "-"
+    f = m["fastest"]
+    if f["speed"] is None:
+        return f"no playback within {tol:g} mm"
+    limit = m["servo_limited_speed"]
+    bound = ("the servos' speed, not the sheets, bounds it" if f["speed"] >= limit * (1 - 1e-9)
+             else f"beyond it the rod lags more than {tol:g} mm")
+    return (f"{f['speed']:.3g}x within {tol:g} mm (gap {f['gap_mm']:.3g} mm; the servos allow {limit:.3g}x): {bound}; "
+            f"{m['modes']} modes, {1000 * m['seconds_per_playback']:.3g} ms a playback")
 
 
 def dynamics_section(columns: Mapping[str, Mapping], pictures: Mapping[str, str]) -> tuple[list[str], list[str]]:
@@ -66,7 +80,8 @@ def dynamics_section(columns: Mapping[str, Mapping], pictures: Mapping[str, str]
                 ("the maze on silicone", _corners(z.get("silicone"))),
                 ("largest distance from the quasi-static path [mm]", _f(z["maze"]["max_gap_mm"])),
                 ("largest servo torque [N mm]", _f(z["maze"]["max_torque_Nmm"])),
-                ("fastest playback", _fastest(z["fastest"]))]
+                ("fastest playback, full model", _fastest(z["fastest"])),
+                ("fastest playback, modal model", _modal(z.get("modal"), z["fastest"]["tol_mm"]))]
         lines += [f"### {col.capitalize()} column", "", "| quantity | value |", "|---|---|"]
         lines += [f"| {a} | {b} |" for a, b in rows] + [""]
         for name in COPIED:

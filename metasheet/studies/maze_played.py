@@ -155,7 +155,8 @@ def _maze(unit: Unit) -> dict:
 
 def _modal(unit: Unit, qs, rest, quasi, x_path: np.ndarray) -> dict | None:
     """The modal model (:mod:`metasheet.dynamics.modal`) on this program: its fastest playback
-    within ``fast_tol_mm`` and its gap at each speed the full model plays (the check)."""
+    within ``fast_tol_mm``, up to the speed-up at which the fastest motor reaches the servos'
+    speed, and its gap at each speed the full model plays (the check)."""
     s = unit.settings
     if quasi.unsolved:
         return None
@@ -165,10 +166,14 @@ def _modal(unit: Unit, qs, rest, quasi, x_path: np.ndarray) -> dict | None:
     m = path_coordinates(modes.shapes, modes.effector, qs.M, x_path, pts, qs.m_pts, rest.state.p)
     times = np.asarray(unit.times, float)
     t0 = time.perf_counter()
-    fastest = fastest_speed(model, times, m, s.dt, s.fast_tol_mm)
+    angles = np.asarray(unit.angles, float)
+    motor_speed = float(np.degrees(np.abs(np.diff(angles, axis=0)) / np.diff(times)[:, None]).max())  # [deg/s]
+    servo_limit = s.servo_speed / motor_speed if motor_speed > 0 else 1024.0  # the servos' own limit
+    fastest = fastest_speed(model, times, m, s.dt, s.fast_tol_mm, hi=max(1.0, servo_limit))
     per_run = (time.perf_counter() - t0) / max(1, len(fastest["evaluations"]))
     gaps = {str(v): rod_gap(model, times, m, s.dt, v) for v in (1.0, *s.speeds)}
-    return {"fastest": fastest, "gaps_mm": gaps, "modes": len(model.omega), "seconds_per_playback": per_run}
+    return {"fastest": fastest, "servo_limited_speed": servo_limit, "gaps_mm": gaps, "modes": len(model.omega),
+            "seconds_per_playback": per_run}
 
 
 def _length(geo: MazeGeometry) -> float:

@@ -54,7 +54,7 @@ def write_pictures(ctx: StageContext, p, foam: dict, modes: dict, sil: dict | No
         title=f"Step responses of the rod's six DOF [{col}]"))
     verdict = summary["maze"]
     ctx.path("maze_played.png").write_bytes(tracking_picture(
-        foam["quasi_t"], foam["gap_mm"], foam["gap_deg"], foam["marble_t"], foam["marble_progress"],
+        foam["t"], foam["gap_mm"], foam["gap_deg"], foam["marble_t"], foam["marble_progress"],
         foam["path_length"], title=f"The maze played on foam sheets [{col}]: "
         f"{'solved' if verdict['solved'] else 'not solved'} ({verdict['vertices']} of {len(foam['geometry'].path) - 1} "
         "corners in order)"))

@@ -29,7 +29,7 @@ from ...studies.maze_played import DynamicsSettings, Unit, run_unit
 from ..column import column_folder
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
-from ._studies import StudyRobotParams, build_spec, run_columns, scene_of, write_csv
+from ._studies import StudyRobotParams, build_spec, drop_cache, run_columns, scene_of, unit_cache, write_csv
 from ._dynamics_files import modes_record, played_rows, steps_rows, write_pictures
 
 
@@ -132,7 +132,8 @@ def _run_one(ctx: StageContext) -> dict:
         units += [Unit("maze", sil_spec, s, path, tuple(st), tuple(map(tuple, sa)), 1.0, False, sends),
                   Unit("modes", sil_spec, s, path)]
     units += [Unit("maze", spec, s, path, *program, v, False, ends) for v in p.speeds]
-    out = ctx.executor.map(run_unit, units, progress=lambda d, n: ctx.progress("dynamics units", d, n))
+    # finished units are kept (resume = true): an interrupted run picks up where it stopped
+    out = unit_cache(ctx).map(ctx.executor, run_unit, units, progress=lambda d, n: ctx.progress("dynamics units", d, n))
     foam, modes = out[0], out[1]
     sil, sil_modes = (out[2], out[3]) if sil_spec is not None else (None, None)
     fast = out[4 if sil_spec is not None else 2:]
@@ -186,6 +187,7 @@ def _write(ctx: StageContext, p: DynamicsParams, foam, modes, sil, sil_modes, fa
     }
     write_pictures(ctx, p, foam, modes, sil, summary)
     write_json_atomic(ctx.path("dynamics.json"), summary)
+    drop_cache(ctx)
     return summary
 
 
