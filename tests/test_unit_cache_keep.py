@@ -101,3 +101,14 @@ def test_without_resume_nothing_is_kept(tmp_path, monkeypatch):
     text = _text(4, small=True).replace("continuity = false", "continuity = false\nresume = false")
     run_pipeline(load_pipeline(project(tmp_path, text, "keep")))
     assert not list((tmp_path / "outputs" / "keep").glob(".*.units"))
+
+
+def test_the_code_digest_reads_the_whole_package():
+    """The digest hashes every module of metasheet, not only its own folder (it lived at the
+    package's root before runtime/ existed, and then hashed runtime/ alone)."""
+    from metasheet.runtime import provenance
+
+    names = {f.relative_to(provenance.PACKAGE).as_posix() for f in provenance.source_files()}
+    assert {"__init__.py", "robot/body.py", "pipeline/manifest.py", "runtime/provenance.py",
+            "dynamics/robot.py"} <= names
+    assert provenance.PACKAGE.name == "metasheet"

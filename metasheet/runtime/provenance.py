@@ -14,11 +14,20 @@ import hashlib
 from pathlib import Path
 
 
+#: the metasheet package's folder (this module lives in ``metasheet/runtime/``)
+PACKAGE = Path(__file__).resolve().parents[1]
+
+
+def source_files() -> list[Path]:
+    """Every ``.py`` file of the metasheet package, sorted."""
+    return sorted(PACKAGE.rglob("*.py"))
+
+
 @functools.cache
 def code_digest() -> str:
-    """sha256 (hex) of every ``.py`` file of the package, by path and bytes, once per process."""
-    root = Path(__file__).resolve().parent
+    """sha256 (hex) of every ``.py`` file of the package (:func:`source_files`), by path and
+    bytes, once per process."""
     h = hashlib.sha256()
-    for f in sorted(root.rglob("*.py")):
-        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    for f in source_files():
+        h.update(f.relative_to(PACKAGE).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()

@@ -53,8 +53,9 @@ def write_pictures(ctx: StageContext, p, foam: dict, modes: dict, sil: dict | No
         [{k: st[k] for k in ("rise_s", "overshoot_pct", "settling_s")} for st in steps],
         title=f"Step responses of the rod's six DOF [{col}]"))
     verdict = summary["maze"]
+    ok = np.isfinite(foam["gap_mm"]) & np.isfinite(foam["gap_deg"])  # a sample the path did not solve: a gap
     ctx.path("maze_played.png").write_bytes(tracking_picture(
-        foam["t"], foam["gap_mm"], foam["gap_deg"], foam["marble_t"], foam["marble_progress"],
+        foam["t"][ok], foam["gap_mm"][ok], foam["gap_deg"][ok], foam["marble_t"], foam["marble_progress"],
         foam["path_length"], title=f"The maze played on foam sheets [{col}]: "
         f"{'solved' if verdict['solved'] else 'not solved'} ({verdict['vertices']} of {len(foam['geometry'].path) - 1} "
         "corners in order)"))
