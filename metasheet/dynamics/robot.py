@@ -155,6 +155,9 @@ class DynamicRobot:
         self.robot, self.alpha, self.beta = robot, float(alpha), float(beta)
         self.scheme = scheme or ImplicitEuler()
         body = robot.body
+        if mass == "lumped" and np.any(body.mass < 0):
+            raise ConfigError("mass: 'lumped': the body's nodal masses are negative at some nodes (P2's vertices "
+                              "carry -1/20 of an element's mass); allowed 'consistent' for quadratic sheets")
         self.M = consistent_mass(body) if mass == "consistent" else lumped_mass(body)
         c = robot.coupling
         if rigid is None:

@@ -91,7 +91,8 @@ def _robots(unit: Unit):
     if key not in _CACHE:
         s = unit.settings
         robot = unit.spec.build().robot
-        geo = maze_from_path(np.asarray(unit.path, float), width=s.corridor, wall_height=s.wall_height)
+        path = np.asarray(unit.path, float)
+        geo = maze_from_path(path - maze_offset(path), width=s.corridor, wall_height=s.wall_height, margin=2.0)
         rigid = maze_inertia(geo, rod_length=float(robot.info.get("rod_length_mm", 80.0)), rod_radius=s.rod_radius,
                              thickness=s.plate_thickness, origin=robot.coupling.origin)
         dyn = DynamicRobot(robot, rigid, alpha=s.alpha, beta=s.beta, scheme=scheme(s.scheme, s.rho_inf))
@@ -100,6 +101,12 @@ def _robots(unit: Unit):
         _CACHE.clear()  # one robot per process at a time: they are big
         _CACHE[key] = (robot, dyn, qs, dyn.start(rest.state), geo)
     return _CACHE[key]
+
+
+def maze_offset(path: np.ndarray) -> np.ndarray:
+    """(2,) [mm] the centre of the path's bounding box: the maze is built around the rod (the
+    path minus it), so that its plate stays between the sheets."""
+    return 0.5 * (path.min(axis=0) + path.max(axis=0))
 
 
 def run_unit(unit: Unit) -> dict:
@@ -150,6 +157,7 @@ def _maze(unit: Unit) -> dict:
             "motor_speed_deg_s": float(np.degrees(np.abs(np.diff(angles, axis=0)) / np.diff(times)[:, None]).max()
                                        * unit.speed), "frames_x": None if frames is None else np.array(frames),
             "frames_every": every, "tets": robot.body.tets, "geometry": geo, "path_length": _length(geo),
+            "path_in": unit.path,
             "modal": modal}
 
 

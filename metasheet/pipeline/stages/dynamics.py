@@ -25,7 +25,7 @@ from ...dynamics.marble import MarbleSettings
 from ...dynamics.maze_geometry import plate_bounds, to_json
 from ...errors import ConfigError
 from ...mechanics.material import Isotropic
-from ...studies.maze_played import DynamicsSettings, Unit, run_unit
+from ...studies.maze_played import DynamicsSettings, Unit, maze_offset, run_unit
 from ..column import column_folder
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
@@ -162,7 +162,8 @@ def _fastest(foam: dict, fast: list[dict], tol: float, servo_speed: float) -> di
 def _write(ctx: StageContext, p: DynamicsParams, foam, modes, sil, sil_modes, fast) -> dict:
     geo = foam["geometry"]
     write_json_atomic(ctx.path("maze_geometry.json"), {**to_json(geo), "plate_bounds": plate_bounds(geo).tolist(),
-                                                       "top_mm": p.rod_radius + p.plate_thickness})
+                                                       "top_mm": p.rod_radius + p.plate_thickness,
+                                                       "offset_mm": maze_offset(np.asarray(foam["path_in"])).tolist()})
     write_json_atomic(ctx.path("modes.json"), {"foam": modes_record(modes),
                                                "silicone": None if sil_modes is None else modes_record(sil_modes)})
     write_csv(ctx.path("steps.csv"), *steps_rows(modes))
