@@ -57,7 +57,7 @@ def _modal(m: Mapping | None, tol: float) -> str:
     bound = ("the servos' speed, not the sheets, bounds it" if f["speed"] >= limit * (1 - 1e-9)
              else f"beyond it the rod lags more than {tol:g} mm")
     return (f"{f['speed']:.3g}x within {tol:g} mm (gap {f['gap_mm']:.3g} mm; the servos allow {limit:.3g}x): {bound}; "
-            f"{m['modes']} modes, {1000 * m['seconds_per_playback']:.3g} ms a playback")
+            f"{m['modes']} modes")
 
 
 def dynamics_section(columns: Mapping[str, Mapping], pictures: Mapping[str, str]) -> tuple[list[str], list[str]]:
