@@ -42,7 +42,7 @@ def _program(spec, tilt_deg=3.0, ramp=0.25, hold=0.5):
 def test_the_marble_rolls_the_L_in_one_go(spec):
     times, angles = _program(spec)
     s = DynamicsSettings(scheme="implicit_euler", dt=0.01, corridor=10.0, frame_s=0.1)
-    r = run_unit(Unit("maze", spec, s, PATH, tuple(times), tuple(map(tuple, angles)), 1.0, True))
+    r = run_unit(Unit("maze", spec, s, PATH, tuple(times), tuple(map(tuple, angles)), 1.0, True, main=True))
     assert r["solved"] and r["vertices"] == 2 and not r["lifted_off"]
     assert r["marble_progress"][-1] > 0.9 * r["path_length"]
     # slow tilts: the robot stays within a tenth of a millimetre of its quasi-static path
@@ -54,7 +54,7 @@ def test_the_marble_rolls_the_L_in_one_go(spec):
 
 def test_modes_and_step_responses_of_the_coarse_robot(spec):
     s = DynamicsSettings(scheme="implicit_euler", dt=0.004, step_s=0.15, n_modes=4)
-    r = run_unit(Unit("modes", spec, s, PATH))
+    r = run_unit(Unit("modes", spec, s, PATH, main=True))
     f = r["frequencies_hz"]
     assert np.all(np.diff(f) >= 0) and 5 < f[0] < 100
     for st in r["steps"]:

@@ -79,6 +79,7 @@ class Unit:
     speed: float = 1.0
     frames: bool = False
     ends: tuple = ()
+    main: bool = False
 
 
 _CACHE: dict = {}
@@ -120,7 +121,7 @@ def _modes(unit: Unit) -> dict:
     m = robot_modes(qs, rest.state, n=s.n_modes)
     J = kinematics_at(robot, rest.state).J
     steps = []
-    for dof in range(6):
+    for dof in range(6 if unit.main else 0):
         size = s.step_mm if dof < 3 else np.radians(s.step_deg)
         r = step_response(dyn, qs, rest, J, dof, size, duration=s.step_s, h=min(s.dt, 0.002),
                           servo_speed=np.radians(s.servo_speed))
@@ -141,7 +142,7 @@ def _maze(unit: Unit) -> dict:
     times, angles = np.asarray(unit.times, float), np.asarray(unit.angles, float)
     every = max(1, int(round(s.frame_s / s.dt)))
     frames = [] if unit.frames else None
-    quasi_x = [] if unit.frames else None
+    quasi_x = [] if unit.main else None
     res = play_maze(dyn, qs, rest, times, angles, geo, h=s.dt, top=s.top, marble=s.marble, speed=unit.speed,
                     keep_x=frames, keep_every=every, ends=unit.ends or None, quasi_x=quasi_x)
     modal = None if quasi_x is None else _modal(unit, qs, rest, res.quasi, np.array(quasi_x))
