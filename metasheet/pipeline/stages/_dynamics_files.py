@@ -62,7 +62,7 @@ def write_pictures(ctx: StageContext, p, foam: dict, modes: dict, sil: dict | No
     geo = foam["geometry"]
     title = f"The marble's track on foam [{col}]"
     if sil is not None:
-        title += f"; silicone: {sil['vertices']} of {len(geo.path) - 1} corners"
+        title += f"\nsilicone sheets: {sil['vertices']} of {len(geo.path) - 1} corners in order"
     ctx.path("marble.png").write_bytes(maze_picture(geo.path, geo.walls, geo.plate, foam["marble_u"],
                                                     times=foam["marble_t"], title=title))
     if not p.animation or foam["frames_x"] is None:
