@@ -85,6 +85,7 @@ def play(dyn: DynamicRobot, start: DynamicState, times, angles, h: float, *, spe
     tt = tt / speed
     end = float(tt[-1]) if t_end is None else float(t_end)
     n = max(1, int(np.ceil((end - start.kin.t) / h - 1e-9)))
+    dyn.reset()  # the same run whatever ran on this robot before
     rows = [start]
     ds = start
     if keep_x is not None:
@@ -118,6 +119,7 @@ def quasi_static_path(qs: DynamicRobot, start: DynamicState, times, angles, *, s
     continues from the last one found (:attr:`Playback.unsolved` counts them). ``keep_x``: a list
     that receives each sample's node positions (n, 3) [mm] (the last found for a NaN sample)."""
     tt, aa = check_program(times, angles, qs.robot.coupling.n_act)
+    qs.reset()
     rows, ds = [], start
     for i, t in enumerate(tt):
         prev = aa[i - 1] if i else ds.state.angles

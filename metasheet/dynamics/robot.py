@@ -215,11 +215,16 @@ class DynamicRobot:
         p = st.p + h * (v_c + np.cross(w, st.p - com))
         return p, rotation_matrix(h * w) @ st.R
 
+    def reset(self) -> None:
+        """Forget the chord tangent and the damping's stiffness carried between steps: a run
+        from a given state then gives the same bits whatever ran on this robot before."""
+        self._lin, self._K = None, None
+
     # -- time --------------------------------------------------------------------------------
     def start(self, state: RobotState, t: float = 0.0) -> DynamicState:
         """A state at rest in time (zero velocity and, for generalised-alpha, the acceleration of
         that state's force imbalance: zero at an equilibrium) at ``state``."""
-        self._lin, self._K = None, None
+        self.reset()
         x = np.vstack([state.x, self.points(state.p, state.R)])
         zero = np.zeros_like(x)
         return DynamicState(state, Kinematics(x, zero, zero.copy(), float(t)), np.zeros(self.robot.coupling.n_act))
