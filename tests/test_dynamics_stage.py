@@ -85,3 +85,24 @@ def test_the_stage_plays_the_maze_and_the_report_shows_it(tmp_path):
     assert len(z["frequencies_hz"]) == 3 and len(z["steps"]) == 6
     report = (tmp_path / "out" / "md" / "report" / "report.md").read_text()
     assert "The maze, played" in report and "dynamics_prediction_maze_played.gif" in report
+
+
+@pytest.mark.slow
+@pytest.mark.bytes
+def test_the_stage_gives_the_same_bytes_serially_and_on_two_workers(tmp_path):
+    """Each unit builds its robots once per process and runs from a clean chord and damping
+    stiffness (DynamicRobot.reset): the order units meet in a worker does not show."""
+    from metasheet.pipeline.config import load_pipeline
+    from metasheet.pipeline.runner import run_pipeline
+
+    out = {}
+    for workers in (1, 2):
+        d = tmp_path / f"w{workers}"
+        d.mkdir()
+        (d / "md.toml").write_text(PIPELINE.replace('name = "md"', f'name = "md"\nworkers = {workers}'))
+        run_pipeline(load_pipeline(d / "md.toml"), out_root=d / "out")
+        folder = d / "out" / "md" / "dynamics"
+        out[workers] = {f.name: f.read_bytes() for f in folder.iterdir() if f.is_file() and f.name != "manifest.json"}
+    assert out[1].keys() == out[2].keys() and len(out[1]) >= 12
+    for name in out[1]:
+        assert out[1][name] == out[2][name], name
