@@ -9,9 +9,10 @@ force plus their inertia and Rayleigh damping at the scheme's evaluation point,
     f_step(x_{n+1}) = f(x*) + M a* + C v*,       K_step = c_x K(x*) + c_a M + c_v C,
 
 with ``(x*, v*, a*)`` the scheme's stage of the candidate positions and ``C = alpha M + beta
-K(x_n)`` (SOFA's Rayleigh convention, the stiffness at the step's start). The servo nodes move
-with their horns; their rows of the residual are the torques the servos apply
-(:attr:`DynamicStep.torques`). The rod and plate are a rigid body of stated mass and inertia
+K`` (SOFA's Rayleigh convention), K the stiffness of the latest fresh tangent (SOFA's is at the
+step's start; this one is at most a few steps old: it is refreshed with the chord tangent).
+The servo nodes move with their horns; their rows of the residual are the torques the servos
+apply (:attr:`DynamicState.torques`). The rod and plate are a rigid body of stated mass and inertia
 (:class:`~.mass.RigidInertia`), represented exactly by six point masses on its principal axes
 (the same mass, centre and inertia tensor): their positions ``p + R rho_i`` follow the same
 scheme as the nodes, so the rigid body's inertia (centripetal and gyroscopic terms included)
