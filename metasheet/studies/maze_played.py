@@ -17,7 +17,7 @@ from ..dynamics.marble import MarbleSettings
 from ..dynamics.maze_geometry import MazeGeometry, maze_from_path
 from ..dynamics.maze_run import maze_inertia, play_maze
 from ..dynamics.modal import fastest_speed, modal_model, path_coordinates, rod_gap
-from ..dynamics.response import quasi_static_path, step_response
+from ..dynamics.response import step_response
 from ..dynamics.robot import DynamicRobot
 from ..dynamics.robot_modes import robot_modes
 from ..dynamics.schemes import QuasiStatic, scheme
@@ -188,8 +188,3 @@ def _modal(unit: Unit, qs, rest, quasi, x_path: np.ndarray) -> dict | None:
 def _length(geo: MazeGeometry) -> float:
     return float(np.linalg.norm(np.diff(geo.path, axis=0), axis=1).sum())
 
-
-def quasi_static_only(unit: Unit):
-    """The program's quasi-static path alone (tests, the docs)."""
-    robot, dyn, qs, rest, geo = _robots(unit)
-    return quasi_static_path(qs, rest, np.asarray(unit.times, float), np.asarray(unit.angles, float))

@@ -74,7 +74,9 @@ def write_pictures(ctx: StageContext, p, foam: dict, modes: dict, sil: dict | No
 
     R = Rotation.from_rotvec(pose[:, 3:]).as_matrix()
     marble = np.stack([np.interp(t, foam["marble_t"], foam["marble_world"][:, k]) for k in range(3)], axis=1)
-    lo, hi = np.asarray(summary_plate(geo))
+    from ...dynamics.maze_geometry import plate_bounds
+
+    lo, hi = plate_bounds(geo)
     ctx.path("maze_played.gif").write_bytes(maze_animation(
         modes["tets"], foam["frames_x"][:len(t)], pose[:, :3], R, t, walls=geo.walls, plate_lo=lo, plate_hi=hi,
         top=p.rod_radius + p.plate_thickness, rod_length=modes["rod_length"],
@@ -82,10 +84,3 @@ def write_pictures(ctx: StageContext, p, foam: dict, modes: dict, sil: dict | No
         marble_radius=p.marble_radius, path=geo.path, fps=int(round(1.0 / p.frame_s)),
         title=f"The maze played [{col}]"))
 
-
-def summary_plate(geo) -> tuple[np.ndarray, np.ndarray]:
-    """The maze plate's (u, v) bounds [mm]."""
-    from ...dynamics.maze_geometry import plate_bounds
-
-    b = plate_bounds(geo)
-    return b[0], b[1]
