@@ -191,7 +191,7 @@ def test_a_reach_leaving_the_box_stops_where_the_strain_passes_the_domain_limit(
     spec, rspec, basis = trained
     ref = FemRobot(spec)
     goal = ref.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs more than +-10 deg
-    low = ReducedFem(rspec.with_domain_strain(1e-4))  # every edge is beyond
+    low = ReducedFem(rspec.with_domain_strain(1e-4, "full"))  # every edge is beyond
     r = low.reach(goal, tol_mm=0.5, rot_weight=0.0)
     assert r.left_domain and not r.reached and low.fallbacks == 0 and low.edge_stops == 1
     assert not hasattr(r.state, "x") and low.in_box(r.motors_deg)
@@ -203,13 +203,13 @@ def test_a_reach_leaving_the_box_stops_where_the_strain_passes_the_domain_limit(
     assert np.linalg.norm(pose_full[:3] - r.pose[:3]) <= 1.0
     # a strain is a gradient of the displacements the basis fits to 0.005 mm: 5.6 % apart measured
     assert s_edge > 1e-4 and s_edge == pytest.approx(s_edge_full, rel=0.1)
-    high = ReducedFem(rspec.with_domain_strain(10.0))  # nothing is beyond: the full model's answer
+    high = ReducedFem(rspec.with_domain_strain(10.0, "full"))  # nothing is beyond: the full model's answer
     rh = high.reach(goal, tol_mm=0.5, rot_weight=0.0)
     assert rh.reached and not rh.left_domain and high.edge_stops == high.strain_stops == 0 and high.fallbacks == 1
     s_end = ref.max_principal_strain(rh.state)
     assert s_end > 1.2 * s_edge_full  # the strain grows past the box: a limit fits between
     limit = 0.5 * (s_edge_full + s_end)
-    mid = ReducedFem(rspec.with_domain_strain(limit))
+    mid = ReducedFem(rspec.with_domain_strain(limit, "full"))
     rm = mid.reach(goal, tol_mm=0.5, rot_weight=0.0)
     assert rm.left_domain and not rm.reached and hasattr(rm.state, "x") and not mid.in_box(rm.motors_deg)
     assert mid.strain_stops == 1 and mid.edge_stops == 0
@@ -217,8 +217,56 @@ def test_a_reach_leaving_the_box_stops_where_the_strain_passes_the_domain_limit(
     pose_at, st_at = ref.equilibrium(rm.motors_deg)  # independent: the equilibrium there, beyond it too
     assert ref.max_principal_strain(st_at) > limit and np.abs(pose_at - rm.pose).max() < 0.1  # one Newton step off
     assert rm.steps < rh.steps  # it stopped on the way
-    assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key)
+    assert rspec.with_domain_strain(0.3).key not in (rspec.key, rspec.with_domain_strain(0.2).key,
+                                                     rspec.with_domain_strain(0.3, "full").key)
     assert rspec.with_domain_strain(None).key == rspec.key
+
+
+def test_past_the_box_the_reduced_model_stops_at_the_strain_limit_and_hands_far_reaches_over(trained):
+    """past_box "reduced": a reach whose first step past the box passes the limit stops there
+    on the reduced model alone (no full solve), its strain the full model's at the same angles
+    (within the basis's error); a reach going further than one control step past the box is
+    redone the "full" way and gives the full mode's answer."""
+    spec, rspec, basis = trained
+    ref = FemRobot(spec)
+    goal = ref.rest_pose() + np.array([0.0, 9.0, 0.0, 0, 0, 0])  # needs ~17 deg past the +-10 deg box
+    low = ReducedFem(rspec.with_domain_strain(0.05))
+    assert low.spec.past_box == "reduced"
+    r = low.reach(goal, tol_mm=0.5, rot_weight=0.0)
+    assert r.left_domain and not r.reached and not hasattr(r.state, "x")
+    assert low.fallbacks == 0 and low.strain_stops == 1 and low.past_box_reaches == 1 and low.redone == 0
+    out = low.degrees_outside(np.radians(r.motors_deg))
+    assert 0.0 < out <= spec.max_step_deg + 1e-9  # the first control step past the box
+    s_red = low.max_principal_strain(r.state)
+    _, st_full = ref.equilibrium(r.motors_deg)  # independent: the full model at those angles
+    assert s_red > 0.05 and ref.max_principal_strain(st_full) > 0.05
+    assert s_red == pytest.approx(ref.max_principal_strain(st_full), rel=0.15)  # 5 deg extrapolated
+    for limit in (10.0, 0.3):  # nothing is beyond / beyond only far out: both go too far, redone
+        red = ReducedFem(rspec.with_domain_strain(limit))
+        full = ReducedFem(rspec.with_domain_strain(limit, "full"))
+        a, b = red.reach(goal, tol_mm=0.5, rot_weight=0.0), full.reach(goal, tol_mm=0.5, rot_weight=0.0)
+        assert red.redone == 1 and full.redone == 0
+        assert (a.reached, a.left_domain) == (b.reached, b.left_domain)
+        # the redo starts with the tangent the first try left the controller: another path to
+        # the same answer (2.5e-4 mm apart measured)
+        assert np.abs(a.pose - b.pose).max() < 0.01 and np.abs(a.motors_deg - b.motors_deg).max() < 0.1
+
+
+def test_a_reach_reached_past_the_box_is_confirmed_by_the_full_model(trained):
+    """A goal the reduced model reaches within one control step past its box: the answer is the
+    full equilibrium at the same motor angles (independent: the full model's own solve there)."""
+    spec, rspec, basis = trained
+    ref = FemRobot(spec)
+    model = ReducedFem(rspec.with_domain_strain(10.0))
+    hi = np.degrees(basis.box_hi)
+    q = ref.rest_motors().copy()
+    q[1::2] = hi[1::2] + 2.0  # 2 deg past the box's top on every other motor
+    goal, _ = ref.equilibrium(q)
+    r = model.reach(goal, tol_mm=0.5, tol_deg=2.0)
+    assert r.reached and hasattr(r.state, "x") and model.past_box_reaches == 1 and model.redone == 0
+    assert 0.0 < model.degrees_outside(np.radians(r.motors_deg)) <= spec.max_step_deg
+    pose, _ = ref.equilibrium(r.motors_deg)
+    assert np.abs(pose - r.pose).max() < 1e-5 and r.error_mm <= 0.5
 
 
 def test_a_ray_stopping_beyond_the_strain_limit_ends_at_the_edge_of_the_reduced_models_domain(trained):

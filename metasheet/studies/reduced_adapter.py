@@ -21,10 +21,20 @@ With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies
 beyond the strain limit), a reach that stops at the box's edge with the material there already
 beyond the limit ends there: the goal lies outside the homogenised model's domain, and the
 reach returns that edge state with ``left_domain`` set (not reached), without the full model.
-Otherwise the full model's continuation stops at its first control step beyond the limit
-and returns that step's state, also with ``left_domain``: the study pays a few full steps
-past the box, not a full reach to angles where the material model no longer holds (minutes
-each on the converged mesh).
+Past the box, two ways (``past_box``):
+
+- ``"reduced"`` (the default): the reduced model carries the reach on past its box, and the
+  strain limit (on the full mesh's positions it lifts to) stops it as it stops the full model.
+  A reach that ends reached past the box is confirmed by the full model: the full equilibrium
+  at the same motor angles, started from the lifted state, must meet the reach's tolerances
+  and the strain limit; when it does not (or the reach stalls past the box), the reach is redone
+  the ``"full"`` way. Only the reaches the reduced model says succeed cost a full solve: on the
+  paper pipeline's prediction 9 of 190 workspace reaches past the box, the same classes at all
+  1,798 points, and 46 % less CPU (docs/performance.md, "A study point's cost").
+- ``"full"``: the full model's continuation from the box's edge (the edge state lifted to the
+  full mesh) stops at its first control step beyond the limit and returns that step's state,
+  also with ``left_domain``: the study pays a few full steps past the box, not a full reach to
+  angles where the material model no longer holds (minutes each on the converged mesh).
 
 A material change (``with_alpha``, ``with_material``) makes the basis invalid (it was trained
 for one material): those return the full model's spec, with a logged warning, so a study that
@@ -42,9 +52,20 @@ import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
 from .adapter import FemRobot, RobotSpec, remembered_strain
-from .model import pose_errors
+from .model import ReachResult, pose_errors
 
 log = logging.getLogger(__name__)
+
+
+#: Which model carries a reach on past the reduced model's training box (module docstring).
+PAST_BOX = ("reduced", "full")
+
+#: How far past its training box the reduced model carries a reach on (``past_box =
+#: "reduced"``), in control steps (the spec's ``max_step_deg`` of any motor); a reach going
+#: further is redone the ``"full"`` way. Far outside the box the extrapolated model steers
+#: elsewhere: on the paper pipeline's 20-70 motor range, reaches 20 deg below the box stopped at
+#: the strain limit where the full model reached.
+EXTRAPOLATE_STEPS = 1.0
 
 
 def file_hash(path: Path | str) -> str:
@@ -64,12 +85,19 @@ class ReducedSpec:
     basis_hash : :func:`file_hash` of that file when the spec was made (checked at build).
     domain_strain : the strain limit [-] a reach leaving the box is stopped at (see the module
         docstring); None: such reaches are carried on by the full model to their end.
+    past_box : with a domain strain, which model carries a reach on past the box (one of
+        :data:`PAST_BOX`; the module docstring).
     """
 
     full: RobotSpec
     basis_path: str
     basis_hash: str
     domain_strain: float | None = None
+    past_box: str = "reduced"
+
+    def __post_init__(self):
+        if self.past_box not in PAST_BOX:
+            raise ConfigError(f"past_box: {self.past_box!r}: allowed values are {', '.join(map(repr, PAST_BOX))}")
 
     @classmethod
     def from_file(cls, full: RobotSpec, path: Path | str) -> "ReducedSpec":
@@ -81,13 +109,15 @@ class ReducedSpec:
 
     @property
     def key(self) -> str:
-        tail = "" if self.domain_strain is None else f"|{self.domain_strain!r}"
+        tail = "" if self.domain_strain is None else f"|{self.domain_strain!r}|{self.past_box}"
         return "rom-" + hashlib.sha256(f"{self.full.key}|{self.basis_hash}{tail}".encode()).hexdigest()[:24]
 
-    def with_domain_strain(self, limit: float | None) -> "ReducedSpec":
+    def with_domain_strain(self, limit: float | None, past_box: str | None = None) -> "ReducedSpec":
         """The same reduced robot whose reaches leaving the box stop where the material passes
-        the strain ``limit`` [-] (None: the full model carries them on to their end)."""
-        return replace(self, domain_strain=None if limit is None else float(limit))
+        the strain ``limit`` [-] (None: the full model carries them on to their end), carried on
+        past the box by ``past_box``'s model (None: unchanged)."""
+        return replace(self, domain_strain=None if limit is None else float(limit),
+                       past_box=self.past_box if past_box is None else past_box)
 
     @property
     def design_alpha(self) -> float:
@@ -167,7 +197,9 @@ class ReducedFem(FemRobot):
         self.rod_axis = self.full.rod_axis
         self.fallbacks = 0
         self.edge_stops = 0  # reaches stopped at the box's edge beyond the domain strain
-        self.strain_stops = 0  # full continuations stopped at the strain limit past the box
+        self.strain_stops = 0  # continuations stopped at the strain limit past the box
+        self.past_box_reaches = 0  # reaches the reduced model carried past its box ("reduced")
+        self.redone = 0  # of those, redone the "full" way (not confirmed, or stalled past the box)
         self._warned = False
 
     # -- which model a state belongs to ----------------------------------------------------
@@ -200,13 +232,14 @@ class ReducedFem(FemRobot):
         except ConvergenceError:
             return None
 
-    def _to_reduced(self, state):
-        """A reduced equilibrium near a full ``state`` (None: the reduced rest)."""
+    def _to_reduced(self, state, anywhere: bool = False):
+        """A reduced equilibrium near a full ``state`` (None: the reduced rest; also when the state
+        lies outside the box, unless ``anywhere``, or the solve fails)."""
         from ..robot.equilibrium import solve_equilibrium
 
         if not self._is_full(state):
             return state
-        if not self.robot.in_box(state.angles):
+        if not (anywhere or self.robot.in_box(state.angles)):
             return None
         try:
             start = self.robot.project(state)
@@ -216,9 +249,15 @@ class ReducedFem(FemRobot):
 
     # -- the protocol ----------------------------------------------------------------------
     def reach(self, goal, *, state=None, **kw):
-        """:meth:`FemRobot.reach` on the reduced model within its box, carried on by the full
-        model past it (module docstring)."""
+        """:meth:`FemRobot.reach` on the reduced model within its box, carried on past it by the
+        spec's ``past_box`` model (module docstring)."""
         limit = self.spec.domain_strain
+        if limit is not None and self.spec.past_box == "reduced":
+            return self._reduced_reach(goal, state, limit, **kw)
+        return self._box_reach(goal, state, limit, **kw)
+
+    def _box_reach(self, goal, state, limit, **kw):
+        """The reach on the reduced model stopped at the box's edge, carried on by the full model."""
         if self._is_full(state) and not self.robot.in_box(state.angles):  # already past the box
             return self._full_reach(goal, state, limit, **kw)
         r = super().reach(goal, state=self._to_reduced(state), stop=self._leaves_box, **kw)
@@ -232,6 +271,70 @@ class ReducedFem(FemRobot):
         # linearisation corrects the reduced model's small residual along with the step
         return self._full_reach(goal, self.robot.full_state(r.state), limit, **kw)
 
+    def _reduced_reach(self, goal, state, limit, **kw):
+        """The reduced model's reach, past its box too, stopped at its first control step past the
+        box beyond the strain ``limit`` (returned with ``left_domain``, that step's state, as
+        :meth:`_full_reach`); a goal reached past the box is confirmed by the full model
+        (:meth:`_confirmed`), else the reach is redone by :meth:`_box_reach`."""
+        start = self._to_reduced(state, anywhere=True)
+        if self._is_full(state) and start is None:  # no reduced equilibrium there: the full model's
+            return self._box_reach(goal, state, limit, **kw)
+        fired, far = [], []
+
+        def beyond(st) -> bool:
+            out = self.degrees_outside(st.angles)
+            if out <= 0.0:
+                return False
+            if out > EXTRAPOLATE_STEPS * self.spec.full.max_step_deg:
+                far.append(st)
+                return True
+            if self.max_principal_strain(st) <= limit:
+                return False
+            fired.append(st)
+            return True
+
+        r = super().reach(goal, state=start, stop=beyond, certify_stop=False, **kw)
+        if not r.stopped and self.robot.in_box(r.state.angles):
+            return r
+        self.past_box_reaches += 1
+        if r.stopped and not far:
+            self.strain_stops += 1
+            return self._left_domain(goal, fired[-1], r.steps)
+        if r.reached:
+            confirmed = self._confirmed(goal, r, limit, kw.get("tol_mm", 1.0), kw.get("tol_deg"))
+            if confirmed is not None:
+                return confirmed
+        self.redone += 1
+        self._fallback("reach too far past the box or not confirmed", r.motors_deg)
+        return self._box_reach(goal, state, limit, **kw)
+
+    def _confirmed(self, goal, r, limit: float, tol_mm: float, tol_deg: float | None):
+        """The full equilibrium at reach ``r``'s motor angles, started from its state lifted to
+        the full mesh, as a reached result when it meets the tolerances [mm], [deg] (None: the
+        position only) and the strain ``limit``; None when it does not or does not converge."""
+        from ..robot.equilibrium import solve_equilibrium
+        try:
+            full = solve_equilibrium(self.full.robot, r.state.angles, state=self.robot.full_state(r.state),
+                                     linearizer=self.full.lz).state
+        except ConvergenceError:
+            return None
+        e_mm, e_deg = pose_errors(np.asarray(goal, float), full.pose)
+        if e_mm <= tol_mm and (tol_deg is None or e_deg <= tol_deg) and self.full.max_principal_strain(full) <= limit:
+            return ReachResult(True, full.pose, np.degrees(full.angles), e_mm, e_deg, r.steps, full, True)
+        return None
+
+    @staticmethod
+    def _left_domain(goal, st, steps: int):
+        """A reach stopped at state ``st``, beyond the strain limit: not reached, ``left_domain``."""
+        e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
+        return ReachResult(False, st.pose, np.degrees(st.angles), e_mm, e_deg, steps, st, True, left_domain=True)
+
+    def degrees_outside(self, angles) -> float:
+        """How far motor ``angles`` (na,) [rad] lie outside the training box: the largest
+        excess over its bounds [deg] (0 inside)."""
+        a = np.asarray(angles, float)
+        return float(np.degrees(max(0.0, np.max(self.basis.box_lo - a), np.max(a - self.basis.box_hi))))
+
     def _leaves_box(self, state) -> bool:
         return not self.robot.in_box(state.angles)
 
@@ -241,8 +344,6 @@ class ReducedFem(FemRobot):
         one Newton step from equilibrium, as every step of the loop). Neither it nor the state
         before it is certified as an equilibrium: on the paper robot that cost more than the
         reach, for a point not reached."""
-        from .model import ReachResult
-
         if limit is None:
             return self.full.reach(goal, state=state, **kw)
         fired = []
@@ -257,9 +358,7 @@ class ReducedFem(FemRobot):
         if not r.stopped:
             return r
         self.strain_stops += 1
-        st = fired[-1]
-        e_mm, e_deg = pose_errors(np.asarray(goal, float), st.pose)
-        return ReachResult(False, st.pose, np.degrees(st.angles), e_mm, e_deg, r.steps, st, True, left_domain=True)
+        return self._left_domain(goal, fired[-1], r.steps)
 
     def equilibrium(self, motors_deg, *, state=None, intermediate: bool = False):
         """:meth:`FemRobot.equilibrium` on the reduced model, or the full one outside the training box."""

@@ -83,6 +83,9 @@ class WorkspaceSettings:
     rot_stop_after: int = 0
     strain_limit: float = 0.3
     stop_beyond_strain: bool = False  # a ray ends at its first reached point beyond strain_limit
+    # with stop_beyond_strain, which model carries a reduced model's reach on past its training box
+    # (metasheet.studies.reduced_adapter.PAST_BOX)
+    past_box: str = "reduced"
     continuity: bool = True
     substeps: int = 3
     hold_orientation: bool = False  # point goals also ask for the rest orientation (else position only)
@@ -101,6 +104,8 @@ class WorkspaceSettings:
         check_range("rot_stop_after", self.rot_stop_after, 0, 100000)
         check_range("strain_limit", self.strain_limit, 0.0, None, lo_open=True)
         check_range("substeps", self.substeps, 1, 1000)
+        if self.past_box not in ("reduced", "full"):
+            raise ConfigError(f"past_box: {self.past_box!r}: allowed values are 'reduced', 'full'")
         if self.test not in ROTATION_TESTS:
             raise ConfigError(f"workspace.test: {self.test!r}: allowed values are "
                               f"{', '.join(repr(k) for k in ROTATION_TESTS)}")
@@ -272,9 +277,10 @@ def _within(rec, i, j, s) -> bool:
 
 def domain_spec(spec: ModelSpec, settings: WorkspaceSettings) -> ModelSpec:
     """``spec``, told the strain limit when the study stops beyond it and the model can use it
-    (a reduced model then stops reaches that leave its box beyond the limit at the box's edge)."""
+    (a reduced model then stops reaches past its box beyond the limit, carried on by
+    ``settings.past_box``'s model)."""
     if settings.stop_beyond_strain and hasattr(spec, "with_domain_strain"):
-        return spec.with_domain_strain(settings.strain_limit)
+        return spec.with_domain_strain(settings.strain_limit, settings.past_box)
     return spec
 
 

@@ -324,3 +324,7 @@ class GridParams(CertifyParams):
     strain_limit: float = Field(0.3, gt=0, description="max principal strain of the homogenisation's validity [-]")
     stop_beyond_strain: bool = Field(False, description="a ray ends at its first reached point beyond "
                                      "strain_limit (its outer points are not tried: outside the material model)")
+    past_box: Literal["reduced", "full"] = Field(
+        "reduced", description="model 'reduced' within the strain limit: which model carries a reach on past "
+        "the training box ('reduced': the reduced model, its successes confirmed by the full model; 'full': "
+        "the full model from the box's edge)")

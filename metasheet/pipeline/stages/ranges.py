@@ -35,7 +35,7 @@ def _run_one(ctx: StageContext) -> dict:
     spec = build_spec(ctx)
     grid = grid_from(p)
     s = WorkspaceSettings(tol_mm=p.tol_mm, max_steps=p.max_steps, stop_after=p.stop_after, strain_limit=p.strain_limit,
-                          stop_beyond_strain=p.stop_beyond_strain)
+                          stop_beyond_strain=p.stop_beyond_strain, past_box=p.past_box)
     res = motor_range_study(spec, grid, p.ranges, s, executor=ctx.executor, progress=progress(ctx),
                             cache=unit_cache(ctx))
     names = [f"{lo:g}-{hi:g}" for lo, hi in res.ranges]

@@ -52,7 +52,7 @@ def settings_from(p) -> WorkspaceSettings:
     return WorkspaceSettings.for_test(
         p.test, tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_rot_deg, max_steps=p.max_steps,
         rotations=p.rotations, rot_stop_after=p.rot_stop_after, stop_after=p.stop_after, strain_limit=p.strain_limit,
-        stop_beyond_strain=p.stop_beyond_strain, continuity=p.continuity,
+        stop_beyond_strain=p.stop_beyond_strain, past_box=p.past_box, continuity=p.continuity,
         substeps=p.substeps, hold_orientation=p.hold_orientation)
 
 
