@@ -363,3 +363,20 @@ def _unreachable_target(full, training, fit_count, max_rounds, ecsw_tol):
     with pytest.raises(ConvergenceError, match="misses the training equilibria"):
         train(rob, snaps, rest, sensitivities=sens, box=box, basis_tol_mm=0.005, fit_tol_mm=1e-9, fit_count=2,
               max_rounds=1, ecsw_tol=ecsw_tol)
+
+
+def test_the_fit_check_gives_up_at_the_first_snapshot_a_sample_misses(trained):
+    """fit_error's give_up_mm: the errors over the snapshots checked (the first that misses by
+    more ends it), the same values as the whole check's where they overlap."""
+    from metasheet.rom.training import fit_error
+
+    model, snaps = trained
+    pos, _, n = fit_error(model, snaps)
+    assert n == len(snaps) and pos > 0
+    worst = [fit_error(model, snaps[:i + 1])[0] for i in range(len(snaps))]  # running worst
+    assert worst[-1] == pos
+    limit = 0.5 * (worst[0] + pos) if worst[0] < pos else 0.5 * pos
+    p2, _, n2 = fit_error(model, snaps, give_up_mm=limit)
+    assert n2 == 1 + next(i for i, e in enumerate(worst) if e > limit) and p2 == worst[n2 - 1] > limit
+    p3, _, n3 = fit_error(model, snaps, give_up_mm=2 * pos)  # nothing missed: the whole check
+    assert (p3, n3) == (pos, n)
