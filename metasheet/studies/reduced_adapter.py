@@ -8,17 +8,18 @@ fallbacks and the certificate), the :class:`~metasheet.rom.model.ReducedRobot` o
 the eq. (8) controller on the reduced robot, limited to the spec's motor range.
 
 Outside its training box (``basis.box_lo``, ``basis.box_hi`` [rad]) the reduced model would
-extrapolate, and it never does: an equilibrium asked there is solved by the full model, and a
-reach is stopped before the control step that would leave the box (``stop`` of
+extrapolate: an equilibrium asked there is solved by the full model, and a reach is stopped
+before the control step that would leave the box (``stop`` of
 :meth:`~metasheet.robot.inverse.InverseController.goto`); from that state, lifted to the full
 mesh, the full model carries the reach on (a warning is logged once per model when the full
-model takes over; :attr:`ReducedFem.fallbacks` counts those). Such a result carries a full
+model takes over; :attr:`ReducedFem.fallbacks` counts those). Within a strain limit the reduced
+model may take one control step past the box first (``past_box``, below). Such a result carries a full
 :class:`~metasheet.robot.statics.RobotState`; a reach given a full state continues on the
 reduced model from its projection (:meth:`~metasheet.rom.model.ReducedRobot.project`)
 when it lies in the box, else on the full model.
 
 With a domain strain (:meth:`ReducedSpec.with_domain_strain`, set by the studies that stop
-beyond the strain limit), a reach that stops at the box's edge with the material there already
+beyond the strain limit), a reach that stops at the box's edge (``past_box = "full"``) with the material there already
 beyond the limit ends there: the goal lies outside the homogenised model's domain, and the
 reach returns that edge state with ``left_domain`` set (not reached), without the full model.
 Past the box, two ways (``past_box``):
@@ -314,6 +315,7 @@ class ReducedFem(FemRobot):
         the full mesh, as a reached result when it meets the tolerances [mm], [deg] (None: the
         position only) and the strain ``limit``; None when it does not or does not converge."""
         from ..robot.equilibrium import solve_equilibrium
+
         try:
             full = solve_equilibrium(self.full.robot, r.state.angles, state=self.robot.full_state(r.state),
                                      linearizer=self.full.lz).state

@@ -48,6 +48,7 @@ from ..errors import ConfigError, ConvergenceError, check_range
 from ..runtime.executor import Executor
 from .grid import StarGrid
 from .model import MODELS, ModelSpec, pose_errors
+from .reduced_adapter import PAST_BOX
 from .resume import UnitCache
 
 CLASS_NAMES = {3: "3 rotations", 2: "2 rotations", 1: "1 rotation", 0: "reachable only", -1: "unreachable"}
@@ -84,7 +85,6 @@ class WorkspaceSettings:
     strain_limit: float = 0.3
     stop_beyond_strain: bool = False  # a ray ends at its first reached point beyond strain_limit
     # with stop_beyond_strain, which model carries a reduced model's reach on past its training box
-    # (metasheet.studies.reduced_adapter.PAST_BOX)
     past_box: str = "reduced"
     continuity: bool = True
     substeps: int = 3
@@ -104,8 +104,8 @@ class WorkspaceSettings:
         check_range("rot_stop_after", self.rot_stop_after, 0, 100000)
         check_range("strain_limit", self.strain_limit, 0.0, None, lo_open=True)
         check_range("substeps", self.substeps, 1, 1000)
-        if self.past_box not in ("reduced", "full"):
-            raise ConfigError(f"past_box: {self.past_box!r}: allowed values are 'reduced', 'full'")
+        if self.past_box not in PAST_BOX:
+            raise ConfigError(f"past_box: {self.past_box!r}: allowed values are {', '.join(map(repr, PAST_BOX))}")
         if self.test not in ROTATION_TESTS:
             raise ConfigError(f"workspace.test: {self.test!r}: allowed values are "
                               f"{', '.join(repr(k) for k in ROTATION_TESTS)}")
