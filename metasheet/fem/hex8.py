@@ -86,3 +86,21 @@ def hex8_box_matrices(C: np.ndarray, h) -> tuple[np.ndarray, np.ndarray, np.ndar
                 F += w * B.T @ C
     B_mean = strain_operator(_hex8_gradients(np.full(3, 0.5), h))
     return 0.5 * (K + K.T), F, B_mean
+
+
+def hex8_box_moment(C: np.ndarray, h) -> np.ndarray:
+    """(24, 6) float [N mm]: ``int B^T C (z - z_c) dV`` over one box element of edge lengths
+    ``h`` (3,) [mm] with centre height ``z_c``: the nodal forces of a unit macro strain that
+    grows linearly through the element's height (a plate's curvature load, :mod:`metasheet.
+    homogenize.plate`). Two Gauss points per direction integrate it exactly (degree 2 in z)."""
+    C = np.asarray(C, float)
+    h = np.asarray(h, float)
+    w = float(np.prod(h)) / 8.0
+    gp = 0.5 + np.array([-0.5, 0.5]) / np.sqrt(3.0)
+    G = np.zeros((24, 6))
+    for x in gp:
+        for y in gp:
+            for z in gp:
+                B = strain_operator(_hex8_gradients(np.array([x, y, z]), h))
+                G += w * (z - 0.5) * h[2] * B.T @ C
+    return G
