@@ -91,3 +91,44 @@ def test_cell_to_homogenize_end_to_end(tmp_path):
     # an open-cell foam: far below Voigt, of Gibson-Ashby order
     assert 0.1 * rho**2 < out["E_t"] / 12.0 < rho
     assert out["axis"] == [0.0, 0.0, 1.0]
+
+
+def test_stage_plate_slabs_of_a_laminate_are_classical_laminate_theory(tmp_path):
+    # layers normal to z, nu = 0: each slab is a laminate whose ABD classical laminate theory
+    # gives exactly; a slab one period thick has the bulk's membrane stiffness (ratio 1)
+    from metasheet.homogenize.plate import laminate_abd
+
+    ph = laminate(6, 0.5, axis=2)  # phase 1 in z voxels 0-2, phase 2 in 3-5 (1/3 mm each)
+    mats = {"1": {"E": 12.0, "nu": 0.0}, "2": {"E": 1.5, "nu": 0.0}}
+    cell = _cell_dir(tmp_path, ph, (2.0, 2.0, 2.0), mats)
+    work = tmp_path / "work"
+    work.mkdir()
+    params = stage.HomogenizeParams(tolerance=1e-10, plate_thickness=2.0, plate_slabs=3, fields=False, picture=False)
+    summary = stage.run(StageContext("homogenize", params, work, {"cell": cell}, tmp_path))
+    out = json.loads((work / "plate.json").read_text())
+    assert out["thickness_mm"] == pytest.approx(2.0) and out["offsets_mm"] == pytest.approx([0.0, 2 / 3, 4 / 3])
+    C1, C2 = Isotropic(12.0, 0.0).stiffness(), Isotropic(1.5, 0.0).stiffness()
+    # the slab at 2/3 mm: phase 1 in 2/3..1, phase 2 in 1..2, phase 1 again in 2..2 + 2/3
+    exact = laminate_abd([(C1, -1.0, -2 / 3), (C2, -2 / 3, 1 / 3), (C1, 1 / 3, 1.0)])
+    got = np.array(out["slabs"][1]["A_N_per_mm"])
+    assert np.abs(got - exact[:3, :3]).max() < 1e-9 * np.abs(exact).max()
+    D = np.array(out["slabs"][1]["D_N_mm"])
+    assert np.abs(D - exact[3:, 3:]).max() < 1e-9 * np.abs(exact[3:, 3:]).max()
+    ratios = out["ratio_to_bulk"]
+    for name in ("A_11", "A_22", "A_66"):
+        assert ratios[name]["mean"] == pytest.approx(1.0, rel=1e-9) and ratios[name]["halfwidth"] < 1e-9
+    assert ratios["D_11"]["halfwidth"] > 0.01  # where the stiff layer sits matters in bending
+    assert summary["plate_ratio_to_bulk"] == pytest.approx(ratios["geometric_mean"]["mean"], abs=1e-4)
+    assert np.array(out["ABD"]["mean"]).shape == (6, 6)
+
+
+def test_stage_plate_thickness_below_two_voxels_is_refused(tmp_path):
+    from metasheet.errors import ConfigError
+
+    cell = _cell_dir(tmp_path, laminate(6, 0.5, axis=2), (2.0, 2.0, 2.0), {"1": {"E": 1.0, "nu": 0.3},
+                                                                        "2": {"E": 2.0, "nu": 0.3}})
+    work = tmp_path / "work"
+    work.mkdir()
+    params = stage.HomogenizeParams(plate_thickness=0.4, fields=False, picture=False)
+    with pytest.raises(ConfigError, match="plate_thickness"):
+        stage.run(StageContext("homogenize", params, work, {"cell": cell}, tmp_path))

@@ -8,7 +8,10 @@ or ``cell/cell.vtu`` with ``mesh_route = true``. Writes:
   ``resolution``, per-load-case diagnostics and localisation ratios (no wall-clock times:
   those go to the manifest's ``timings_s``, so the same cell gives the same bytes);
 - ``fields.vtu``: the solid mesh with the local strain of every unit load case;
-- ``homogenize.png``: C, the fitted constants and the strain localisation.
+- ``homogenize.png``: C, the fitted constants and the strain localisation;
+- with ``plate_thickness``: ``plate.json``, the sheet-scale stiffness of a sheet of that thickness
+  cut from the foam (A, B, D of ``plate_slabs`` slabs, mean and 95 % interval, and their ratio
+  to the bulk plate of C: :mod:`metasheet.homogenize.plate_slabs`).
 
 With ``realisations = k > 1`` (issue 43) the design is realised again at seeds ``seed + 1 ..
 seed + k - 1`` (the cell stage's voxels are realisation 0), every realisation a unit of the
@@ -62,6 +65,11 @@ class HomogenizeParams(Params):
     target: float = Field(0.05, gt=0, lt=1, description="relative 95 % half-width each constant should reach "
                           "[-]; constants.json states the realisations each needs")
     fields: bool = Field(True, description="write fields.vtu (local strains)")
+    plate_thickness: float | None = Field(None, gt=0, le=1000, description="a sheet of this thickness [mm] cut from "
+                                          "the foam: slabs of the cell homogenised as plates (free faces) against the "
+                                          "bulk continuum -> plate.json (off when unset)")
+    plate_slabs: int = Field(8, ge=2, le=256, description="slabs at evenly spaced heights of the cell (the plate's "
+                             "realisations: mean ABD with its 95 % interval)")
 
     @model_validator(mode="after")
     def _study(self):
@@ -130,6 +138,7 @@ def run(ctx: StageContext) -> dict:
     if p.realisations > 1 or p.sizes:
         constants.update(_ensemble(ctx, p, info["design"], r, others, seconds=sum(r.timings.values())))
     write_json_atomic(ctx.path("constants.json"), constants)
+    plate = _plate(ctx, p, phases, size, materials, constants) if p.plate_thickness and not p.mesh_route else None
     if p.fields:
         from ...viz.homogenize import tet_field_mesh, voxel_field_mesh
 
@@ -146,8 +155,23 @@ def run(ctx: StageContext) -> dict:
     if "ci95" in constants:
         out["rel_halfwidth_95"] = {k: round(v, 4) for k, v in constants["ci95"]["rel_halfwidth"].items()}
         out["realisations"] = constants["ci95"]["k"]
+    if plate is not None:
+        out["plate_ratio_to_bulk"] = round(plate["ratio_to_bulk"]["geometric_mean"]["mean"], 4)
     return {**out, "misfit": round(r.fit.misfit, 6), "relative_density": round(r.relative_density, 6),
             "solver": r.solver, "n_dof": r.n_dof}
+
+
+def _plate(ctx: StageContext, p: HomogenizeParams, phases, size, materials: dict, constants: dict) -> dict:
+    """``plate.json``: slabs of the cell's own voxels as sheets of ``plate_thickness``
+    (:func:`metasheet.homogenize.plate_slabs.slab_study`) against the bulk plate of the stage's C."""
+    from ...homogenize.plate_slabs import slab_study
+
+    study = slab_study(phases, size, materials, p.plate_thickness, np.asarray(constants["C"]), slabs=p.plate_slabs,
+                       progress=lambda done, total: ctx.progress("homogenize: plate slabs", done, total))
+    doc = {"bulk_C": "constants.json C (the mean over the realisations when there are several)",
+           "realisations": "slabs of the cell stage's voxels at evenly spaced heights", **study.to_dict()}
+    write_json_atomic(ctx.path("plate.json"), doc)
+    return doc
 
 
 def _unit(item: dict):
