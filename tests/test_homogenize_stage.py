@@ -132,3 +132,7 @@ def test_stage_plate_thickness_below_two_voxels_is_refused(tmp_path):
     params = stage.HomogenizeParams(plate_thickness=0.4, fields=False, picture=False)
     with pytest.raises(ConfigError, match="plate_thickness"):
         stage.run(StageContext("homogenize", params, work, {"cell": cell}, tmp_path))
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="plate_thickness"):
+        stage.HomogenizeParams(plate_thickness=5.0, mesh_route=True)

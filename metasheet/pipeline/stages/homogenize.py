@@ -77,6 +77,8 @@ class HomogenizeParams(Params):
             raise ValueError(f"sizes {self.sizes}: expected distinct cell counts in [1, 4096]")
         if self.mesh_route and (self.realisations > 1 or self.sizes):
             raise ValueError("realisations / sizes: the voxel route only (mesh_route = false)")
+        if self.mesh_route and self.plate_thickness is not None:
+            raise ValueError("plate_thickness: the voxel route only (mesh_route = false)")
         if self.sizes and max(self.realisations, self.size_realisations or 0) < 2:
             raise ValueError("sizes: a size study needs realisations >= 2 (or size_realisations >= 2)")
         return self
@@ -138,7 +140,7 @@ def run(ctx: StageContext) -> dict:
     if p.realisations > 1 or p.sizes:
         constants.update(_ensemble(ctx, p, info["design"], r, others, seconds=sum(r.timings.values())))
     write_json_atomic(ctx.path("constants.json"), constants)
-    plate = _plate(ctx, p, phases, size, materials, constants) if p.plate_thickness and not p.mesh_route else None
+    plate = _plate(ctx, p, phases, size, materials, constants) if p.plate_thickness else None
     if p.fields:
         from ...viz.homogenize import tet_field_mesh, voxel_field_mesh
 
