@@ -149,3 +149,24 @@ def test_bad_input_is_named():
     column[1, 1, :] = 1  # wraps through the thickness only
     with pytest.raises(InfeasibleError, match="x and y"):
         homogenize_plate(column, (1, 1, 1), {1: m})
+
+
+def test_equivalent_constants_make_the_plate_membrane():
+    # a foam-like orthotropic slab: its membrane moduli as TI constants (l along x) give back A
+    from metasheet.homogenize.plate import equivalent_constants
+    from metasheet.mechanics.voigt import stiffness_along
+
+    rng = np.random.default_rng(4)
+    ph = (rng.random((6, 6, 4)) < 0.75).astype(int)
+    ph[:, :, 1] = 1
+    r = homogenize_plate(ph, (3.0, 2.0, 1.0), {1: Isotropic(12.0, 0.3)})
+    bulk = TransverseIsotropic(E_t=1.39, E_l=0.094, nu_t=0.26, nu_tl=0.42, mu_l=0.016)
+    eq = equivalent_constants(r.moduli()["membrane"], bulk)
+    C = stiffness_along(eq.stiffness(), np.array([[1.0, 0.0, 0.0]]))[0]
+    S = np.linalg.inv(r.A)
+    S[[0, 1, 2, 2], [2, 2, 0, 1]] = 0.0  # the cell's in-plane shear coupling is dropped
+    assert abs(np.linalg.inv(r.A)[0, 2]) > 1e-4 * S[0, 0]  # there was one to drop
+    assert rel(plane_stress(C) * r.thickness, np.linalg.inv(S)) < 1e-10
+    assert eq.nu_t == bulk.nu_t
+    with pytest.raises(ConfigError, match="moduli"):
+        equivalent_constants({"E_x": 1.0}, bulk)

@@ -36,6 +36,7 @@ from ..errors import ConfigError, InfeasibleError
 from ..fem.assembly import SparsityPattern
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices, hex8_box_moment
 from ..fem.voxel.element import check_phases
+from ..mechanics.material import TransverseIsotropic
 from ..fem.solvers import solve_spd
 from .corrector import material_stiffness, pinned_dofs
 
@@ -90,8 +91,7 @@ class PlateStiffness:
         """The sheet's equivalent in-plane moduli, from membrane and from bending [MPa]:
         ``E_x = 1 / (t (A^-1)_11)`` and ``E_x = 12 / (t^3 (D^-1)_11)`` (and E_y, G_xy, nu_xy
         alike); for a homogeneous sheet both are its plane-stress moduli."""
-        t = self.thickness
-        return {"membrane": _moduli(np.linalg.inv(self.A) * t), "bending": _moduli(np.linalg.inv(self.D) * t**3 / 12.0)}
+        return abd_moduli(self.ABD, self.thickness)
 
     def to_dict(self) -> dict:
         """JSON-ready: A, B, D, the moduli and the cell's figures."""
@@ -102,10 +102,34 @@ class PlateStiffness:
                 "n_dof": self.n_dof, "solver": self.solver, "resolution": list(self.resolution)}
 
 
+def abd_moduli(ABD, thickness: float) -> dict:
+    """``{"membrane": ..., "bending": ...}`` equivalent in-plane moduli [MPa, -] of a (6, 6) ABD
+    of a sheet ``thickness`` [mm] thick (:meth:`PlateStiffness.moduli`)."""
+    ABD, t = np.asarray(ABD, float), float(thickness)
+    if ABD.shape != (6, 6) or not t > 0:
+        raise ConfigError(f"ABD, thickness: shape {ABD.shape}, {thickness!r}: expected (6, 6) and t > 0 [mm]")
+    return {"membrane": _moduli(np.linalg.inv(ABD[:3, :3]) * t),
+            "bending": _moduli(np.linalg.inv(ABD[3:, 3:]) * t**3 / 12.0)}
+
+
 def _moduli(compliance: np.ndarray) -> dict:
     """E_x, E_y, G_xy, nu_xy [MPa, -] of an in-plane compliance (3, 3) [1/MPa]."""
     return {"E_x": float(1.0 / compliance[0, 0]), "E_y": float(1.0 / compliance[1, 1]),
             "G_xy": float(1.0 / compliance[2, 2]), "nu_xy": float(-compliance[0, 1] / compliance[0, 0])}
+
+
+def equivalent_constants(moduli: dict, bulk: TransverseIsotropic) -> TransverseIsotropic:
+    """The transverse-isotropic constants, axis l along the sheet's x (a Polyfoam's shrunk axis),
+    whose plane-stress in-plane moduli are ``moduli`` (E_x, E_y, G_xy, nu_xy [MPa, -]: one entry
+    of :meth:`PlateStiffness.moduli`): E_l = E_x, E_t = E_y, mu_l = G_xy, nu_tl = nu_xy E_y / E_x;
+    nu_t, which a thin sheet's plane stress does not see, stays ``bulk``'s. A sheet of thickness t
+    made of them has ``A = Q t`` with the moduli's Q (the cell's in-plane shear coupling, the
+    compliance's 16 and 26 entries, dropped). ConfigError when they make no positive-definite material."""
+    try:
+        E_x, E_y, G, nu = (float(moduli[k]) for k in ("E_x", "E_y", "G_xy", "nu_xy"))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"moduli: {moduli!r}: expected E_x, E_y, G_xy, nu_xy") from exc
+    return TransverseIsotropic(E_t=E_y, E_l=E_x, nu_t=float(bulk.nu_t), nu_tl=nu * E_y / E_x, mu_l=G)
 
 
 def plane_stress(C: np.ndarray) -> np.ndarray:

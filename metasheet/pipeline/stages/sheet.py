@@ -128,6 +128,7 @@ def run(ctx: StageContext) -> dict:
         with threadpool_limits(limits=1, user_api="blas"):
             fits = _fits(pair, sheets, material, orient.sheet_params)
     study = dns_study(sheets, hom, robot, orient.sheet_params, length_scale=p.length_scale, fits=fits)
+    plate = _plate(ctx, pair, material, sheets, study, robot, orient.sheet_params, p)
     out = {"method": "printed Polyfoam from the print maps (metasheet.sheet.printed_foam), voxel DNS with the four "
                      "grips rigid, condensed on their 24 rigid DOF (metasheet.sheet.dns); the homogenised sheets "
                      "condensed the same way (metasheet.sheet.grips.fem_condensed); both robots' linear rest "
@@ -140,7 +141,7 @@ def run(ctx: StageContext) -> dict:
                         "solid": design.material.model_dump()},
            "element": pair.element, "scene": sc.scene,
            "homogenised_K": {"normal": hom[0].tolist(), "mirrored": hom[1].tolist()},
-           **study}
+           **study, **({"plate": plate} if plate else {})}
     write_json_atomic(ctx.path("sheet_dns.json"), out)
     ctx.progress("voxel file and pictures", 2, 3)
     _pictures(ctx, p, specs[0], study)
@@ -152,6 +153,24 @@ def run(ctx: StageContext) -> dict:
             "printed_over_homogenised_modes": round(spr["geometric_mean_ratio_normal"]["mean"], 4),
             "unknowns": [s.n_dof for s in sheets[:2]],
             "kept_share": [round(s.kept_share, 4) for s in sheets[:2]]}
+
+
+def _plate(ctx: StageContext, pair, material, sheets, study: dict, robot, params, p: SheetDnsParams) -> dict | None:
+    """The plate continuum against the prints (:func:`metasheet.studies.sheet_plate.plate_comparison`)
+    when the homogenize stage wrote ``plate.json``, else None."""
+    from ...studies.sheet_dns import _pairs
+    from ...studies.sheet_plate import plate_comparison
+
+    path = ctx.inputs.get("homogenize")
+    if path is None or not (path / "plate.json").exists():
+        return None
+    bulk = material.material
+    bulk = bulk if hasattr(bulk, "nu_tl") else bulk.as_transverse()
+    plate = json.loads((path / "plate.json").read_text())
+    with threadpool_limits(limits=1, user_api="blas"):
+        return plate_comparison(pair, material.model, bulk, plate, _pairs(sheets),
+                                [r["robot"]["rod_rotation_deg_per_deg"] for r in study["realisations"]], robot, params,
+                                length_scale=p.length_scale)
 
 
 def _fits(pair, sheets, material, params) -> list:
@@ -196,7 +215,7 @@ register(
         name="sheet",
         params=SheetDnsParams,
         run=run,
-        requires=("cell", "orient", "material", "printmap", "robot"),
+        requires=("cell", "orient", "material", "printmap", "robot"), optional=("homogenize",),
         outputs=("sheet_dns.json", "sheet_normal.npz"),
         doc="the printed sheets as voxel DNS on the robot's grips against the homogenised sheets: eigen-ratios, "
             "the printed robot's rod roll and singular values, apparent constants, print-to-print spread",
