@@ -170,3 +170,17 @@ def test_equivalent_constants_make_the_plate_membrane():
     assert eq.nu_t == bulk.nu_t
     with pytest.raises(ConfigError, match="moduli"):
         equivalent_constants({"E_x": 1.0}, bulk)
+    with pytest.raises(ConfigError, match="positive-definite"):
+        equivalent_constants({"E_x": 1.0, "E_y": 1.0, "G_xy": 1.0, "nu_xy": 1.2}, bulk)
+
+
+def test_equivalent_constants_move_nu_t_only_when_they_must():
+    from metasheet.homogenize.plate import equivalent_constants
+
+    bulk = TransverseIsotropic(E_t=1.39, E_l=0.094, nu_t=0.26, nu_tl=0.42, mu_l=0.016)
+    kept = equivalent_constants({"E_x": 0.05, "E_y": 1.0, "G_xy": 0.01, "nu_xy": 0.02}, bulk)
+    assert kept.nu_t == bulk.nu_t and kept.nu_tl == pytest.approx(0.4)
+    # soft along x, stiff along y: nu_tl = 0.2 * 20 = 4, nu_tl nu_lt = 0.8: nu_t must be in (-1, -0.6)
+    moved = equivalent_constants({"E_x": 0.05, "E_y": 1.0, "G_xy": 0.01, "nu_xy": 0.2}, bulk)
+    assert moved.nu_t == pytest.approx(-0.8) and moved.E_l == 0.05 and moved.mu_l == 0.01
+    assert np.all(np.linalg.eigvalsh(moved.stiffness()) > 0)

@@ -74,6 +74,8 @@ picture = false
 [homogenize]
 picture = false
 fields = false
+plate_thickness = 2.0
+plate_slabs = 2
 
 [printmap]
 picture = false
@@ -192,3 +194,20 @@ def test_two_workers_give_the_same_bytes(run):
                  executor=Executor(workers=2))
     for name in names:
         assert (out / "sheet" / name).read_bytes() == serial[name]
+
+
+def test_stage_compares_the_prints_with_the_plate_continuum(run):
+    _, out = run
+    d = json.loads((out / "sheet" / "sheet_dns.json").read_text())
+    plate = json.loads((out / "homogenize" / "plate.json").read_text())
+    assert d["plate"]["thickness_mm"] == pytest.approx(plate["thickness_mm"]) == pytest.approx(2.0, rel=0.01)
+    for variant in ("membrane", "bending"):
+        v = d["plate"][variant]
+        assert all(v["constants"][k] > 0 for k in ("E_t", "E_l", "mu_l"))
+        for row, dns in zip(v["realisations"], d["realisations"]):
+            # the roll ratio is the prints' roll over the plate continuum's, as written
+            assert row["rod_roll_ratio"] * v["robot"]["rod_rotation_deg_per_deg"] == pytest.approx(
+                dns["robot"]["rod_rotation_deg_per_deg"], rel=1e-12)
+            assert row["geometric_mean_ratio_normal"] > 0 and row["log_ratio_rms_normal"] >= 0
+    # the plate's membrane constants are not the bulk's (the faces cut the cells)
+    assert d["plate"]["membrane"]["constants"] != d["material"]["constants"]

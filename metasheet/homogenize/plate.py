@@ -121,15 +121,28 @@ def _moduli(compliance: np.ndarray) -> dict:
 def equivalent_constants(moduli: dict, bulk: TransverseIsotropic) -> TransverseIsotropic:
     """The transverse-isotropic constants, axis l along the sheet's x (a Polyfoam's shrunk axis),
     whose plane-stress in-plane moduli are ``moduli`` (E_x, E_y, G_xy, nu_xy [MPa, -]: one entry
-    of :meth:`PlateStiffness.moduli`): E_l = E_x, E_t = E_y, mu_l = G_xy, nu_tl = nu_xy E_y / E_x;
-    nu_t, which a thin sheet's plane stress does not see, stays ``bulk``'s. A sheet of thickness t
-    made of them has ``A = Q t`` with the moduli's Q (the cell's in-plane shear coupling, the
-    compliance's 16 and 26 entries, dropped). ConfigError when they make no positive-definite material."""
+    of :meth:`PlateStiffness.moduli`): E_l = E_x, E_t = E_y, mu_l = G_xy, nu_tl = nu_xy E_y / E_x.
+    A sheet of thickness t made of them has ``A = Q t`` with the moduli's Q (the cell's in-plane
+    shear coupling, the compliance's 16 and 26 entries, dropped).
+
+    nu_t, through the thickness, is what a thin sheet's plane stress does not see: it stays
+    ``bulk``'s when the material is then positive definite (``-1 < nu_t < 1 - 2 nu_tl nu_lt``),
+    else it takes that interval's midpoint ``-nu_tl nu_lt`` (a sheet stiff along y and soft along
+    x, the tie E_z = E_t of transverse isotropy makes nu_tl large). ConfigError when the moduli
+    themselves make no positive-definite sheet."""
     try:
         E_x, E_y, G, nu = (float(moduli[k]) for k in ("E_x", "E_y", "G_xy", "nu_xy"))
     except (KeyError, TypeError, ValueError) as exc:
         raise ConfigError(f"moduli: {moduli!r}: expected E_x, E_y, G_xy, nu_xy") from exc
-    return TransverseIsotropic(E_t=E_y, E_l=E_x, nu_t=float(bulk.nu_t), nu_tl=nu * E_y / E_x, mu_l=G)
+    if not (E_x > 0 and E_y > 0 and G > 0 and nu * nu < E_x / E_y):
+        raise ConfigError(f"moduli: {moduli!r}: not a positive-definite sheet (need E_x, E_y, G_xy > 0 and "
+                          "nu_xy^2 < E_x / E_y)")
+    nu_tl = nu * E_y / E_x
+    couple = nu_tl * nu  # nu_tl nu_lt, < 1 for a positive-definite sheet
+    lo, hi = -1.0, 1.0 - 2.0 * couple
+    margin = 0.05 * (hi - lo)
+    nu_t = float(bulk.nu_t) if lo + margin < float(bulk.nu_t) < hi - margin else -couple
+    return TransverseIsotropic(E_t=E_y, E_l=E_x, nu_t=nu_t, nu_tl=nu_tl, mu_l=G)
 
 
 def plane_stress(C: np.ndarray) -> np.ndarray:

@@ -65,7 +65,7 @@ def plate_comparison(pair: SheetPair, model: str, bulk: TransverseIsotropic, pla
                          "geometric_mean_ratio_mirrored": cb["geometric_mean_ratio"],
                          "log_ratio_rms_normal": ca["log_ratio_rms"], "log_ratio_rms_mirrored": cb["log_ratio_rms"],
                          "rod_roll_ratio": roll / rest["rod_rotation_deg_per_deg"]})
-        out[variant] = {"constants": eq.to_dict(), "robot": rest, "realisations": rows,
+        out[variant] = {"constants": eq.to_dict(), "nu_t_kept": eq.nu_t == bulk.nu_t, "robot": rest, "realisations": rows,
                         "spread": {k: _spread([r[k] for r in rows]) for k in rows[0]}}
     return out
 
