@@ -103,7 +103,7 @@ def test_stage_plate_slabs_of_a_laminate_are_classical_laminate_theory(tmp_path)
     cell = _cell_dir(tmp_path, ph, (2.0, 2.0, 2.0), mats)
     work = tmp_path / "work"
     work.mkdir()
-    params = stage.HomogenizeParams(tolerance=1e-10, plate_thickness=2.0, plate_slabs=3, fields=False, picture=False)
+    params = stage.HomogenizeParams(tolerance=1e-10, plate_thickness=2.0, plate_slabs=3, fields=False, picture=True)
     summary = stage.run(StageContext("homogenize", params, work, {"cell": cell}, tmp_path))
     out = json.loads((work / "plate.json").read_text())
     assert out["thickness_mm"] == pytest.approx(2.0) and out["offsets_mm"] == pytest.approx([0.0, 2 / 3, 4 / 3])
@@ -120,6 +120,7 @@ def test_stage_plate_slabs_of_a_laminate_are_classical_laminate_theory(tmp_path)
     assert ratios["D_11"]["halfwidth"] > 0.01  # where the stiff layer sits matters in bending
     assert summary["plate_ratio_to_bulk"] == pytest.approx(ratios["geometric_mean"]["mean"], abs=1e-4)
     assert np.array(out["ABD"]["mean"]).shape == (6, 6)
+    assert _png_is_not_blank(work / "plate.png")
 
 
 def test_stage_plate_thickness_below_two_voxels_is_refused(tmp_path):

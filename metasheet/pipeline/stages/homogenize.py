@@ -11,7 +11,8 @@ or ``cell/cell.vtu`` with ``mesh_route = true``. Writes:
 - ``homogenize.png``: C, the fitted constants and the strain localisation;
 - with ``plate_thickness``: ``plate.json``, the sheet-scale stiffness of a sheet of that thickness
   cut from the foam (A, B, D of ``plate_slabs`` slabs, mean and 95 % interval, and their ratio
-  to the bulk plate of C: :mod:`metasheet.homogenize.plate_slabs`).
+  to the bulk plate of C: :mod:`metasheet.homogenize.plate_slabs`) and ``plate.png`` (each
+  diagonal stiffness over the bulk plate's, slab by slab).
 
 With ``realisations = k > 1`` (issue 43) the design is realised again at seeds ``seed + 1 ..
 seed + k - 1`` (the cell stage's voxels are realisation 0), every realisation a unit of the
@@ -173,6 +174,10 @@ def _plate(ctx: StageContext, p: HomogenizeParams, phases, size, materials: dict
     doc = {"bulk_C": "constants.json C (the mean over the realisations when there are several)",
            "realisations": "slabs of the cell stage's voxels at evenly spaced heights", **study.to_dict()}
     write_json_atomic(ctx.path("plate.json"), doc)
+    if p.picture:
+        from ...viz.plate import plate_picture
+
+        ctx.path("plate.png").write_bytes(plate_picture(doc))
     return doc
 
 
