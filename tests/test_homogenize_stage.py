@@ -137,3 +137,40 @@ def test_stage_plate_thickness_below_two_voxels_is_refused(tmp_path):
 
     with pytest.raises(ValidationError, match="plate_thickness"):
         stage.HomogenizeParams(plate_thickness=5.0, mesh_route=True)
+
+
+def test_material_source_plate_takes_the_sheets_equivalent_constants(tmp_path):
+    from metasheet.homogenize.plate import abd_moduli, equivalent_constants
+    from metasheet.pipeline.stages import material as material_stage
+
+    ph = laminate(6, 0.5, axis=2)
+    cell = _cell_dir(tmp_path, ph, (2.0, 2.0, 2.0), {"1": {"E": 12.0, "nu": 0.3}, "2": {"E": 1.5, "nu": 0.45}})
+    hom = tmp_path / "homogenize"
+    hom.mkdir()
+    params = stage.HomogenizeParams(tolerance=1e-10, plate_thickness=1.0, plate_slabs=2, fields=False, picture=False)
+    stage.run(StageContext("homogenize", params, hom, {"cell": cell}, tmp_path))
+    plate = json.loads((hom / "plate.json").read_text())
+    bulk = json.loads((hom / "constants.json").read_text())
+    for variant in ("membrane", "bending"):
+        work = tmp_path / f"material_{variant}"
+        work.mkdir()
+        mp = material_stage.MaterialParams(source="plate", plate_variant=variant)
+        summary = material_stage.run(StageContext("material", mp, work, {"homogenize": hom}, tmp_path))
+        from metasheet.mechanics.material import TransverseIsotropic
+
+        expect = equivalent_constants(abd_moduli(plate["ABD"]["mean"], plate["thickness_mm"])[variant],
+                                      TransverseIsotropic.from_mapping(bulk))
+        assert summary["source"] == f"plate ({variant})"
+        for k, v in expect.to_dict().items():
+            assert summary[k] == pytest.approx(v, rel=1e-12)
+    # without plate.json the error says what to set
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    (bare / "constants.json").write_text((hom / "constants.json").read_text())
+    out = tmp_path / "m"
+    out.mkdir()
+    from metasheet.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="plate_thickness"):
+        material_stage.run(StageContext("material", material_stage.MaterialParams(source="plate"), out,
+                                        {"homogenize": bare}, tmp_path))

@@ -30,10 +30,13 @@ _FOAM = paper.PAPER_FOAM
 
 
 class MaterialParams(Params):
-    source: Literal["auto", "config", "homogenize", "sheet"] = Field(
+    source: Literal["auto", "config", "homogenize", "sheet", "plate"] = Field(
         "auto", description="'auto': homogenize's constants if that stage runs, else this table; 'sheet': the "
-        "apparent constants of the printed sheet (sheet_file)"
+        "apparent constants of the printed sheet (sheet_file); 'plate': the sheet cut from the foam "
+        "(homogenize's plate.json, plate_variant)"
     )
+    plate_variant: Literal["membrane", "bending"] = Field(
+        "membrane", description="source = 'plate': the constants of the sheet's stretching or of its bending")
     sheet_file: str | None = Field(None, description="source = 'sheet': a sheet stage's sheet_dns.json (relative to "
                                    "the project root), whose apparent constants (mean over its realisations) are used")
     kind: Literal["transverse", "isotropic"] = Field("transverse", description="which constants below apply")
@@ -108,12 +111,31 @@ def sheet_material(root, p: MaterialParams) -> TransverseIsotropic:
                                             where=f"{p.sheet_file}: spread.apparent means")
 
 
+def plate_material(homogenize, variant: str) -> TransverseIsotropic:
+    """The equivalent constants of the sheet cut from the foam (homogenize's ``plate.json``, its
+    mean ABD's ``variant`` moduli: :func:`metasheet.homogenize.plate.equivalent_constants`)."""
+    import json
+    from pathlib import Path
+
+    from ...homogenize.plate import abd_moduli, equivalent_constants
+
+    path = Path(homogenize) / "plate.json"
+    if not path.exists():
+        raise ConfigError("material.source: 'plate': the homogenize stage wrote no plate.json: set "
+                          "[homogenize] plate_thickness to the sheets' thickness [mm]")
+    plate = json.loads(path.read_text())
+    moduli = abd_moduli(plate["ABD"]["mean"], plate["thickness_mm"])[variant]
+    return equivalent_constants(moduli, constants_material(homogenize))
+
+
 def run(ctx: StageContext) -> dict:
     p: MaterialParams = ctx.params
-    if p.source == "homogenize" and "homogenize" not in ctx.inputs:
-        raise ConfigError("material.source: 'homogenize': the homogenize stage is not in this pipeline")
+    if p.source in ("homogenize", "plate") and "homogenize" not in ctx.inputs:
+        raise ConfigError(f"material.source: {p.source!r}: the homogenize stage is not in this pipeline")
     ci95 = None
-    if p.source == "sheet":
+    if p.source == "plate":
+        m, origin = plate_material(ctx.inputs["homogenize"], p.plate_variant), f"plate ({p.plate_variant})"
+    elif p.source == "sheet":
         m, origin = sheet_material(ctx.root, p), "sheet"
     elif p.source != "config" and "homogenize" in ctx.inputs:
         m, origin = constants_material(ctx.inputs["homogenize"]), "homogenize"
@@ -133,7 +155,7 @@ register(
         run=run,
         optional=("homogenize",),
         # given constants (or a sheet's file) do not wait for a homogenisation they do not read
-        reads=lambda p: () if p.source in ("config", "sheet") else ("homogenize",),
+        reads=lambda p: () if p.source in ("config", "sheet") else ("homogenize",),  # plate: homogenize's plate.json
         outputs=("material.json",),
         doc="constitutive constants (given, or from homogenize) -> material.json",
     )
