@@ -211,3 +211,6 @@ def test_stage_compares_the_prints_with_the_plate_continuum(run):
             assert row["geometric_mean_ratio_normal"] > 0 and row["log_ratio_rms_normal"] >= 0
     # the plate's membrane constants are not the bulk's (the faces cut the cells)
     assert d["plate"]["membrane"]["constants"] != d["material"]["constants"]
+    report = (out / "report" / "report.md").read_text()
+    gm = d["plate"]["membrane"]["spread"]["geometric_mean_ratio_normal"]["mean"]
+    assert "| the plate's membrane moduli |" in report and f"{gm:.3g}" in report

@@ -79,6 +79,7 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
                   + ("" if all(r["converged"] for r in res) else "; not converged for some realisation "
                      "(a constant at its positive-definite limit)") + ". A residual this large says no single "
                   "transverse-isotropic material describes the print: read the constants as a diagnostic.", ""]
+    lines += _plate_lines(d.get("plate"), rows)
     if n > 1:
         lines += [(f"Print to print ({n} seeds): rod roll {_f(roll['min'], 4)} to {_f(roll['max'], 4)} deg/deg "
                   f"(sd {_f(roll['std'], 2)}); geometric mean stiffness ratio "
@@ -89,3 +90,25 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
     if d["verdict"].startswith("differs"):
         found.append("the printed sheet: " + d["verdict"])
     return lines, found
+
+
+def _plate_lines(plate: Mapping | None, rows) -> list[str]:
+    """The sheet-scale (plate) continuum against the prints, when the homogenize stage wrote plate.json."""
+    if not plate:
+        return []
+    out = [(f"The sheet cut from the foam ({plate['thickness_mm']:.2f} mm slabs of the cell, free faces: "
+            "homogenize's plate.json, docs/plate.md) as the robot's constants, its stretching's or its bending's; "
+            "printed over model, as above (`[material] source = \"plate\"` drives the robot with them):"), "",
+           "| the robot's sheets from | geometric mean ratio, normal | mirrored | rms log ratio, normal | mirrored |",
+           "|---|---|---|---|---|"]
+    gm = {k: [r["sheets"][k]["geometric_mean_ratio"] for r in rows] for k in ("normal", "mirrored")}
+    rms = {k: max(r["sheets"][k]["log_ratio_rms"] for r in rows) for k in ("normal", "mirrored")}
+    spread = {k: {"mean": sum(v) / len(v), "min": min(v), "max": max(v)} for k, v in gm.items()}
+    out.append(f"| the bulk constants | {_range(spread['normal'])} | {_range(spread['mirrored'])} | "
+               f"{_f(rms['normal'])} | {_f(rms['mirrored'])} |")
+    for variant in ("membrane", "bending"):
+        v = plate[variant]["spread"]
+        out.append(f"| the plate's {variant} moduli | {_range(v['geometric_mean_ratio_normal'])} | "
+                   f"{_range(v['geometric_mean_ratio_mirrored'])} | {_f(v['log_ratio_rms_normal']['max'])} | "
+                   f"{_f(v['log_ratio_rms_mirrored']['max'])} |")
+    return out + ["", "(rms log ratio: the worst print; 0 when the model is the print mode by mode)", ""]
