@@ -174,3 +174,47 @@ def test_material_source_plate_takes_the_sheets_equivalent_constants(tmp_path):
     with pytest.raises(ConfigError, match="plate_thickness"):
         material_stage.run(StageContext("material", material_stage.MaterialParams(source="plate"), out,
                                         {"homogenize": bare}, tmp_path))
+
+
+def _ratios(**r):
+    names = ("A_11", "A_22", "A_66", "D_11", "D_22", "D_66")
+    return {"thickness_mm": 5.0, "ratio_to_bulk": {**{n: {"mean": r.get(n, 1.0)} for n in names},
+                                                   "geometric_mean": {"mean": 1.0}}}
+
+
+def test_auto_choice_keeps_the_bulk_within_ten_percent_and_says_why():
+    from metasheet.pipeline.stages.material import auto_choice
+
+    assert auto_choice(None)["source"] == "homogenize" and "plate_thickness" in auto_choice(None)["why"]
+    near = auto_choice(_ratios(A_11=1.05, D_66=0.92))
+    assert near["source"] == "homogenize" and "D_66 x0.92" in near["why"]
+    far = auto_choice(_ratios(A_66=0.22, D_11=1.36))
+    assert far["source"] == "plate" and "A_66 x0.22" in far["why"]
+    assert auto_choice(_ratios(D_11=1.12))["source"] == "plate"  # stiffer by more than 10 % counts too
+
+
+def test_material_auto_takes_the_plate_when_the_sheet_is_not_the_bulk(tmp_path):
+    from metasheet.homogenize.plate import abd_moduli, equivalent_constants
+    from metasheet.mechanics.material import TransverseIsotropic
+    from metasheet.pipeline.stages import material as material_stage
+
+    lattice = np.zeros((4, 4, 4), np.uint8)  # square struts along x, y, z: 2 voxels in a 4-voxel cell
+    lattice[:2, :2, :] = lattice[:2, :, :2] = lattice[:, :2, :2] = 1
+    cell = _cell_dir(tmp_path, lattice, (4.0, 4.0, 4.0), {"1": {"E": 1.0, "nu": 0.3}})
+    hom = tmp_path / "homogenize"
+    hom.mkdir()
+    stage.run(StageContext("homogenize", stage.HomogenizeParams(tolerance=1e-10, plate_thickness=3.0, plate_slabs=2,
+                                                                fields=False, picture=False), hom, {"cell": cell},
+                           tmp_path))
+    plate = json.loads((hom / "plate.json").read_text())
+    work = tmp_path / "material"
+    work.mkdir()
+    summary = material_stage.run(StageContext("material", material_stage.MaterialParams(), work, {"homogenize": hom},
+                                              tmp_path))
+    written = json.loads((work / "material.json").read_text())
+    # 3 mm slabs of a 4 mm lattice cell twist 1.3 times the bulk plate (D_66): beyond 10 %
+    assert written["choice"] == material_stage.auto_choice(plate) and written["choice"]["source"] == "plate"
+    assert summary["source"] == "plate (membrane)" and summary["why"] == written["choice"]["why"]
+    expect = equivalent_constants(abd_moduli(plate["ABD"]["mean"], plate["thickness_mm"])["membrane"],
+                                  TransverseIsotropic.from_mapping(json.loads((hom / "constants.json").read_text())))
+    assert written["constants"] == pytest.approx(expect.to_dict(), rel=1e-12)

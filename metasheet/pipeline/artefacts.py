@@ -204,10 +204,11 @@ class MaterialFile:
 
 
 def write_material(path: Path, material: TransverseIsotropic, *, density: float, source: str,
-                   model: str = "ours", ci95: dict | None = None) -> None:
+                   model: str = "ours", ci95: dict | None = None, choice: dict | None = None) -> None:
     """``material.json``: constants, units, derived nu_lt and alpha, stiffness and compliance
     (of the five constants), the material ``model`` and the tensor the robot uses under it
-    (``model_stiffness``); under "authors" also the constants that tensor really has."""
+    (``model_stiffness``); under "authors" also the constants that tensor really has; ``choice``:
+    why ``source = "auto"`` took this source."""
     check_model(model)
     units = {k: ("-" if k.startswith("nu") else "MPa") for k in CONSTANT_NAMES}
     extra = {"authors_effective_constants": authors_effective(material).to_dict()} if model == "authors" else {}
@@ -226,6 +227,7 @@ def write_material(path: Path, material: TransverseIsotropic, *, density: float,
         "stiffness": material.stiffness(),
         "compliance": material.compliance(),
         **({"ci95": ci95} if ci95 else {}),
+        **({"choice": choice} if choice else {}),
     })
 
 

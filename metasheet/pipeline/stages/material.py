@@ -14,7 +14,11 @@ field, whose longitudinal shear is E_t / (2 (1 + nu_t)) whatever mu_l, and whose
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Literal
+
+import numpy as np
 
 from pydantic import Field, model_validator
 
@@ -31,7 +35,8 @@ _FOAM = paper.PAPER_FOAM
 
 class MaterialParams(Params):
     source: Literal["auto", "config", "homogenize", "sheet", "plate"] = Field(
-        "auto", description="'auto': homogenize's constants if that stage runs, else this table; 'sheet': the "
+        "auto", description="'auto': homogenize's constants if that stage runs (its plate's when homogenize wrote "
+        "plate.json and the bulk is not within 10 % of that sheet), else this table; 'sheet': the "
         "apparent constants of the printed sheet (sheet_file); 'plate': the sheet cut from the foam "
         "(homogenize's plate.json, plate_variant)"
     )
@@ -111,12 +116,31 @@ def sheet_material(root, p: MaterialParams) -> TransverseIsotropic:
                                             where=f"{p.sheet_file}: spread.apparent means")
 
 
+#: ``source = "auto"`` keeps the bulk continuum when every diagonal stiffness of the sheet cut from
+#: the foam (plate.json's mean ratios to the bulk plate) is within this fraction of the bulk's.
+AUTO_PLATE_TOLERANCE = 0.10
+
+
+def auto_choice(plate: dict | None) -> dict:
+    """``{"source": "homogenize" | "plate", "why": ...}``: what ``source = "auto"`` takes when the
+    homogenize stage runs, from its ``plate.json`` (None: it wrote none)."""
+    if plate is None:
+        return {"source": "homogenize", "why": "the bulk constants: the homogenize stage wrote no plate.json "
+                "([homogenize] plate_thickness unset), so the sheet cut from the foam was not compared"}
+    ratios = {k: float(v["mean"]) for k, v in plate["ratio_to_bulk"].items() if k != "geometric_mean"}
+    worst = max(ratios, key=lambda k: abs(np.log(ratios[k])))
+    r, t = ratios[worst], float(plate["thickness_mm"])
+    if abs(np.log(r)) <= np.log1p(AUTO_PLATE_TOLERANCE):
+        return {"source": "homogenize", "why": f"the bulk constants: a {t:.3g} mm sheet cut from the foam is within "
+                f"{AUTO_PLATE_TOLERANCE:.0%} of the bulk continuum in every stiffness (furthest: {worst} x{r:.3g})"}
+    return {"source": "plate", "why": f"the plate's membrane moduli: a {t:.3g} mm sheet cut from the foam differs from "
+            f"the bulk continuum by more than {AUTO_PLATE_TOLERANCE:.0%} ({worst} x{r:.3g}); the sheets on the robot's "
+            "grips are loaded mostly in their plane (docs/plate.md)"}
+
+
 def plate_material(homogenize, variant: str) -> TransverseIsotropic:
     """The equivalent constants of the sheet cut from the foam (homogenize's ``plate.json``, its
     mean ABD's ``variant`` moduli: :func:`metasheet.homogenize.plate.equivalent_constants`)."""
-    import json
-    from pathlib import Path
-
     from ...homogenize.plate import abd_moduli, equivalent_constants
 
     path = Path(homogenize) / "plate.json"
@@ -132,9 +156,13 @@ def run(ctx: StageContext) -> dict:
     p: MaterialParams = ctx.params
     if p.source in ("homogenize", "plate") and "homogenize" not in ctx.inputs:
         raise ConfigError(f"material.source: {p.source!r}: the homogenize stage is not in this pipeline")
-    ci95 = None
-    if p.source == "plate":
-        m, origin = plate_material(ctx.inputs["homogenize"], p.plate_variant), f"plate ({p.plate_variant})"
+    ci95 = choice = None
+    if p.source == "auto" and "homogenize" in ctx.inputs:
+        plate_file = ctx.inputs["homogenize"] / "plate.json"
+        choice = auto_choice(json.loads(plate_file.read_text()) if plate_file.exists() else None)
+    if p.source == "plate" or (choice and choice["source"] == "plate"):
+        variant = p.plate_variant if p.source == "plate" else "membrane"
+        m, origin = plate_material(ctx.inputs["homogenize"], variant), f"plate ({variant})"
     elif p.source == "sheet":
         m, origin = sheet_material(ctx.root, p), "sheet"
     elif p.source != "config" and "homogenize" in ctx.inputs:
@@ -144,8 +172,10 @@ def run(ctx: StageContext) -> dict:
             ci95 = {k: block[k] for k in ("confidence", "k", "n_cells", "halfwidth", "rel_halfwidth")}
     else:
         m, origin = material_from_params(p), "config"
-    write_material(ctx.path("material.json"), m, density=p.density, source=origin, model=p.model, ci95=ci95)
-    return {"source": origin, "model": p.model, **m.to_dict(), "alpha_percent": round(m.alpha, 3)}
+    write_material(ctx.path("material.json"), m, density=p.density, source=origin, model=p.model, ci95=ci95,
+                   choice=choice)
+    return {"source": origin, "model": p.model, **m.to_dict(), "alpha_percent": round(m.alpha, 3),
+            **({"why": choice["why"]} if choice else {})}
 
 
 register(
