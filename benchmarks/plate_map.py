@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def one_design(job):
     """(infill, shrink, thicknesses, slabs) -> rows (dicts) for each thickness."""
     from metasheet.cells.catalogue import design_cell, parse_design
+    from metasheet.errors import InfeasibleError
     from metasheet.homogenize import homogenize_voxels
     from metasheet.homogenize.plate_slabs import DIAGONAL, slab_study
 
@@ -51,7 +52,7 @@ def one_design(job):
     for t in thicknesses:
         try:
             st = slab_study(cell.phases, cell.size, cell.materials, t, C, slabs=slabs)
-        except Exception as exc:  # a slab that falls apart is a result of the map
+        except InfeasibleError as exc:  # a slab that falls apart is a result of the map
             rows.append({"infill": infill, "shrink": shrink, "t": t, "size": cell.size.tolist(), "height": height,
                          "error": str(exc).split(":")[-1].strip()[:60]})
             continue

@@ -79,7 +79,7 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
                   + ("" if all(r["converged"] for r in res) else "; not converged for some realisation "
                      "(a constant at its positive-definite limit)") + ". A residual this large says no single "
                   "transverse-isotropic material describes the print: read the constants as a diagnostic.", ""]
-    lines += _plate_lines(d.get("plate"), rows)
+    lines += _plate_lines(d.get("plate"), rows, spr)
     if n > 1:
         lines += [(f"Print to print ({n} seeds): rod roll {_f(roll['min'], 4)} to {_f(roll['max'], 4)} deg/deg "
                   f"(sd {_f(roll['std'], 2)}); geometric mean stiffness ratio "
@@ -92,7 +92,7 @@ def sheet_dns_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
     return lines, found
 
 
-def _plate_lines(plate: Mapping | None, rows) -> list[str]:
+def _plate_lines(plate: Mapping | None, rows, spr: Mapping) -> list[str]:
     """The sheet-scale (plate) continuum against the prints, when the homogenize stage wrote plate.json."""
     if not plate:
         return []
@@ -101,11 +101,9 @@ def _plate_lines(plate: Mapping | None, rows) -> list[str]:
             "printed over model, as above (`[material] source = \"plate\"` drives the robot with them):"), "",
            "| the robot's sheets from | geometric mean ratio, normal | mirrored | rms log ratio, normal | mirrored |",
            "|---|---|---|---|---|"]
-    gm = {k: [r["sheets"][k]["geometric_mean_ratio"] for r in rows] for k in ("normal", "mirrored")}
     rms = {k: max(r["sheets"][k]["log_ratio_rms"] for r in rows) for k in ("normal", "mirrored")}
-    spread = {k: {"mean": sum(v) / len(v), "min": min(v), "max": max(v)} for k, v in gm.items()}
-    out.append(f"| the bulk constants | {_range(spread['normal'])} | {_range(spread['mirrored'])} | "
-               f"{_f(rms['normal'])} | {_f(rms['mirrored'])} |")
+    out.append(f"| the bulk constants | {_range(spr['geometric_mean_ratio_normal'])} | "
+               f"{_range(spr['geometric_mean_ratio_mirrored'])} | {_f(rms['normal'])} | {_f(rms['mirrored'])} |")
     for variant in ("membrane", "bending"):
         v = plate[variant]["spread"]
         out.append(f"| the plate's {variant} moduli | {_range(v['geometric_mean_ratio_normal'])} | "

@@ -23,6 +23,7 @@ from ..robot.builder import SheetPair, element_stiffness
 from ..robot.condensed import rest_numbers_condensed
 from ..sheet.dns import DnsSheet, compare
 from ..sheet.grips import fem_condensed, grip_references
+from .sheet_dns import _spread
 
 #: The plate's moduli a variant takes: its stretching or its bending.
 VARIANTS = ("membrane", "bending")
@@ -69,7 +70,3 @@ def plate_comparison(pair: SheetPair, model: str, bulk: TransverseIsotropic, pla
                         "spread": {k: _spread([r[k] for r in rows]) for k in rows[0]}}
     return out
 
-
-def _spread(values) -> dict:
-    v = np.asarray(values, float)
-    return {"mean": float(v.mean()), "min": float(v.min()), "max": float(v.max())}
