@@ -17,6 +17,7 @@ from .design import design_section
 from .dynamics import HEADING as DYNAMICS_HEADING, dynamics_section
 from .model import model_section
 from .reduce import reduce_section
+from .scale_map import scale_map_section
 from .sheet import sheet_dns_section
 from .siblings import missing_lines, source_lines
 from .uncertainty import SIZE_HEADING, print_rows, robot_spread_rows, size_study_rows, uncertainty_rows
@@ -186,6 +187,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         pic = [f"![robot]({pictures['robot']})", ""] if "robot" in pictures else []
         lines += ["## Robot, silicone vs foam (reproduces paper Fig. 4 and Fig. 8)", "", *pic, _table(flat), ""]
     section, found = sheet_dns_section(s.get("sheet_dns"), pictures, s.get("material"))
+    lines += section
+    diffs += found
+    section, found = scale_map_section(s.get("scale_map"), pictures)
     lines += section
     diffs += found
     section, found = design_section(s.get("design_json"), pictures)

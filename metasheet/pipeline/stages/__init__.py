@@ -8,7 +8,7 @@ import importlib
 import pkgutil
 
 CANONICAL = (
-    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot", "reduce", "sheet",
+    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot", "reduce", "sheet", "scalemap",
     "workspace", "ranges", "anisotropy", "maze", "report",
 )
 

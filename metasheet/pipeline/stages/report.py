@@ -126,6 +126,11 @@ def run(ctx: StageContext) -> dict:
             if (ctx.inputs["sheet"] / f"{key}.png").exists():
                 shutil.copyfile(ctx.inputs["sheet"] / f"{key}.png", ctx.path(f"{key}.png"))
                 pictures[key] = f"{key}.png"
+    if "scalemap" in ctx.inputs and (ctx.inputs["scalemap"] / "scale_map.json").exists():  # issue 63's map
+        summaries["scale_map"] = json.loads((ctx.inputs["scalemap"] / "scale_map.json").read_text())
+        if (ctx.inputs["scalemap"] / "scale_map.png").exists():
+            shutil.copyfile(ctx.inputs["scalemap"] / "scale_map.png", ctx.path("scale_map.png"))
+            pictures["scale_map"] = "scale_map.png"
     if "design" in ctx.inputs and (ctx.inputs["design"] / "design.json").exists():  # the fibre design (issue 45)
         summaries["design_json"] = json.loads((ctx.inputs["design"] / "design.json").read_text())
         for f in ("field", "pareto"):
@@ -246,7 +251,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
-              "ranges", "anisotropy", "maze", "sheet", "design", "dynamics"),
+              "ranges", "anisotropy", "maze", "sheet", "scalemap", "design", "dynamics"),
     siblings=sibling_folders, outputs=("report.md",),
     doc="Markdown report of the studies, labelled with the paper's figures",
 ))
