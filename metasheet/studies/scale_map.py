@@ -72,14 +72,12 @@ class CellPoint:
 def foam_design(data: Mapping, infill: float, shrink: float, voxel_mm: float | None = None, seed: int | None = None):
     """The :class:`~metasheet.cells.polyfoam.PolyfoamDesign` of the base ``data`` at one grid point."""
     from ..cells.catalogue import parse_design
-    from ..cells.polyfoam import PolyfoamDesign
 
-    d = parse_design(data, overrides={"infill_percentage": infill, "kgon_x_shrink": shrink, "voxel_mm": voxel_mm,
-                                      "seed": seed}, source="scalemap.design")
-    if not isinstance(d, PolyfoamDesign):
-        raise ConfigError(f"scalemap.design: kind {data.get('kind')!r}: the map sweeps IceSL Polyfoam settings: "
-                          "give a polyfoam design (e.g. cells/paper_polyfoam.toml)")
-    return d
+    if data.get("kind", "foam") != "polyfoam":
+        raise ConfigError(f"scalemap.design: kind {data.get('kind', 'foam')!r}: the map sweeps IceSL Polyfoam "
+                          "settings: give a polyfoam design (e.g. cells/paper_polyfoam.toml)")
+    return parse_design(data, overrides={"infill_percentage": infill, "kgon_x_shrink": shrink, "voxel_mm": voxel_mm,
+                                         "seed": seed}, source="scalemap.design")
 
 
 def cell_point(u: CellUnit) -> CellPoint:

@@ -85,7 +85,7 @@ def base_design(root: Path, p: ScaleMapParams) -> dict:
         raise ConfigError(f"scalemap.design: {p.design!r}: no such file under {root}")
     data = read_design_toml(path, f"scalemap.design: {p.design!r}")
     d = foam_design(data, p.infill[0], p.shrink[0], p.cell_voxel_mm)
-    check_voxel(p.voxel_mm, d.bead_width)
+    check_voxel(p.voxel_mm, d.bead_width, "scalemap.voxel_mm")
     return data
 
 

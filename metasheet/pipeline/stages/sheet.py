@@ -69,9 +69,9 @@ class SheetDnsParams(Params):
             raise ConfigError(f"{table}.{err}") from None
 
 
-def check_voxel(voxel_mm: float, bead_width: float) -> None:
+def check_voxel(voxel_mm: float, bead_width: float, field: str = "sheet.voxel_mm") -> None:
     if voxel_mm > bead_width:
-        raise ConfigError(f"sheet.voxel_mm: {voxel_mm:g}: allowed range (0, bead_width = {bead_width:g}] mm "
+        raise ConfigError(f"{field}: {voxel_mm:g}: allowed range (0, bead_width = {bead_width:g}] mm "
                           "(a wall must be at least one voxel)")
 
 
