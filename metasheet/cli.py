@@ -235,6 +235,24 @@ def validate(
 
     p = load_pipeline(pipeline, assignments or ())
     say(f"{pipeline}: ok; stages in order: {' -> '.join(p.order)}", err=False)
+    for stage in ("cell", "printcheck"):  # will the foam printed in this sheet behave like a continuum?
+        if stage in p.params and "orient" in p.params:
+            from .cells.polyfoam import PolyfoamDesign
+            from .pipeline.stages.orient import sheet_params
+            from .studies.continuum_check import check_design
+
+            if stage == "cell":
+                from .pipeline.stages.cell import load_design
+
+                design = load_design(p.root, p.params["cell"])[0]
+            else:
+                from .pipeline.stages.printcheck import print_design
+
+                design = print_design(p.root, p.params["printcheck"])
+            if isinstance(design, PolyfoamDesign):
+                chk = check_design(design, sheet_params(p.params["orient"]).thickness)
+                say(f"{'warning' if chk.holds != 'bulk' else 'note'}: {stage}: {chk.message()} "
+                    "(docs/continuum-map.md)")
 
 
 @app.command(epilog=docs("diff"), short_help="Compare two output trees, file by file, number by number.")

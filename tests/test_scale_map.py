@@ -194,3 +194,15 @@ def test_a_strut_foam_design_is_refused(tmp_path):
     f.write_text(pipeline(tmp_path / "design.toml"))
     with pytest.raises(ConfigError, match="scalemap.design"):
         load_pipeline(f)
+
+
+def test_cell_extent_estimates_the_built_cell():
+    """The one-second estimate of a Polyfoam's cell (no voxel grid) against the cell built on its grid."""
+    import tomllib
+
+    from metasheet.cells.catalogue import design_cell, parse_design
+    from metasheet.cells.polyfoam import cell_extent
+
+    design = parse_design(tomllib.loads(DESIGN))
+    built = np.asarray(design_cell(design).size) / design.seeds.count ** (1 / 3)
+    assert cell_extent(design) == pytest.approx(built, rel=0.05)

@@ -13,7 +13,7 @@ from ..mechanics.material import CONSTANT_NAMES
 from .columns import columns_section, scene_facts_section
 from .constants import constants_section
 from .convergence import HEADING as CONVERGENCE_HEADING, convergence_section
-from .design import design_section
+from .design import design_section, print_check_section
 from .dynamics import HEADING as DYNAMICS_HEADING, dynamics_section
 from .model import model_section
 from .reduce import reduce_section
@@ -193,6 +193,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     lines += section
     diffs += found
     section, found = design_section(s.get("design_json"), pictures)
+    lines += section
+    diffs += found
+    section, found = print_check_section(s.get("print_check"))
     lines += section
     diffs += found
     section, found = model_section(s.get("robot"), s.get("anisotropy"))

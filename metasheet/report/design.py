@@ -116,3 +116,29 @@ def design_section(d: Mapping | None, pictures: Mapping[str, str] | None = None)
         diffs.append(f"Design: the chosen design's linearised strain at the goals reaches {p['strain_max']:.3g}, "
                      f"beyond the validity limit {table['strain_limit']:g}.")
     return lines, diffs
+
+
+def print_check_section(d: Mapping | None) -> tuple[list[str], list[str]]:
+    """(Markdown lines, differences): the chosen design printed against its model (the
+    ``printcheck`` stage's ``print_check.json``); ([], []) without it."""
+    if not d:
+        return [], []
+    f = d["print_design"]
+    lines = ["### The chosen design printed (issue 63)", "", f"**{d['verdict']}.**", "",
+             (f"Printed in `{f['file']}` (infill {f['infill_percentage']:g} %, shrink {f['kgon_x_shrink']:g}, bead "
+              f"{f['bead_width']:g} mm; seeds {', '.join(map(str, d['seeds']))}, {d['voxel_mm']:g} mm voxels), both "
+              "sheets solved on the robot's grips, against the design's continuum on the same grips "
+              f"({d['material']['source']} constants, model {d['material']['model']})."), "",
+             *([f"The foam in this sheet (scale map): {d['continuum']['message']}.", ""] if d.get("continuum") else []),
+             "| design | model's rod roll [deg/deg] | printed [deg/deg] | printed / model |", "|---|---|---|---|"]
+    for k in ("spiral", "chosen"):
+        if k in d:
+            rolls = ", ".join(f"{p['rod_rotation_deg_per_deg']:+.3f}" for p in d[k]["prints"])
+            r = d[k]["roll_ratio"]
+            span = f"{r['min']:.2f}" if r["min"] == r["max"] else f"{r['min']:.2f} to {r['max']:.2f}"
+            lines.append(f"| {k} | {d[k]['model']['rod_rotation_deg_per_deg']:+.3f} | {rolls} | {span} |")
+    lines.append("")
+    diffs = [] if d["chosen"]["meets"] else [
+        f"Design: printed, the chosen design's rod roll per degree misses its model by {d['chosen']['misses_by']:.0%} "
+        "(print_check.json)."]
+    return lines, diffs

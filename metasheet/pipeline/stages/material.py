@@ -121,21 +121,54 @@ def sheet_material(root, p: MaterialParams) -> TransverseIsotropic:
 AUTO_PLATE_TOLERANCE = 0.10
 
 
-def auto_choice(plate: dict | None) -> dict:
+def auto_choice(plate: dict | None, check=None) -> dict:
     """``{"source": "homogenize" | "plate", "why": ...}``: what ``source = "auto"`` takes when the
-    homogenize stage runs, from its ``plate.json`` (None: it wrote none)."""
+    homogenize stage runs, from its ``plate.json`` (None: it wrote none) and, for a Polyfoam cell,
+    the scale map's verdict on it in a sheet of the plate's thickness (``check``, a
+    :class:`~metasheet.studies.continuum_check.ContinuumCheck`): the bulk constants where the
+    map expects them within :data:`AUTO_PLATE_TOLERANCE` of the prints, else the plate's
+    membrane moduli. Without the map's verdict, the plate's own: every mean diagonal stiffness of
+    the sheet cut from the foam within that tolerance of the bulk plate's."""
+    tol = AUTO_PLATE_TOLERANCE
+    if check is not None:
+        n, b = check.cells_through, check.bulk
+        seen = (f"the scale map expects a {check.thickness:.3g} mm sheet of this foam ({n:.2f} cell heights through "
+                f"it) at {b:.2f} x the bulk continuum's stiffness")
+        if abs(np.log(b)) <= np.log1p(tol):
+            return {"source": "homogenize", "why": f"the bulk constants: {seen}, within {tol:.0%} (docs/continuum-map.md)"}
+        if plate is None:
+            return {"source": "homogenize", "why": f"the bulk constants, though {seen}: set [homogenize] "
+                    "plate_thickness to the sheets' thickness for the plate model (docs/continuum-map.md)"}
+        holds = ("within 25 % of the prints" if check.holds == "plate" else
+                 "yet no continuum holds within 25 %: only a model of the printed walls predicts this sheet")
+        return {"source": "plate", "why": f"the plate's membrane moduli: {seen}, and at {check.plate:.2f} x the "
+                f"plate's, {holds} (docs/continuum-map.md)"}
     if plate is None:
         return {"source": "homogenize", "why": "the bulk constants: the homogenize stage wrote no plate.json "
                 "([homogenize] plate_thickness unset), so the sheet cut from the foam was not compared"}
     ratios = {k: float(v["mean"]) for k, v in plate["ratio_to_bulk"].items() if k != "geometric_mean"}
     worst = max(ratios, key=lambda k: abs(np.log(ratios[k])))
     r, t = ratios[worst], float(plate["thickness_mm"])
-    if abs(np.log(r)) <= np.log1p(AUTO_PLATE_TOLERANCE):
+    if abs(np.log(r)) <= np.log1p(tol):
         return {"source": "homogenize", "why": f"the bulk constants: a {t:.3g} mm sheet cut from the foam is within "
-                f"{AUTO_PLATE_TOLERANCE:.0%} of the bulk continuum in every stiffness (furthest: {worst} x{r:.3g})"}
+                f"{tol:.0%} of the bulk continuum in every stiffness (furthest: {worst} x{r:.3g})"}
     return {"source": "plate", "why": f"the plate's membrane moduli: a {t:.3g} mm sheet cut from the foam differs from "
-            f"the bulk continuum by more than {AUTO_PLATE_TOLERANCE:.0%} ({worst} x{r:.3g}); the sheets on the robot's "
+            f"the bulk continuum by more than {tol:.0%} ({worst} x{r:.3g}); the sheets on the robot's "
             "grips are loaded mostly in their plane (docs/plate.md)"}
+
+
+def map_check(cell_dir, plate: dict | None):
+    """The scale map's verdict on the cell stage's Polyfoam in a sheet of the plate's thickness, or
+    None (no cell stage, another kind of cell, or no plate.json: no thickness to judge)."""
+    if cell_dir is None or plate is None:
+        return None
+    from ...cells.catalogue import parse_design
+    from ...cells.polyfoam import PolyfoamDesign
+    from ...studies.continuum_check import check_design
+    from ..artefacts import read_cell_design
+
+    design = parse_design(read_cell_design(cell_dir), source="cell.json design")
+    return check_design(design, float(plate["thickness_mm"])) if isinstance(design, PolyfoamDesign) else None
 
 
 def plate_material(homogenize, variant: str) -> TransverseIsotropic:
@@ -159,7 +192,8 @@ def run(ctx: StageContext) -> dict:
     ci95 = choice = None
     if p.source == "auto" and "homogenize" in ctx.inputs:
         plate_file = ctx.inputs["homogenize"] / "plate.json"
-        choice = auto_choice(json.loads(plate_file.read_text()) if plate_file.exists() else None)
+        plate = json.loads(plate_file.read_text()) if plate_file.exists() else None
+        choice = auto_choice(plate, map_check(ctx.inputs.get("cell"), plate))
     if p.source == "plate" or (choice and choice["source"] == "plate"):
         variant = p.plate_variant if p.source == "plate" else "membrane"
         m, origin = plate_material(ctx.inputs["homogenize"], variant), f"plate ({variant})"
@@ -183,9 +217,11 @@ register(
         name="material",
         params=MaterialParams,
         run=run,
-        optional=("homogenize",),
-        # given constants (or a sheet's file) do not wait for a homogenisation they do not read
-        reads=lambda p: () if p.source in ("config", "sheet") else ("homogenize",),  # plate: homogenize's plate.json
+        optional=("homogenize", "cell"),
+        # given constants (or a sheet's file) do not wait for a homogenisation they do not read; auto reads
+        # the cell for the scale map's verdict on it
+        reads=lambda p: (() if p.source in ("config", "sheet") else ("homogenize", "cell") if p.source == "auto"
+                         else ("homogenize",)),
         outputs=("material.json",),
         doc="constitutive constants (given, or from homogenize) -> material.json",
     )

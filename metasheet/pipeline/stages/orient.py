@@ -20,6 +20,7 @@ builds the chosen design's sheets with the bytes its evaluation had. ``sheet.jso
 
 from __future__ import annotations
 
+import logging
 from dataclasses import replace
 from typing import Annotated, Literal
 
@@ -33,11 +34,13 @@ from ...robot.scenes import PRESETS, get_preset
 from ...sheet import fibers as fb
 from ...sheet import geometry as geo
 from ...sheet import grading as gr
-from ..artefacts import SHEET_FILES, read_material, read_print_model, write_sheet
+from ..artefacts import SHEET_FILES, read_cell_design, read_material, read_print_model, write_sheet
 from ..manifest import write_json_atomic
 from ..bounds import MODULUS
 from ..registry import Params, Stage, StageContext, register
 from .material import check_constants
+
+log = logging.getLogger(__name__)
 
 _FOAM = paper.PAPER_FOAM
 
@@ -278,10 +281,31 @@ def _material(ctx: StageContext) -> tuple[TransverseIsotropic, str]:
 
 
 def _reads(p) -> tuple[str, ...]:
-    """The material always; the chart (and the cell and constants it is calibrated on) for a
-    graded design only: a uniform one need not wait for the chart."""
+    """The material and the cell (is the foam's cell small enough for a continuum?) always; the
+    chart (and the constants it is calibrated on) for a graded design only: a uniform one need
+    not wait for the chart."""
     g = p.grading
-    return ("material", "chart", "cell", "homogenize") if (g.table or g.density_expr or g.alpha_expr) else ("material",)
+    graded = g.table or g.density_expr or g.alpha_expr
+    return ("material", "chart", "cell", "homogenize") if graded else ("material", "cell")
+
+
+def continuum(cell_dir, thickness: float) -> dict | None:
+    """``sheet.json``'s ``continuum``: the scale map's verdict on the cell stage's Polyfoam in a
+    sheet this thick (:mod:`metasheet.studies.continuum_check`), logged as a warning when the bulk
+    continuum does not hold; None for other cells or without a cell stage."""
+    if cell_dir is None:
+        return None
+    from ...cells.catalogue import parse_design
+    from ...cells.polyfoam import PolyfoamDesign
+    from ...studies.continuum_check import check_design
+
+    design = parse_design(read_cell_design(cell_dir), source="cell.json design")
+    if not isinstance(design, PolyfoamDesign):
+        return None
+    chk = check_design(design, thickness)
+    if chk.holds != "bulk":
+        log.warning("orient: %s", chk.message())
+    return chk.to_dict()
 
 
 def _chart_lookup(ctx: StageContext):
@@ -369,6 +393,9 @@ def run(ctx: StageContext) -> dict:
         "constants_source": how,
         "files": dict(SHEET_FILES),
     }
+    cont = continuum(ctx.inputs.get("cell"), sp.thickness)
+    if cont is not None:
+        info["continuum"] = cont
     write_json_atomic(ctx.path("sheet.json"), info)
     if p.picture:
         ctx.progress("picture", 3, 4)
@@ -379,6 +406,7 @@ def run(ctx: StageContext) -> dict:
         "worst_aspect": round(normal.quality.worst_aspect, 3),
         "min_volume_mm3": round(normal.quality.min_volume, 4),
         "attach_counts": counts, "constants_source": how, "material_source": source, "scene": p.scene,
+        **({"continuum_holds": cont["holds"]} if cont else {}),
     }
 
 

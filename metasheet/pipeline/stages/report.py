@@ -131,6 +131,8 @@ def run(ctx: StageContext) -> dict:
         if (ctx.inputs["scalemap"] / "scale_map.png").exists():
             shutil.copyfile(ctx.inputs["scalemap"] / "scale_map.png", ctx.path("scale_map.png"))
             pictures["scale_map"] = "scale_map.png"
+    if "printcheck" in ctx.inputs and (ctx.inputs["printcheck"] / "print_check.json").exists():  # issue 63
+        summaries["print_check"] = json.loads((ctx.inputs["printcheck"] / "print_check.json").read_text())
     if "design" in ctx.inputs and (ctx.inputs["design"] / "design.json").exists():  # the fibre design (issue 45)
         summaries["design_json"] = json.loads((ctx.inputs["design"] / "design.json").read_text())
         for f in ("field", "pareto"):
@@ -251,7 +253,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
-              "ranges", "anisotropy", "maze", "sheet", "scalemap", "design", "dynamics"),
+              "ranges", "anisotropy", "maze", "sheet", "scalemap", "design", "printcheck", "dynamics"),
     siblings=sibling_folders, outputs=("report.md",),
     doc="Markdown report of the studies, labelled with the paper's figures",
 ))
