@@ -2,6 +2,9 @@
 after success, pruned to the run's, and a rerun whose stage key changed for the prediction only
 reuses them; the key covers the code; --force recomputes."""
 
+import os
+from pathlib import Path
+
 import pytest
 
 from metasheet.runtime.executor import Executor
@@ -112,3 +115,19 @@ def test_the_code_digest_reads_the_whole_package():
     assert {"__init__.py", "robot/body.py", "pipeline/manifest.py", "runtime/provenance.py",
             "dynamics/robot.py"} <= names
     assert provenance.PACKAGE.name == "metasheet"
+
+
+def test_a_unit_holding_a_pydantic_model_has_one_key_in_every_process():
+    """A pydantic model's own pickle holds a set whose order follows the string hash seed: the key
+    must not (a resumed map in a new process finds its units)."""
+    import subprocess
+    import sys
+
+    code = ("import tomllib; from metasheet.studies.resume import unit_key; "
+            "from metasheet.studies.scale_map import foam_design; "
+            "d = tomllib.loads(open('cells/paper_polyfoam.toml').read()); "
+            "print(unit_key((foam_design(d, 15.0, 0.2, seed=1), 'normal')))")
+    root = Path(__file__).resolve().parents[1]
+    keys = {subprocess.run([sys.executable, "-c", code], cwd=root, env={**os.environ, "PYTHONHASHSEED": str(s)},
+                           capture_output=True, text=True, check=True).stdout.strip() for s in (1, 2, 3)}
+    assert len(keys) == 1 and len(keys.pop()) == 32

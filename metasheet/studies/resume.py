@@ -12,6 +12,7 @@ run leaves no half-written unit.
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 import pickle
 import threading
@@ -27,10 +28,30 @@ _USED: dict[Path, set[str]] = {}
 _USED_LOCK = threading.Lock()
 
 
+class _KeyPickler(pickle.Pickler):
+    """A pickler for hashing only: a pydantic model is pickled as its class and its
+    ``model_dump()`` (its own pickle holds the set of fields given, whose order follows the
+    process's string hash seed: the same unit would get another key in another process)."""
+
+    def reducer_override(self, obj):
+        from pydantic import BaseModel
+
+        if isinstance(obj, BaseModel):
+            return _model_key, (f"{type(obj).__module__}.{type(obj).__qualname__}", obj.model_dump())
+        return NotImplemented
+
+
+def _model_key(name: str, fields: dict):  # never called: the reduction only has to hash the same
+    raise TypeError(f"{name}: a unit key's pickle is for hashing, not for loading")
+
+
 def unit_key(item: Any) -> str:
-    """Content hash of a work unit (its pickle; numpy arrays and frozen dataclasses pickle stably)
-    and of the code that computes it (:func:`code_digest`)."""
-    return hashlib.sha256(code_digest().encode() + pickle.dumps(item, protocol=4)).hexdigest()[:32]
+    """Content hash of a work unit (its pickle; numpy arrays and frozen dataclasses pickle stably,
+    pydantic models as their fields: :class:`_KeyPickler`) and of the code that computes it
+    (:func:`code_digest`): the same unit has the same key in any process."""
+    buf = io.BytesIO()
+    _KeyPickler(buf, protocol=4).dump(item)
+    return hashlib.sha256(code_digest().encode() + buf.getvalue()).hexdigest()[:32]
 
 
 def keep_only_used(directory: Path | str) -> int:
