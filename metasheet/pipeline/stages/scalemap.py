@@ -28,7 +28,7 @@ from threadpoolctl import threadpool_limits
 
 from ...errors import ConfigError
 from ..artefacts import read_orient
-from ..manifest import write_json_atomic
+from ..manifest import write_bytes_atomic, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
 
 
@@ -187,7 +187,7 @@ def run(ctx: StageContext) -> dict:
     if p.picture:
         from ...viz.scale_map import scale_map_picture
 
-        _write_bytes(ctx.path("scale_map.png"), scale_map_picture(doc))
+        write_bytes_atomic(ctx.path("scale_map.png"), scale_map_picture(doc))
     if p.resume:  # an extended grid reuses these units: keep the ones this map used
         keep_only_used(_cache_dir(ctx))
     bulk = doc["trend"]["bulk"]
@@ -237,14 +237,6 @@ def document(p: ScaleMapParams, data: dict, seeds: list[int], model: str, scene,
             "cell_voxel_mm": p.cell_voxel_mm, "slabs": p.slabs, "model": model, "element": element,
             "scene": {"rod_length_mm": scene.rod_length}, "bands": list(BANDS),
             "points": points, "trend": tr, "verdict": verdict(points, tr)}
-
-
-def _write_bytes(path: Path, data: bytes) -> None:
-    import os
-
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 register(
