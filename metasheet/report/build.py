@@ -155,6 +155,11 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         m = s["material"]
         keys = (*CONSTANT_NAMES, "alpha_percent", "source", "model")
         lines += ["## Constants (paper Section II, FACTS)", "", _table([(k, m[k]) for k in keys if k in m]), ""]
+        lines += [f"Chosen (`source = \"auto\"`): {m['why']}.", ""] if m.get("why") else []
+    if "continuum" in s:  # the orient stage's verdict: is the printed foam a continuum in this sheet?
+        c = s["continuum"]
+        lines += [f"**The foam in this sheet ({'a continuum holds' if c['holds'] != 'none' else 'no continuum holds'}"
+                  f"): {c['message']}** (docs/continuum-map.md).", ""]
     if "scene" in s:
         sc = s["scene"]
         over = sc.get("overridden_by_orient") or []

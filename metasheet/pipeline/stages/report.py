@@ -97,11 +97,15 @@ def run(ctx: StageContext) -> dict:
     if "orient" in ctx.inputs:
         sheet_info = json.loads((ctx.inputs["orient"] / "sheet.json").read_text())
         summaries["sheet_thickness_mm"] = sheet_info.get("geometry", {}).get("thickness")
+        summaries["continuum"] = sheet_info.get("continuum")  # the scale map's verdict on the cell's foam
         summaries["scene"] = sheet_info.get("scene")
     if "material" in ctx.inputs:
         m = read_material(ctx.inputs["material"])
         summaries["material"] = {**m.material.to_dict(), "alpha_percent": m.material.alpha, "source": m.source,
                                  "model": m.model}
+        choice = json.loads((ctx.inputs["material"] / "material.json").read_text()).get("choice")
+        if choice:  # source = "auto": which continuum, and why
+            summaries["material"]["why"] = choice["why"]
     conv, notes["convergence"] = _source(ctx, "convergence")
     if conv is not None:  # the robot's mesh study: this pipeline's robot, or the convergence pipeline's
         summaries["convergence"] = json.loads((conv / "convergence.json").read_text())
