@@ -30,26 +30,30 @@ def scale_map_section(d: Mapping | None, pictures: Mapping[str, str] | None = No
               f"shrink varied, in sheets of {', '.join(f'{t:g}' for t in d['grid']['thickness_mm'])} mm: each printed "
               f"{len(pr['seeds'])} times (seeds {', '.join(map(str, pr['seeds']))}, {pr['voxel_mm']:g} mm voxels) as "
               "the robot's two sheets, solved on their grips, over the robot's sheets made of the cell's bulk "
-              "constants and of the plate's (the cell cut at the sheet's faces). Ratios: printed over continuum, "
+              "stiffness (its whole C, and the transverse-isotropic fit the robot uses) and of the plate's (the cell "
+              "cut at the sheet's faces). Ratios: printed over continuum, "
               "geometric mean of both sheets' 36 grip modes, with the 95 % interval over the prints."), ""]
     if "scale_map" in pictures:
         lines += [f"![the scale-separation map]({pictures['scale_map']})", ""]
     lines += ["| infill [%] | shrink | t [mm] | cell [mm] | cells through t | cells across the arm | against bulk | "
-              "against plate (membrane) | against plate (bending) | rod roll, against bulk |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "against the robot's constants | against plate (membrane) | against plate (bending) | rod roll, against "
+              "bulk |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for p in d["points"]:
         s = p["summary"]
         cell = " x ".join(f"{c:.1f}" for c in p["cell_mm"])
         if p.get("falls_apart"):
             lines.append(f"| {p['infill']:g} | {p['shrink']:g} | {p['thickness_mm']:g} | {cell} | "
-                         f"{p['cells_through']:.2f} | {p['cells_across']:.2f} | falls apart | | | |")
+                         f"{p['cells_through']:.2f} | {p['cells_across']:.2f} | falls apart | | | | |")
             continue
         roll = s["bulk"]["rod_roll"]
         lines.append(f"| {p['infill']:g} | {p['shrink']:g} | {p['thickness_mm']:g} | {cell} | {p['cells_through']:.2f} "
-                     f"| {p['cells_across']:.2f} | {_ratio(s['bulk']['modes'])} | {_ratio(s.get('plate_membrane', {}).get('modes'))} "
+                     f"| {p['cells_across']:.2f} | {_ratio(s['bulk']['modes'])} | {_ratio(s.get('bulk_fit', {}).get('modes'))} "
+                     f"| {_ratio(s.get('plate_membrane', {}).get('modes'))} "
                      f"| {_ratio(s.get('plate_bending', {}).get('modes'))} | {roll['mean']:.2f} |")
     lines.append("")
-    for model, name in (("bulk", "the bulk continuum"), ("plate_membrane", "the plate (membrane moduli)")):
+    for model, name in (("bulk", "the bulk continuum (the cell's whole C)"),
+                        ("bulk_fit", "the robot's constants (its transverse-isotropic fit)"),
+                        ("plate_membrane", "the plate (membrane moduli)")):
         tr = d["trend"].get(model, {})
         if "a" in tr and all(v is not None for v in tr["n_within"].values()):
             w = tr["n_within"]

@@ -18,15 +18,17 @@ import numpy as np
 
 from ..errors import check_range
 
-#: The map's fits (a, b, sign): r = exp(sign a n^-b). Measured by ``metasheet run
-#: pipelines/scale-map.toml`` (docs/continuum-map.md, 2026-11-30: 3 infills x 2 shrinks x 2
-#: thicknesses, 3 prints each at 0.25 mm voxels).
+#: The map's fits (a, b, sign): r = exp(sign a n^-b), printed over continuum. "bulk": the robot's
+#: bulk constants (the cell's transverse-isotropic fit, what ``source = "homogenize"`` gives);
+#: "plate": the plate's membrane moduli. Measured by ``metasheet run pipelines/scale-map.toml``
+#: (2026-11-30: infill 15 / 30 / 50 % x shrink 0.2 / 1 x 2.5 / 5 mm, 3 prints each at 0.25 mm
+#: voxels; docs/continuum-map.md). The cell's whole C, the scale effect alone, fits 0.106 n^-0.90.
 TRENDS = {
-    "bulk": (0.0, 1.0, -1.0),
-    "plate": (0.0, 1.0, -1.0),
+    "bulk": (0.3083, 0.5577, -1.0),
+    "plate": (0.0570, 0.2261, -1.0),
 }
 #: The n range the fits saw [cells through the sheet]: outside it the verdict says it extrapolates.
-MAP_RANGE = (0.0, 0.0)
+MAP_RANGE = (0.06, 0.94)
 #: A continuum "holds" within this fraction of the prints (the map's wider band).
 HOLDS = 0.25
 

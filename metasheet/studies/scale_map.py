@@ -109,6 +109,20 @@ def bulk_material(cell: CellPoint):
     return TransverseIsotropic(**{k: cell.constants[k] for k in CONSTANT_NAMES})
 
 
+def cell_stiffness(C, fibres) -> np.ndarray:
+    """(m, 6, 6) the cell's whole bulk stiffness ``C`` (6, 6) [MPa] (cell frame: x the Polyfoam's
+    shrunk axis, z the build axis) in each element of a sheet whose foam's x follows ``fibres``
+    (m, 3) in the plane (IceSL turns the k-gon about the build axis, the sheet's normal): not the
+    transverse-isotropic fit, which ties the through-thickness modulus to an in-plane one."""
+    from ..mechanics.voigt import rotate_stiffness
+
+    f = np.asarray(fibres, float).copy()
+    f[:, 2] = 0.0
+    f /= np.linalg.norm(f, axis=1, keepdims=True)
+    z = np.broadcast_to([0.0, 0.0, 1.0], f.shape)
+    return rotate_stiffness(np.asarray(C, float), np.stack([f, np.cross(z, f), z], axis=2))
+
+
 def interval(values) -> dict:
     """Mean, standard deviation and 95 % Student half-width of ``values`` (k,) (None for k < 2)."""
     v = np.asarray(values, float)
@@ -136,18 +150,21 @@ def _both(row: Mapping) -> float:
     return math.sqrt(float(row["geometric_mean_ratio_normal"]) * float(row["geometric_mean_ratio_mirrored"]))
 
 
-def summary(study: Mapping, plate: Mapping | None) -> dict:
-    """Per model (``bulk``, ``plate_membrane``, ``plate_bending``): printed over model over the
-    prints: ``modes`` (geometric mean of both sheets' 36 grip modes) and ``singular_values``
+def _robot_summary(study: Mapping) -> dict:
+    rows = study["realisations"]
+    return {"modes": log_interval([math.sqrt(r["sheets"]["normal"]["geometric_mean_ratio"]
+                                             * r["sheets"]["mirrored"]["geometric_mean_ratio"]) for r in rows]),
+            "rod_roll": interval([r["robot"]["rod_roll_ratio"] for r in rows]),
+            "singular_values": log_interval([float(np.exp(np.mean(np.log(r["robot"]["singular_value_ratios"]))))
+                                             for r in rows])}
+
+
+def summary(study: Mapping, plate: Mapping | None, fit: Mapping | None = None) -> dict:
+    """Per model (``bulk``: the cell's whole C; ``bulk_fit``: its transverse-isotropic fit, the
+    robot's constants; ``plate_membrane``, ``plate_bending``): printed over model over the prints: ``modes`` (geometric mean of both sheets' 36 grip modes) and ``singular_values``
     (their geometric mean) as :func:`log_interval`, ``rod_roll`` (rod roll per motor degree, which
     may change sign on a sheet that barely rolls) as :func:`interval`."""
-    rows = study["realisations"]
-    out = {"bulk": {
-        "modes": log_interval([math.sqrt(r["sheets"]["normal"]["geometric_mean_ratio"]
-                                     * r["sheets"]["mirrored"]["geometric_mean_ratio"]) for r in rows]),
-        "rod_roll": interval([r["robot"]["rod_roll_ratio"] for r in rows]),
-        "singular_values": log_interval([float(np.exp(np.mean(np.log(r["robot"]["singular_value_ratios"]))))
-                                     for r in rows])}}
+    out = {"bulk": _robot_summary(study), **({"bulk_fit": _robot_summary(fit)} if fit is not None else {})}
     for variant in ("membrane", "bending"):
         if plate and variant in plate:
             pr = plate[variant]["realisations"]
@@ -165,13 +182,17 @@ def map_point(cell: CellPoint, thickness_index: int, sheets: Sequence, pair, rob
     from .sheet_dns import _pairs, dns_study, homogenised_grips
     from .sheet_plate import plate_comparison
 
+    from ..sheet.grips import fem_condensed
+
     bulk = bulk_material(cell)
     row = np.array(bulk.as_tuple(), float)
     built = SheetPair(pair.sheet, pair.mirrored, pair.fibers, pair.fibers_mirrored,
                       np.tile(row, (len(pair.sheet.tets), 1)), np.tile(row, (len(pair.mirrored.tets), 1)),
                       pair.element)
-    hom = homogenised_grips(built, model)
-    study = dns_study(sheets, hom, robot, params, length_scale=length_scale)
+    full = tuple(fem_condensed(mesh, cell_stiffness(cell.C, fib), pair.element).K
+                 for mesh, fib in ((pair.sheet, pair.fibers), (pair.mirrored, pair.fibers_mirrored)))
+    study = dns_study(sheets, full, robot, params, length_scale=length_scale)
+    fit = dns_study(sheets, homogenised_grips(built, model), robot, params, length_scale=length_scale)
     t = float(params.thickness)
     head = {"infill": cell.infill, "shrink": cell.shrink, "thickness_mm": t, "cell_mm": list(cell.cell_mm),
             "solid_fraction": cell.solid_fraction, "cells_through": t / cell.cell_mm[2],
@@ -186,7 +207,8 @@ def map_point(cell: CellPoint, thickness_index: int, sheets: Sequence, pair, rob
         plate = plate_comparison(built, model, bulk, plate_doc, _pairs(sheets),
                                  [r["robot"]["rod_rotation_deg_per_deg"] for r in study["realisations"]], robot,
                                  params, length_scale=length_scale)
-    return {**head, "summary": summary(study, plate),
+    return {**head, "summary": summary(study, plate, fit),
+            "homogenised_robot_fit": fit["homogenised_robot"],
             "plate_ratio_to_bulk": (plate_doc["ratio_to_bulk"]["geometric_mean"] if plate is not None else plate_doc),
             "homogenised_robot": study["homogenised_robot"], "spread": study["spread"], "verdict": study["verdict"],
             "prints": [{"seed": r["seed"], "sheets": {lab: {k: s[k] for k in ("geometric_mean_ratio", "log_ratio_rms",
@@ -239,7 +261,7 @@ def trends(points: Sequence[Mapping]) -> dict:
     """Per model, the :func:`fit_trend` of its mode ratio (mean over prints) against the cells
     through the thickness, or the reason there is none."""
     out = {}
-    for model in ("bulk", "plate_membrane", "plate_bending"):
+    for model in ("bulk", "bulk_fit", "plate_membrane", "plate_bending"):
         pts = [p for p in points if model in p["summary"]]
         try:
             out[model] = fit_trend([p["cells_through"] for p in pts],
@@ -264,7 +286,8 @@ def verdict(points: Sequence[Mapping], trend: Mapping) -> str:
         parts.append(f"the bulk continuum is within 10 % of the prints from {w['10%']:.2g} cells through the sheet "
                      f"and within 25 % from {w['25%']:.2g} (|log r| = {b['a']:.2g} n^-{b['b']:.2f}, {b['points']} "
                      "points)")
-    for model, name in (("bulk", "bulk"), ("plate_membrane", "plate (membrane)")):
+    for model, name in (("bulk", "bulk"), ("bulk_fit", "the robot's constants (bulk, transverse-isotropic fit)"),
+                        ("plate_membrane", "plate (membrane)")):
         rs = [p["summary"][model]["modes"]["mean"] for p in points if model in p["summary"]]
         if rs:
             parts.append(f"{name}: {sum(_within(r, BANDS[0]) for r in rs)} / {sum(_within(r, BANDS[1]) for r in rs)}"

@@ -49,6 +49,9 @@ def scale_map_picture(doc: dict, title: str = "") -> bytes:
             b = p["summary"]["bulk"]["modes"]
             ax.errorbar(x, b["mean"], yerr=_err(b), fmt=marker[p["thickness_mm"]], color="C3", ms=6, capsize=3,
                         zorder=3)
+            if "bulk_fit" in p["summary"]:
+                g = p["summary"]["bulk_fit"]["modes"]
+                ax.plot(x / 1.03, g["mean"], marker=marker[p["thickness_mm"]], color="0.55", ms=4, ls="", zorder=2)
             if "plate_membrane" in p["summary"]:
                 m = p["summary"]["plate_membrane"]["modes"]
                 ax.errorbar(x * 1.03, m["mean"], yerr=_err(m), fmt=marker[p["thickness_mm"]], color="C0", mfc="none",
@@ -69,7 +72,8 @@ def scale_map_picture(doc: dict, title: str = "") -> bytes:
         n = np.geomspace(min(ns) / 1.5, max(ns) * 4, 100)
         axes[0].plot(n, np.exp(-tr["a"] * n ** -tr["b"]), color="C3", lw=1, ls="--",
                      label=f"bulk fit |log r| = {tr['a']:.2g} n^-{tr['b']:.2f}")
-    handles = [plt.Line2D([], [], color="C3", marker="o", ls="", label="against the bulk continuum"),
+    handles = [plt.Line2D([], [], color="C3", marker="o", ls="", label="against the bulk continuum (whole C)"),
+               plt.Line2D([], [], color="0.55", marker="o", ms=4, ls="", label="against the robot's constants (TI fit)"),
                plt.Line2D([], [], color="C0", marker="o", mfc="none", ls="", label="against the plate (membrane)")]
     handles += [plt.Line2D([], [], color="0.3", marker=marker[t], ls="", label=f"t = {t:g} mm") for t in thick]
     if "a" in tr:

@@ -133,32 +133,42 @@ def _unit(u):
     return cell_point(u) if isinstance(u, CellUnit) else dns_sheet(u)
 
 
-def run(ctx: StageContext) -> dict:
-    from ...published import paper
-    from ...robot.builder import SheetPair, six_dof_robot
+def map_units(p: ScaleMapParams, data: dict, orient):
+    """The map's work: (foams [(infill, shrink)], seeds, geometry {t: (SheetParams, normal,
+    mirrored, fibres, angle textures)}, cell units, print units), the prints ordered foam,
+    thickness, seed, sheet."""
     from ...sheet.dns import SheetPrint
     from ...sheet.printed_fields import FoamFields
-    from ...studies.resume import keep_only_used
-    from ...studies.scale_map import CellUnit, bulk_material, foam_design, map_point
-    from ._studies import _cache_dir, unit_cache, write_csv
+    from ...studies.scale_map import CellUnit, foam_design
 
-    p: ScaleMapParams = ctx.params
-    data = base_design(ctx.root, p)
-    orient = read_orient(ctx.inputs["orient"])
-    sp0, scene, model = orient.sheet_params, _scene(ctx), _model(ctx)
     foams = list(itertools.product(p.infill, p.shrink))
     seed0 = int(data.get("seeds", {}).get("seed", 0)) if p.seed is None else p.seed
     seeds = [seed0 + r for r in range(p.prints)]
     solid = foam_design(data, *foams[0]).material.material().stiffness()
-    ctx.progress("scalemap: sheets at each thickness", 0, 1)
     geometry = {}
     for t in p.thickness:
-        sp = replace(sp0, thickness=float(t))
+        sp = replace(orient.sheet_params, thickness=float(t))
         geometry[t] = (sp, *_sheets_at(orient, sp))
     cells = [CellUnit(data, i, s, tuple(p.thickness), p.slabs, p.cell_voxel_mm) for i, s in foams]
     prints = [SheetPrint(label, seed, p.gauge, p.voxel_mm, foam_design(data, i, s, seed=seed), geometry[t][0],
                          FoamFields(i, s, geometry[t][4][label]), solid, p.rtol, p.max_voxels)
               for i, s in foams for t in p.thickness for seed in seeds for label in ("normal", "mirrored")]
+    return foams, seeds, geometry, cells, prints
+
+
+def run(ctx: StageContext) -> dict:
+    from ...published import paper
+    from ...robot.builder import SheetPair, six_dof_robot
+    from ...studies.resume import keep_only_used
+    from ...studies.scale_map import bulk_material, map_point
+    from ._studies import _cache_dir, unit_cache, write_csv
+
+    p: ScaleMapParams = ctx.params
+    data = base_design(ctx.root, p)
+    orient = read_orient(ctx.inputs["orient"])
+    scene, model = _scene(ctx), _model(ctx)
+    ctx.progress("scalemap: sheets at each thickness", 0, 1)
+    foams, seeds, geometry, cells, prints = map_units(p, data, orient)
     results = unit_cache(ctx).map(ctx.executor, _unit, cells + prints,
                                   progress=lambda d, n: ctx.progress("scalemap: cells and printed sheets", d, n))
     cell_of = dict(zip(foams, results[:len(cells)]))
