@@ -80,6 +80,7 @@ def scale_map_picture(doc: dict, title: str = "") -> bytes:
         handles.append(axes[0].get_lines()[-1])
     axes[0].legend(handles=handles, fontsize=7, loc="lower right")
     axes[0].set_ylabel("printed / continuum (grip modes' geometric mean)")
+    axes[0].set_yticks([0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.25])
     axes[0].text(0.02, 0.97, "shaded: within 10 % and 25 %", transform=axes[0].transAxes, fontsize=7, va="top")
     pr = doc["prints"]
     fig.suptitle(title or f"where the continuum holds: {len(pts)} printed designs, {len(pr['seeds'])} prints each "
