@@ -1,4 +1,4 @@
-"""The chosen design printed against its model (issue 63): metasheet.design.print_check and the
+"""The chosen design printed against its model (issue 63): metasheet.studies.print_check and the
 ``printcheck`` stage. The design's continuum on the grips is the design stage's own rest problem
 (the same rod roll through another code path); a print as stiff as the model, or uniformly
 softer, rolls the rod exactly as the model does; the stage end to end (slow) on the coarse robot
@@ -14,7 +14,7 @@ import metasheet  # noqa: F401  (pins numpy's code paths before numpy is importe
 import numpy as np
 import pytest
 
-from metasheet.design.print_check import ROLL_TOLERANCE, compare_roll, design_fibres, model_grips, verdict
+from metasheet.studies.print_check import ROLL_TOLERANCE, compare_roll, design_fibres, model_grips, verdict
 from metasheet.errors import ConfigError
 from metasheet.pipeline.artefacts import read_material, read_orient
 from metasheet.pipeline.config import load_pipeline

@@ -6,7 +6,7 @@ the chosen design (and the spiral, with ``spiral``) in the foam of ``print_desig
 its infill and shrink, uniform; the field's angle as the print map writes it), ``prints`` times
 (seeds ``seed``, ``seed + 1``, ...), solves both sheets as voxel DNS on the robot's grips, and
 compares the printed robot's rod roll per motor degree with the design model's on the same grips
-(:mod:`metasheet.design.print_check`): within 15 % "meets", else the report says by how much it
+(:mod:`metasheet.studies.print_check`): within 15 % "meets", else the report says by how much it
 misses. Writes ``print_check.json``; each printed sheet is one executor unit.
 """
 
@@ -61,7 +61,7 @@ def print_design(root: Path, p: PrintCheckParams):
 
 
 def run(ctx: StageContext) -> dict:
-    from ...design.print_check import compare_roll, design_fibres, design_prints, model_grips, verdict
+    from ...studies.print_check import compare_roll, design_fibres, design_prints, model_grips, verdict
     from ...published import paper
     from ...robot.builder import six_dof_robot
     from ...sheet.dns import dns_sheet
@@ -99,7 +99,7 @@ def run(ctx: StageContext) -> dict:
             i += n
     doc = {"method": "the design's fibre field printed in print_design's foam (the print map's fields), voxel DNS "
                      "on the four grips, against the design's continuum sheets (its material, P1 on orient's mesh) "
-                     "condensed on the same grips; linear rest models without gravity (metasheet.design.print_check)",
+                     "condensed on the same grips; linear rest models without gravity (metasheet.studies.print_check)",
            "print_design": {"file": p.print_design, "name": foam.name, "infill_percentage": foam.infill_percentage,
                             "kgon_x_shrink": foam.kgon_x_shrink, "bead_width": foam.bead_width},
            "seeds": seeds, "voxel_mm": p.voxel_mm, "gauge": p.gauge, "rtol": p.rtol,

@@ -59,7 +59,7 @@ def model_grips(pair, fibres, material, model: str):
     """(K_A, K_B) (24, 24): the design's continuum sheets (``pair``'s meshes and element, the fibres
     of ``fibres`` at their centroids, ``material`` everywhere) condensed on their grips."""
     from ..robot.builder import SheetPair
-    from ..studies.sheet_dns import homogenised_grips
+    from .sheet_dns import homogenised_grips
 
     fa, fb = fibres(pair.sheet.centroids(), False), fibres(pair.mirrored.centroids(), True)
     row = np.array(material.as_tuple(), float)
@@ -75,7 +75,7 @@ def compare_roll(model_K, printed: Sequence, robot, params, *, length_scale: flo
     printed-over-model roll per print and the verdict."""
     from ..robot.condensed import rest_numbers_condensed
     from ..sheet.grips import grip_references
-    from ..studies.sheet_dns import _pairs
+    from .sheet_dns import _pairs
 
     refs = grip_references(params)
     m = rest_numbers_condensed(*model_K, robot, refs, length_scale=length_scale)
