@@ -24,24 +24,7 @@ from metasheet.robot.builder import six_dof_robot
 from metasheet.sheet.dns import DnsSheet
 from metasheet.sheet.fibers import spiral_fibers
 from test_design_stage import BASE, DESIGN, first_run
-
-FOAM = """
-kind = "polyfoam"
-name = "coarse_polyfoam"
-infill_percentage = 30.0
-kgon_x_shrink = 0.5
-bead_width = 0.8
-voxel_mm = 0.5
-[seeds]
-sampler = "poisson"
-count = 4
-seed = 1
-[material]
-name = "TPU"
-E = 12.0
-nu = 0.3
-"""
-
+from test_sheet_stage import DESIGN as FOAM  # a small Polyfoam with a 0.8 mm bead
 
 @pytest.fixture(scope="module")
 def first(tmp_path_factory):

@@ -20,6 +20,7 @@ from metasheet.homogenize.ensemble import t_quantile
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
 from metasheet.studies.scale_map import fit_trend, interval, log_interval, trends, verdict
+from test_sheet_stage import DESIGN, SHEET
 
 
 def test_fit_trend_recovers_an_exact_power_law():
@@ -78,41 +79,12 @@ def test_trends_and_verdict_leave_out_a_sheet_that_falls_apart():
     assert "1 print(s) fall apart" in line and "softest print against the bulk: 0.30 x" in line
 
 
-DESIGN = """
-kind = "polyfoam"
-name = "small_polyfoam"
-infill_percentage = 30.0
-kgon_x_shrink = 0.5
-bead_width = 0.8
-voxel_mm = 0.5
-[seeds]
-sampler = "poisson"
-count = 4
-seed = 1
-[material]
-name = "TPU"
-E = 12.0
-nu = 0.3
-"""
-
+# the small Polyfoam and tripod of tests/test_sheet_stage.py
 PIPELINE = """
 [pipeline]
 name = "m"
 stages = ["orient", "scalemap", "report"]
-
-[orient]
-scene = "metasheet"
-arm_width = 10.0
-reach = 20.0
-thickness = 2.0
-hole_radius = 1.0
-fillet_radius = 1.0
-tip_box = [5.0, 15.0, 10.0]
-centre_radius = 3.0
-mesh_size = 4.0
-element = "p1"
-picture = false
-
+{sheet}
 [scalemap]
 design = "{design}"
 prints = 2
@@ -123,7 +95,7 @@ MAP = {"infill": "[45.0]", "shrink": "[1.0]", "thickness": "[2.0, 3.0]", "voxel_
 
 
 def pipeline(design, **keys) -> str:
-    return PIPELINE.format(design=design) + "".join(f"{k} = {v}\n" for k, v in {**MAP, **keys}.items())
+    return PIPELINE.format(design=design, sheet=SHEET) + "".join(f"{k} = {v}\n" for k, v in {**MAP, **keys}.items())
 
 
 @pytest.fixture(scope="module")
