@@ -177,12 +177,13 @@ def map_point(cell: CellPoint, thickness_index: int, sheets: Sequence, pair, rob
               length_scale: float) -> dict:
     """One (foam, thickness) of the map: the prints ``sheets`` (normal and mirrored
     :class:`~metasheet.sheet.dns.DnsSheet` of each seed) against the robot's sheets ``pair``
-    (meshed at this thickness) made of the bulk constants and of the plate's moduli."""
+    (meshed at this thickness) made of the cell's whole bulk C (:func:`cell_stiffness`), of its
+    transverse-isotropic fit (the robot's constants) and of the plate's moduli. A print whose
+    grips hold separate pieces (:data:`APART`) is named and has no ratios."""
     from ..robot.builder import SheetPair
+    from ..sheet.grips import fem_condensed
     from .sheet_dns import _pairs, dns_study, homogenised_grips
     from .sheet_plate import plate_comparison
-
-    from ..sheet.grips import fem_condensed
 
     bulk = bulk_material(cell)
     row = np.array(bulk.as_tuple(), float)
