@@ -61,6 +61,7 @@ def scale_map_picture(doc: dict, title: str = "") -> bytes:
                             fontsize=8, arrowprops={"arrowstyle": "-", "lw": 0.6})
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_major_locator(matplotlib.ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))  # a narrow range
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
             axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
@@ -80,7 +81,8 @@ def scale_map_picture(doc: dict, title: str = "") -> bytes:
         handles.append(axes[0].get_lines()[-1])
     axes[0].legend(handles=handles, fontsize=7, loc="lower right")
     axes[0].set_ylabel("printed / continuum (grip modes' geometric mean)")
-    axes[0].set_yticks([0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.25])
+    axes[0].set_yticks([t for t in (0.01, 0.03, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.25, 2.0, 5.0, 10.0)
+                        if axes[0].get_ylim()[0] <= t <= axes[0].get_ylim()[1]])
     axes[0].text(0.02, 0.97, "shaded: within 10 % and 25 %", transform=axes[0].transAxes, fontsize=7, va="top")
     pr = doc["prints"]
     fig.suptitle(title or f"where the continuum holds: {len(pts)} printed designs, {len(pr['seeds'])} prints each "
