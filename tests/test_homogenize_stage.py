@@ -120,6 +120,13 @@ def test_stage_plate_slabs_of_a_laminate_are_classical_laminate_theory(tmp_path)
     assert ratios["D_11"]["halfwidth"] > 0.01  # where the stiff layer sits matters in bending
     assert summary["plate_ratio_to_bulk"] == pytest.approx(ratios["geometric_mean"]["mean"], abs=1e-4)
     assert np.array(out["ABD"]["mean"]).shape == (6, 6)
+    # the transverse shear of each slab, against the bulk's 5/6 G t (tests/test_homogenize_plate_shear.py)
+    shear = out["shear"]
+    assert summary["plate_shear_ratio_to_bulk"] == pytest.approx(
+        [shear["ratio_to_bulk"][n]["mean"] for n in ("H_xz", "H_yz")], abs=1e-4)
+    assert all(np.all(np.linalg.eigvalsh(np.array(sl["shear"]["H_N_per_mm"])) > 0) for sl in out["slabs"])
+    from metasheet.report.build import build_report
+    assert "transverse shear H_xz" in build_report({"homogenize": summary}, {})
     assert _png_is_not_blank(work / "plate.png")
 
 

@@ -104,3 +104,18 @@ def hex8_box_moment(C: np.ndarray, h) -> np.ndarray:
                 B = strain_operator(_hex8_gradients(np.array([x, y, z]), h))
                 G += w * (z - 0.5) * h[2] * B.T @ C
     return G
+
+
+def hex8_box_gauss(h) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The 2 x 2 x 2 Gauss rule on one box element of edge lengths ``h`` (3,) [mm], as the
+    element matrices above use it.
+
+    Returns (w (8,) weights [mm^3], xi (8, 3) reference points in [0, 1]^3, N (8, 8) shape
+    values ``N[q, a]``, B (8, 6, 24) strain operators [1/mm])."""
+    h = np.asarray(h, float)
+    gp = 0.5 + np.array([-0.5, 0.5]) / np.sqrt(3.0)
+    xi = np.array([[x, y, z] for x in gp for y in gp for z in gp])
+    f = np.where(HEX8_CORNERS[None, :, :] == 1, xi[:, None, :], 1.0 - xi[:, None, :])  # (8 q, 8 a, 3)
+    N = f.prod(axis=2)
+    B = np.array([strain_operator(_hex8_gradients(p, h)) for p in xi])
+    return np.full(8, float(np.prod(h)) / 8.0), xi, N, B

@@ -18,8 +18,8 @@ twist as in classical laminate theory, so ``[N; M] = ABD [eps; kappa]`` with N [
 M [N mm/mm]. The fluctuation carries the faces' freedom: for a homogeneous solid it makes the
 plane-stress plate ``A = Q t``, ``D = Q t^3 / 12`` (:func:`bulk_plate`), exactly for A
 (a piecewise-linear ``w_z`` that trilinear voxels hold) and to O(h^2) for D (``w_z`` is
-quadratic in z under bending). The transverse-shear stiffness needs the next-order cell
-problems (Reissner-Mindlin) and is not computed here.
+quadratic in z under bending). The transverse-shear stiffness H comes from the next-order cell
+problem, driven by these fields (:mod:`.plate_shear`).
 
 Array axis 0 is x, axis 1 is y, axis 2 is z (through the thickness); voxel (i, j, k) spans
 [i hx, (i + 1) hx] x [j hy, (j + 1) hy] x [k hz - t/2, (k + 1) hz - t/2], h = size / shape.
@@ -28,6 +28,7 @@ Array axis 0 is x, axis 1 is y, axis 2 is z (through the thickness); voxel (i, j
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from ..fem.voxel.element import check_phases
 from ..mechanics.material import TransverseIsotropic
 from ..fem.solvers import solve_spd
 from .corrector import material_stiffness, pinned_dofs
+
+if TYPE_CHECKING:
+    from .plate_shear import PlateShear
 
 #: Voigt rows of the in-plane stresses (11, 22, 12) in the order 11, 22, 33, 23, 13, 12.
 IN_PLANE = np.array([0, 1, 5])
@@ -60,6 +64,7 @@ class PlateStiffness:
         (parts that do not wrap around the cell in x and y).
     symmetry_error : relative asymmetry of the first-order form (the solver's error).
     n_dof : unknowns; solver : the linear solver that ran; resolution : (nx, ny, nz).
+    shear : the transverse-shear stiffness (:class:`~.plate_shear.PlateShear`) when asked for.
     """
 
     ABD: np.ndarray
@@ -71,6 +76,7 @@ class PlateStiffness:
     n_dof: int
     solver: str
     resolution: tuple[int, int, int]
+    shear: "PlateShear | None" = None
 
     @property
     def A(self) -> np.ndarray:
@@ -99,7 +105,8 @@ class PlateStiffness:
                 "strains": list(PLATE_STRAINS), "thickness_mm": self.thickness, "area_mm2": self.area,
                 "moduli_MPa": self.moduli(), "relative_density": self.relative_density,
                 "removed_fraction": self.removed_fraction, "symmetry_error": self.symmetry_error,
-                "n_dof": self.n_dof, "solver": self.solver, "resolution": list(self.resolution)}
+                "n_dof": self.n_dof, "solver": self.solver, "resolution": list(self.resolution),
+                **({"shear": self.shear.to_dict()} if self.shear is not None else {})}
 
 
 def abd_moduli(ABD, thickness: float) -> dict:
@@ -223,7 +230,63 @@ def plate_elements(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return elements, inv.reshape(-1, 8), grid_nodes
 
 
-def homogenize_plate(phases, size, materials: dict, *, solver: str = "auto", rtol: float = 1e-10) -> PlateStiffness:
+@dataclass(frozen=True)
+class PlateCell:
+    """The discrete plate cell problem (internal to :mod:`.plate` and :mod:`.plate_shear`).
+
+    elements (m,) flat voxel index; nodes (m, 8) compact node index; kind (m,) ``phase nz +
+    layer``; phase_kind (m,) index into ``Cs``; Cs (p, 6, 6) [MPa]; h (3,) [mm]; z_c (nz,) layer
+    centres from the mid-plane [mm]; K (3n, 3n); F (3n, 6) loads of the unit generalised
+    strains; E_vol (6, 6) their energy; free (k,) unpinned dofs; coords (n, 3) [mm]; area [mm^2].
+    """
+
+    elements: np.ndarray
+    nodes: np.ndarray
+    kind: np.ndarray
+    phase_kind: np.ndarray
+    Cs: np.ndarray
+    h: np.ndarray
+    z_c: np.ndarray
+    pattern: SparsityPattern
+    K: object
+    F: np.ndarray
+    E_vol: np.ndarray
+    free: np.ndarray
+    coords: np.ndarray
+    area: float
+
+    def solve(self, rhs: np.ndarray, solver: str, rtol: float):
+        """(3n, r) solution of ``K U = rhs`` on the free dofs (pinned dofs 0), and the report."""
+        U = np.zeros_like(rhs)
+        U[self.free], report = solve_spd(self.K[self.free][:, self.free], rhs[self.free], solver=solver, rtol=rtol,
+                                         coords=self.coords[self.free[::3] // 3])
+        return U, report
+
+
+def plate_cell(ph: np.ndarray, size: np.ndarray, materials: dict, present: np.ndarray, keep: np.ndarray) -> PlateCell:
+    """Assemble the cell problem of the checked ``ph`` (nx, ny, nz) on the kept voxels."""
+    nz = ph.shape[2]
+    h = size / np.array(ph.shape)
+    elements, nodes, grid_nodes = plate_elements(keep)
+    phase_kind = np.searchsorted(present, ph.ravel()[elements])
+    layer = elements % nz
+    z_c = (np.arange(nz) + 0.5) * h[2] - size[2] / 2.0
+    Cs = np.array([material_stiffness(p, materials[p]) for p in present])
+    Ke = np.array([hex8_box_matrices(C, h)[0] for C in Cs])
+    loads, energy = _layer_loads(Cs, h, z_c)  # (p nz, 24, 6), (p nz, 6, 6)
+    kind = phase_kind * nz + layer
+    pattern = SparsityPattern.from_elements(nodes, len(grid_nodes))
+    K = pattern.assemble(Ke, phase_kind)
+    F = pattern.assemble_vector(loads, kind)
+    E_vol = np.einsum("k,kij->ij", np.bincount(kind, minlength=len(energy)).astype(float), energy)
+    free = np.setdiff1d(np.arange(K.shape[0]), pinned_dofs(K))
+    coords = np.stack(np.unravel_index(grid_nodes, (ph.shape[0], ph.shape[1], nz + 1)), axis=1) * h
+    return PlateCell(elements, nodes, kind, phase_kind, Cs, h, z_c, pattern, K, F, E_vol, free, coords,
+                     float(size[0] * size[1]))
+
+
+def homogenize_plate(phases, size, materials: dict, *, solver: str = "auto", rtol: float = 1e-10,
+                     shear: bool = False) -> PlateStiffness:
     """Membrane, coupling and bending stiffness of a periodic plate cell (module docstring).
 
     Parameters
@@ -233,6 +296,7 @@ def homogenize_plate(phases, size, materials: dict, *, solver: str = "auto", rto
     materials : dict phase -> :class:`~metasheet.mechanics.material.Isotropic` or
         :class:`~metasheet.mechanics.material.TransverseIsotropic` (axis 3 = global z).
     solver, rtol : :func:`metasheet.fem.solvers.solve_spd` ("auto", "direct" or "amg").
+    shear : also the transverse-shear stiffness H (:mod:`.plate_shear`, two more solves).
 
     Returns :class:`PlateStiffness`. Raises ConfigError (bad input), InfeasibleError (no part
     wraps around the cell in x and y), ConvergenceError (the solver missed ``rtol``).
@@ -241,36 +305,23 @@ def homogenize_plate(phases, size, materials: dict, *, solver: str = "auto", rto
                                      integral_floats=True)
     if not (0 < float(rtol) < 1e-3):
         raise ConfigError(f"rtol: {rtol!r}: allowed range is (0, 1e-3)")
-    nz = ph.shape[2]
-    h = size / np.array(ph.shape)
     solid = ph > 0
     keep = plate_percolating(solid)
-    elements, nodes, grid_nodes = plate_elements(keep)
-    phase_kind = np.searchsorted(present, ph.ravel()[elements])
-    layer = elements % nz
-    z_c = (np.arange(nz) + 0.5) * h[2] - size[2] / 2.0  # (nz,) layer centres from the mid-plane
-    Cs = [material_stiffness(p, materials[p]) for p in present]
-    Ke = np.array([hex8_box_matrices(C, h)[0] for C in Cs])
-    loads, energy = _layer_loads(Cs, h, z_c)  # (p nz, 24, 6), (p nz, 6, 6)
-    kind = phase_kind * nz + layer
-    pattern = SparsityPattern.from_elements(nodes, len(grid_nodes))
-    K = pattern.assemble(Ke, phase_kind)
-    F = pattern.assemble_vector(loads, kind)
-    E_vol = np.einsum("k,kij->ij", np.bincount(kind, minlength=len(energy)).astype(float), energy)
-    pin = pinned_dofs(K)
-    free = np.setdiff1d(np.arange(K.shape[0]), pin)
-    coords = np.stack(np.unravel_index(grid_nodes, (ph.shape[0], ph.shape[1], nz + 1)), axis=1) * h
-    U = np.zeros_like(F)
-    U[free], report = solve_spd(K[free][:, free], -F[free], solver=solver, rtol=rtol, coords=coords[free[::3] // 3])
-    area = float(size[0] * size[1])
-    raw = (E_vol + U.T @ F) / area
-    ABD = (E_vol + F.T @ U + U.T @ F + U.T @ (K @ U)) / area
+    cell = plate_cell(ph, size, materials, present, keep)
+    U, report = cell.solve(-cell.F, solver, rtol)
+    F, K, area = cell.F, cell.K, cell.area
+    raw = (cell.E_vol + U.T @ F) / area
+    ABD = (cell.E_vol + F.T @ U + U.T @ F + U.T @ (K @ U)) / area
     ABD = 0.5 * (ABD + ABD.T)
     scale = max(float(np.abs(raw).max()), 1e-300)
+    H = None
+    if shear:
+        from .plate_shear import transverse_shear
+        H = transverse_shear(cell, U, ABD, solver=solver, rtol=rtol)
     return PlateStiffness(ABD=ABD, thickness=float(size[2]), area=area, relative_density=float(solid.mean()),
                           removed_fraction=float(1.0 - keep.sum() / max(solid.sum(), 1)),
-                          symmetry_error=float(np.abs(raw - raw.T).max() / scale), n_dof=int(len(free)),
-                          solver=report.solver, resolution=tuple(int(n) for n in ph.shape))
+                          symmetry_error=float(np.abs(raw - raw.T).max() / scale), n_dof=int(len(cell.free)),
+                          solver=report.solver, resolution=tuple(int(n) for n in ph.shape), shear=H)
 
 
 def _layer_loads(Cs, h: np.ndarray, z_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,9 +21,12 @@ import numpy as np
 from ..errors import ConfigError
 from .ensemble import constant_stats, stats_to_json
 from .plate import PLATE_STRAINS, PlateStiffness, bulk_plate, homogenize_plate
+from .plate_shear import SHEAR_STRAINS, bulk_shear
 
 #: Diagonal entries of ABD compared with the bulk plate: A_11, A_22, A_66, D_11, D_22, D_66.
 DIAGONAL = ("A_11", "A_22", "A_66", "D_11", "D_22", "D_66")
+#: Diagonal entries of the transverse-shear stiffness H compared with the bulk sheet's 5/6 G t.
+SHEAR_DIAGONAL = ("H_xz", "H_yz")
 
 
 @dataclass(frozen=True)
@@ -36,12 +39,14 @@ class SlabStudy:
     offsets_mm : (k,) where each slab starts in the cell's height [mm].
     plates : the k slabs' :class:`~.plate.PlateStiffness`.
     bulk : (6, 6) the bulk plate's ABD (:func:`~.plate.bulk_plate`) of the given bulk C.
+    bulk_H : (2, 2) the bulk sheet's transverse shear 5/6 G t (:func:`~.plate_shear.bulk_shear`).
     """
 
     thickness: float
     offsets_mm: tuple[float, ...]
     plates: tuple[PlateStiffness, ...]
     bulk: np.ndarray
+    bulk_H: np.ndarray
 
     def ratios(self) -> np.ndarray:
         """(k, 6) each slab's :data:`DIAGONAL` entries over the bulk plate's."""
@@ -58,8 +63,24 @@ class SlabStudy:
         return {"thickness_mm": self.thickness, "strains": list(PLATE_STRAINS), "offsets_mm": list(self.offsets_mm),
                 "ABD": stats_to_json(abd), "bulk_ABD": self.bulk.tolist(),
                 "ratio_to_bulk": {**ratio_stats, "geometric_mean": stats_to_json(constant_stats("geometric_mean", gm))},
+                **self._shear_dict(),
                 "slabs": [{"offset_mm": o, **p.to_dict(), "ratio_to_bulk": dict(zip(DIAGONAL, row.tolist()))}
                           for o, p, row in zip(self.offsets_mm, self.plates, r)]}
+
+    def _shear_dict(self) -> dict:
+        """``{"shear": ...}``: H's statistics over the slabs and each diagonal entry's ratio to the
+        bulk sheet's (none when the slabs were homogenised without it)."""
+        if any(p.shear is None for p in self.plates):
+            return {}
+        H = np.array([p.shear.H for p in self.plates])
+        r = np.diagonal(H, axis1=1, axis2=2) / np.diag(self.bulk_H)[None, :]
+        share = np.array([p.shear.kirchhoff_share for p in self.plates])
+        return {"shear": {"strains": list(SHEAR_STRAINS), "H": stats_to_json(constant_stats("H", H)),
+                          "bulk_H": self.bulk_H.tolist(), "kirchhoff_share_max": share.max(axis=0).tolist(),
+                          "normalisation_spread_max": max(p.shear.normalisation_spread for p in self.plates),
+                          "ratio_to_bulk": {n: stats_to_json(constant_stats(n, r[:, i]))
+                                            for i, n in enumerate(SHEAR_DIAGONAL)},
+                          "slab_ratios": r.tolist()}}
 
 
 def cut_slab(phases: np.ndarray, size, thickness: float, offset_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -78,9 +99,11 @@ def cut_slab(phases: np.ndarray, size, thickness: float, offset_mm: float) -> tu
 
 
 def slab_study(phases, size, materials: dict, thickness: float, bulk_C, *, slabs: int = 8, solver: str = "auto",
-               rtol: float = 1e-10, progress: Callable[[int, int], None] | None = None) -> SlabStudy:
+               rtol: float = 1e-10, shear: bool = False,
+               progress: Callable[[int, int], None] | None = None) -> SlabStudy:
     """Homogenise ``slabs`` slabs of the cell (evenly spaced offsets through its height) as
-    plates of ``thickness`` [mm] and compare them with the bulk plate of ``bulk_C`` (6, 6) [MPa].
+    plates of ``thickness`` [mm] and compare them with the bulk plate of ``bulk_C`` (6, 6) [MPa];
+    with ``shear``, their transverse-shear stiffness too (:mod:`.plate_shear`).
 
     Raises ConfigError (bad input, naming the field), InfeasibleError (a slab falls apart in
     plane: the foam's cells are too tall for this thickness to hold the sheet together)."""
@@ -93,9 +116,9 @@ def slab_study(phases, size, materials: dict, thickness: float, bulk_C, *, slabs
     offsets, plates = [], []
     for i in range(int(slabs)):
         slab, box = cut_slab(phases, size, thickness, i * height / int(slabs))
-        plates.append(homogenize_plate(slab, box, materials, solver=solver, rtol=rtol))
+        plates.append(homogenize_plate(slab, box, materials, solver=solver, rtol=rtol, shear=shear))
         offsets.append(round(i * height / int(slabs), 6))
         if progress is not None:
             progress(i + 1, int(slabs))
     t = float(box[2])
-    return SlabStudy(t, tuple(offsets), tuple(plates), bulk_plate(C, t))
+    return SlabStudy(t, tuple(offsets), tuple(plates), bulk_plate(C, t), bulk_shear(C, t))

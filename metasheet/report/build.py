@@ -140,6 +140,17 @@ def _reduced(name: str, summary: Mapping) -> tuple[list[str], list[str]]:
     return ([*lines, ""] if lines else []), diffs
 
 
+def _plate_line(h: Mapping | None) -> list[str]:
+    """The sheet cut from the foam (homogenize's plate.json), when the stage made one."""
+    if not h or h.get("plate_ratio_to_bulk") is None:
+        return []
+    shear = h.get("plate_shear_ratio_to_bulk")
+    tail = (f"; its transverse shear H_xz {shear[0]:.2f}, H_yz {shear[1]:.2f} of the bulk's 5/6 G t" if shear else "")
+    return [f"The sheet cut from the foam ({h.get('plate_thickness_mm', float('nan')):.2f} mm slabs, free faces, "
+            f"plate.json): its membrane and bending stiffness {h['plate_ratio_to_bulk']:.2f} of the bulk plate's "
+            f"(geometric mean){tail} (docs/plate.md).", ""]
+
+
 def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, str], *,
                  title: str = "metasheet: reproduction of the paper's studies") -> str:
     """Markdown report.
@@ -156,6 +167,7 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         keys = (*CONSTANT_NAMES, "alpha_percent", "source", "model")
         lines += ["## Constants (paper Section II, FACTS)", "", _table([(k, m[k]) for k in keys if k in m]), ""]
         lines += [f"Chosen (`source = \"auto\"`): {m['why']}.", ""] if m.get("why") else []
+    lines += _plate_line(s.get("homogenize"))
     if "continuum" in s:  # the orient stage's verdict: is the printed foam a continuum in this sheet?
         c = s["continuum"]
         lines += [f"**The foam in this sheet ({'a continuum holds' if c['holds'] != 'none' else 'no continuum holds'}"

@@ -15,26 +15,32 @@ from . import figure_png, one_at_a_time
 
 @one_at_a_time
 def plate_picture(doc: dict, title: str = "") -> bytes:
-    """PNG: ratio to the bulk plate (log axis) of A_11, A_22, A_66 (stretching, shear) and
-    D_11, D_22, D_66 (bending, twist) for every slab of ``doc`` (a ``plate.json`` dict)."""
+    """PNG: ratio to the bulk plate (log axis) of A_11, A_22, A_66 (stretching, shear), D_11,
+    D_22, D_66 (bending, twist) and, when computed, H_xz, H_yz (transverse shear, against 5/6 G t)
+    for every slab of ``doc`` (a ``plate.json`` dict)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     names = [n for n in doc["ratio_to_bulk"] if n != "geometric_mean"]
-    fig, ax = plt.subplots(figsize=(7.5, 4.2))
-    for i, name in enumerate(names):
-        pts = np.array([s["ratio_to_bulk"][name] for s in doc["slabs"]])
+    columns = [(n, [s["ratio_to_bulk"][n] for s in doc["slabs"]], doc["ratio_to_bulk"][n]) for n in names]
+    if "shear" in doc:
+        sh = doc["shear"]
+        columns += [(n, [row[i] for row in sh["slab_ratios"]], sh["ratio_to_bulk"][n])
+                    for i, n in enumerate(sh["ratio_to_bulk"])]
+    kinds = {"A": ("C0", "stretch"), "D": ("C3", "bend"), "H": ("C2", "shear")}
+    fig, ax = plt.subplots(figsize=(7.5 + 0.8 * (len(columns) - 6), 4.2))
+    for i, (name, pts, st) in enumerate(columns):
+        pts = np.asarray(pts, float)
         ax.scatter(np.full(len(pts), i) + np.linspace(-0.15, 0.15, len(pts)), pts, s=14, color="0.55", zorder=2)
-        st = doc["ratio_to_bulk"][name]
         lo = max(st["mean"] - st["halfwidth"], 1e-3)
         ax.errorbar(i + 0.3, st["mean"], yerr=[[st["mean"] - lo], [st["halfwidth"]]], fmt="o",
-                    color="C0" if name.startswith("A") else "C3", capsize=4, zorder=3)
+                    color=kinds[name[0]][0], capsize=4, zorder=3)
     ax.axhline(1.0, color="k", lw=1, ls="--")
     ax.text(-0.45, 1.02, "bulk continuum", va="bottom", ha="left", fontsize=8)
     ax.set_yscale("log")
-    ax.set_xticks(range(len(names)), [f"{n}\n({'stretch' if n.startswith('A') else 'bend'})" for n in names])
+    ax.set_xticks(range(len(columns)), [f"{n}\n({kinds[n[0]][1]})" for n, _, _ in columns])
     ax.set_ylabel("sheet / bulk plate [-]")
     gm = doc["ratio_to_bulk"]["geometric_mean"]
     ax.set_title(title or (f"a {doc['thickness_mm']:.2f} mm sheet cut from the foam: {len(doc['slabs'])} slabs; "

@@ -160,6 +160,9 @@ def run(ctx: StageContext) -> dict:
         out["realisations"] = constants["ci95"]["k"]
     if plate is not None:
         out["plate_ratio_to_bulk"] = round(plate["ratio_to_bulk"]["geometric_mean"]["mean"], 4)
+        out["plate_thickness_mm"] = round(plate["thickness_mm"], 4)
+        if "shear" in plate:
+            out["plate_shear_ratio_to_bulk"] = [round(v["mean"], 4) for v in plate["shear"]["ratio_to_bulk"].values()]
     return {**out, "misfit": round(r.fit.misfit, 6), "relative_density": round(r.relative_density, 6),
             "solver": r.solver, "n_dof": r.n_dof}
 
@@ -170,7 +173,7 @@ def _plate(ctx: StageContext, p: HomogenizeParams, phases, size, materials: dict
     from ...homogenize.plate_slabs import slab_study
 
     study = slab_study(phases, size, materials, p.plate_thickness, np.asarray(constants["C"]), slabs=p.plate_slabs,
-                       progress=lambda done, total: ctx.progress("homogenize: plate slabs", done, total))
+                       shear=True, progress=lambda done, total: ctx.progress("homogenize: plate slabs", done, total))
     doc = {"bulk_C": "constants.json C (the mean over the realisations when there are several)",
            "realisations": "slabs of the cell stage's voxels at evenly spaced heights", **study.to_dict()}
     write_json_atomic(ctx.path("plate.json"), doc)
