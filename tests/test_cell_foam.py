@@ -144,3 +144,24 @@ def test_foam_validates_its_fields():
         StretchedMetric(0.5)
     with pytest.raises(ConfigError, match="metric.x_shrink"):
         PolyhedralMetric(x_shrink=1.5)
+
+
+@pytest.mark.parametrize("metric", [StretchedMetric(2.0, 2, "transverse"), PolyhedralMetric(k=6, x_shrink=0.6)])
+def test_skeleton_distances_are_the_same_bits_on_one_thread_and_two(metric):
+    # the kernels run blocks of points in parallel, each with its own scratch
+    import numba
+
+    seeds = uniform_seeds(20, CUBE, 5)
+    p = np.random.default_rng(8).random((9000, 3)) * CUBE  # several blocks of 2,048 points
+    index = SkeletonIndex(seeds, CUBE, metric)
+    before = numba.get_num_threads()
+    runs = []
+    try:
+        for n in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(n)
+            runs.append(index.distances(p))
+    finally:
+        numba.set_num_threads(before)
+    for field in ("wall", "strut", "cell", "wall_nz"):
+        assert np.array_equal(getattr(runs[0], field), getattr(runs[1], field))
+    assert np.all(np.isfinite(runs[0].wall))

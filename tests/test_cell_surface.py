@@ -156,6 +156,9 @@ def test_field_with_wrong_shape_is_a_config_error():
 
 def test_check_surface_sees_holes_and_flips():
     mesh = periodic_isosurface(gyroid(L), BOX, 12)
+    rep = check_surface(mesh)  # a second method: trimesh's own checks
+    assert rep.watertight == mesh.is_watertight and rep.manifold == mesh.is_winding_consistent is True
+    assert rep.volume == pytest.approx(mesh.volume, rel=1e-12)
     holed = mesh.copy()
     holed.faces = holed.faces[1:]
     assert not check_surface(holed).watertight

@@ -32,7 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from scipy.spatial import Delaunay, cKDTree
 
 from ..errors import ConfigError
@@ -257,26 +257,32 @@ def _point(x, c0, cands, skip, quadratic, scale, facets, hs, ns):
     return a, strut, d0, ns[ja, 2]
 
 
-@njit(cache=True)
+#: points per block of the kernels' parallel loop: each block has its own scratch and writes
+#: only its own points, so the result is the same on any number of threads
+_BLOCK = 2048
+
+
+@njit(cache=True, parallel=True)
 def _skeleton_delaunay(x, y0, owner, rel, quadratic, scale, facets):
     n, m = x.shape[0], rel.shape[1]
     a = np.empty(n)
     strut = np.empty(n)
     d0 = np.empty(n)
     nz = np.empty(n)
-    cands = np.empty((m, 3))
-    hs = np.empty(m)
-    ns = np.empty((m, 3))
-    for i in range(n):
-        o = owner[i]
-        for k in range(m):
-            for j in range(3):
-                cands[k, j] = y0[i, j] + rel[o, k, j]
-        a[i], strut[i], d0[i], nz[i] = _point(x[i], y0[i], cands, -1, quadratic, scale, facets, hs, ns)
+    for blk in prange((n + _BLOCK - 1) // _BLOCK):
+        cands = np.empty((m, 3))
+        hs = np.empty(m)
+        ns = np.empty((m, 3))
+        for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
+            o = owner[i]
+            for k in range(m):
+                for j in range(3):
+                    cands[k, j] = y0[i, j] + rel[o, k, j]
+            a[i], strut[i], d0[i], nz[i] = _point(x[i], y0[i], cands, -1, quadratic, scale, facets, hs, ns)
     return a, strut, d0, nz
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _skeleton_knn(x, images, idx, quadratic, scale, facets):
     n, m = idx.shape
     a = np.empty(n)
@@ -284,19 +290,20 @@ def _skeleton_knn(x, images, idx, quadratic, scale, facets):
     d0 = np.empty(n)
     nz = np.empty(n)
     j0 = np.empty(n, dtype=np.int64)
-    cands = np.empty((m, 3))
-    hs = np.empty(m)
-    ns = np.empty((m, 3))
-    for i in range(n):
-        best, jb = np.inf, 0
-        for k in range(m):
-            for j in range(3):
-                cands[k, j] = images[idx[i, k], j]
-            d, _ = _gauge(x[i, 0] - cands[k, 0], x[i, 1] - cands[k, 1], x[i, 2] - cands[k, 2],
-                          quadratic, scale, facets)
-            if d < best:
-                best, jb = d, k
-        j0[i] = jb
-        a[i], strut[i], d0[i], nz[i] = _point(x[i], cands[jb].copy(), cands, jb, quadratic, scale,
-                                              facets, hs, ns)
+    for blk in prange((n + _BLOCK - 1) // _BLOCK):
+        cands = np.empty((m, 3))
+        hs = np.empty(m)
+        ns = np.empty((m, 3))
+        for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
+            best, jb = np.inf, 0
+            for k in range(m):
+                for j in range(3):
+                    cands[k, j] = images[idx[i, k], j]
+                d, _ = _gauge(x[i, 0] - cands[k, 0], x[i, 1] - cands[k, 1], x[i, 2] - cands[k, 2],
+                              quadratic, scale, facets)
+                if d < best:
+                    best, jb = d, k
+            j0[i] = jb
+            a[i], strut[i], d0[i], nz[i] = _point(x[i], cands[jb].copy(), cands, jb, quadratic, scale,
+                                                  facets, hs, ns)
     return a, strut, d0, j0, nz

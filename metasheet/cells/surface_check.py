@@ -36,15 +36,18 @@ def check_surface(mesh: trimesh.Trimesh) -> SurfaceReport:
     if len(faces) == 0:
         return SurfaceReport(False, False, 0.0, 0)
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, inv, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    # an edge (lo, hi) as one int64 key lo * nv + hi: the keys sort as the rows would
+    # (lexicographically), and a 1D unique is about ten times faster than np.unique(axis=0)
+    nv = int(faces.max()) + 1
+    _, inv, counts = np.unique(edges[:, 0] * nv + edges[:, 1], return_inverse=True, return_counts=True)
     watertight = bool(np.all(counts == 2))
     manifold = False
     n_comp = 0
     if watertight:
         directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
         # consistent winding: every directed edge appears once (its twin runs the other way)
-        _, dcount = np.unique(directed, axis=0, return_counts=True)
-        winding = bool(np.all(dcount == 1))
+        keys = np.sort(directed[:, 0] * nv + directed[:, 1])
+        winding = not bool(np.any(keys[1:] == keys[:-1]))
         # one fan per vertex: link (vertex, face) incidences through the shared edges
         inv = inv.ravel()
         order = np.argsort(inv, kind="stable")
@@ -65,7 +68,7 @@ def check_surface(mesh: trimesh.Trimesh) -> SurfaceReport:
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * n_f, 3 * n_f))
         n_fans, _ = connected_components(g, directed=False)
-        n_used = len(np.unique(faces))
+        n_used = int(np.count_nonzero(np.bincount(faces.ravel(), minlength=nv)))
         manifold = winding and n_fans == n_used
         # pieces: faces connected through shared edges
         fg = sp.coo_matrix((np.ones(len(f_of)), (f_of[:, 0], f_of[:, 1])), shape=(n_f, n_f))
