@@ -38,16 +38,13 @@ from ..fem.assembly import SparsityPattern
 from ..fem.hex8 import HEX8_CORNERS, hex8_box_matrices, hex8_box_moment
 from ..fem.voxel.element import check_phases
 from ..mechanics.material import TransverseIsotropic
+from ..mechanics.voigt import IN_PLANE, OUT_OF_PLANE
 from ..fem.solvers import solve_spd
 from .corrector import material_stiffness, pinned_dofs
 
 if TYPE_CHECKING:
     from .plate_shear import PlateShear
 
-#: Voigt rows of the in-plane stresses (11, 22, 12) in the order 11, 22, 33, 23, 13, 12.
-IN_PLANE = np.array([0, 1, 5])
-#: Voigt rows of the stresses a free face carries none of through a thin plate (33, 23, 13).
-OUT_OF_PLANE = np.array([2, 3, 4])
 #: Names of the six generalised strains, in the order of :attr:`PlateStiffness.ABD`.
 PLATE_STRAINS = ("eps_xx", "eps_yy", "gamma_xy", "kappa_xx", "kappa_yy", "kappa_xy")
 

@@ -30,16 +30,12 @@ is stated (:attr:`PlateShear.normalisation_spread`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..fem.hex8 import hex8_box_gauss
-from .plate import IN_PLANE
-
-if TYPE_CHECKING:
-    from .plate import PlateCell
+from ..mechanics.voigt import IN_PLANE
 
 #: Names of the two transverse shear strains, in the order of :attr:`PlateShear.H`.
 SHEAR_STRAINS = ("gamma_xz", "gamma_yz")
@@ -97,8 +93,9 @@ def shear_gradients(ABD: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return g, Q
 
 
-def transverse_shear(cell: "PlateCell", U: np.ndarray, ABD: np.ndarray, *, solver: str, rtol: float) -> PlateShear:
-    """H of a plate ``cell`` from its first-order fields ``U`` (3n, 6) and ``ABD`` (6, 6)."""
+def transverse_shear(cell, U: np.ndarray, ABD: np.ndarray, *, solver: str, rtol: float) -> PlateShear:
+    """H of a plate ``cell`` (:class:`~.plate.PlateCell`) from its first-order fields ``U``
+    (3n, 6) and ``ABD`` (6, 6)."""
     g, Q = shear_gradients(ABD)
     w_q, xi, N, Bq = hex8_box_gauss(cell.h)
     edofs = (3 * cell.nodes[:, :, None] + np.arange(3)).reshape(len(cell.nodes), 24)

@@ -14,6 +14,10 @@ from ..errors import ConfigError
 
 #: Element-wise factor turning a Voigt (6, 6) stiffness into Mandel form.
 MANDEL = np.outer(MANDEL_SCALE, MANDEL_SCALE)
+#: Voigt rows of the in-plane stresses (11, 22, 12) in the order 11, 22, 33, 23, 13, 12.
+IN_PLANE = np.array([0, 1, 5])
+#: Voigt rows of the stresses a free face carries none of through a thin plate (33, 23, 13).
+OUT_OF_PLANE = np.array([2, 3, 4])
 
 
 def _symmetric_basis() -> np.ndarray:
