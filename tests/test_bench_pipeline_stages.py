@@ -30,7 +30,7 @@ def test_stage_rows_and_the_critical_path_of_a_two_column_run(tmp_path):
     assert rows["workspace"]["wall"] == pytest.approx(ws["wall_time_s"])
     assert set(rows["workspace"]["columns"]) == {"prediction", "reproduction"}
     cols = rows["workspace"]["columns"]
-    assert sum(w for w, _ in cols.values()) <= rows["workspace"]["wall"]
+    assert sum(w for w, _ in cols.values()) <= rows["workspace"]["wall"] + 1e-3  # the manifest rounds to ms
     # each column's CPU: the stage thread's and its units' while it ran, within the stage's total
     assert all(cpu > 0 for _, cpu in cols.values())
     assert sum(cpu for _, cpu in cols.values()) <= ws["cpu_s"]["total"] + 0.01
