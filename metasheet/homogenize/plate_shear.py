@@ -114,6 +114,8 @@ def transverse_shear(cell, U: np.ndarray, ABD: np.ndarray, *, solver: str, rtol:
             T0 = np.einsum("q,qia,ji,jk->ak", w_q, Nmat, _P[c], C[:, IN_PLANE])
             T1 = np.einsum("q,qia,ji,jk,q->ak", w_q, Nmat, _P[c], C[:, IN_PLANE], zeta)
             ez = g[c, :3] @ T0.T + np.outer(layer_z[idx], g[c, 3:] @ T0.T) + g[c, 3:] @ T1.T
+            # the body force int dv . sigma_g e_alpha (its w part M w, its e(z) part ez) less the
+            # gradient's own strain int eps(dv) : C sym(w (x) e_alpha) = M^T w
             vec[idx] = Wg[edofs[idx], c] @ (M - M.T).T + ez
         rhs[:, c] = cell.pattern.assemble_vector(vec)
     resultant = np.abs(rhs.reshape(-1, 3, 2).sum(axis=0)).max()
