@@ -50,6 +50,7 @@ from .ownership import check_replaceable, name_files, not_ours
 from .registry import StageContext, stages
 from .schedule import run_graph
 from .staleness import closure, stage_key
+from .warmup import Warmer, downstream_closure
 
 #: errno values of a write that failed because of the output folder, not of the stage's logic.
 WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS, errno.EFBIG}
@@ -180,11 +181,12 @@ def run_pipeline(
         try:
             # one pool of workers for the whole run; this process computes with a unit's threads
             with own_threads(executor.threads), executor.session() as ex:
+                warmer = Warmer(ex.pool, downstream_closure(names, lambda n: upstream(pipeline, n)))
                 done = run_graph(names, {n: upstream(pipeline, n) for n in names},
                                  lambda name: _run_stage(pipeline, registry[name], base,
                                                          force and (only is None or only == name),
                                                          replace(ex, priority=names.index(name)), report,
-                                                         progress_factory, cancel, overwrite),
+                                                         progress_factory, cancel, overwrite, warmer),
                                  at_once=pipeline.section.stages_at_once,
                                  on_interrupt=lambda: _stop(cancel, ex))
         except BaseException as exc:
@@ -205,7 +207,8 @@ def _stop(cancel: threading.Event, executor: Executor) -> None:
 
 
 def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Executor, report: Reporter,
-               progress_factory, cancel: threading.Event | None = None, overwrite: bool = False) -> StageOutcome:
+               progress_factory, cancel: threading.Event | None = None, overwrite: bool = False,
+               warmer: Warmer | None = None) -> StageOutcome:
     name = stage.name
     inputs = {u: base / u for u in upstream(pipeline, name)}
     # one key computation for the runner and for readers of old outputs (serve, goto)
@@ -216,6 +219,8 @@ def _run_stage(pipeline: Pipeline, stage, base: Path, forced: bool, executor: Ex
         report(name, "up to date, skipped")
         return StageOutcome(name, "cached", final, 0.0, mf.read_manifest(final).get("summary", {}))
     check_replaceable(final, name, overwrite)  # before the work: a refusal costs nothing
+    if warmer is not None:  # the workers compile what the stages after this one call
+        warmer.starting(name)
     report(name, "running")
     if forced:
         remove_unit_caches(base, name)
