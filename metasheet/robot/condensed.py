@@ -97,6 +97,17 @@ def condensed_robot_S(K_a, K_b, robot, references, references_b=None) -> np.ndar
     return 0.5 * (S + S.T)
 
 
+def grip_motions_per_motor(K_a, K_b, robot, references, references_b=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(G_A (24, 6), G_B (24, 6), J (6, 6)): per unit motor change [rad] at rest, each sheet's grip
+    motions (its frame, :mod:`metasheet.sheet.grips`' coordinates) and the effector's (dp [mm],
+    dtheta [rad]), the rod in equilibrium: ``J = -S_ee^-1 S_ea``, ``G = E (J; I)``."""
+    S = condensed_robot_S(K_a, K_b, robot, references, references_b)
+    J = -np.linalg.solve(S[:6, :6], S[:6, 6:])
+    Ea, Eb = robot_grip_maps(robot, references, references_b)
+    q = np.vstack([J, np.eye(6)])
+    return Ea @ q, Eb @ q, J
+
+
 def condensed_kinematics(K_a, K_b, robot, references, *, length_scale: float = LENGTH_SCALE,
                          references_b=None) -> Kinematics:
     """:class:`.kinematics.Kinematics` of the robot at rest from the condensed sheets."""

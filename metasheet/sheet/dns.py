@@ -106,6 +106,17 @@ def grip_labels(shape, origin, h, params: SheetParams) -> np.ndarray:
 
 def dns_sheet(spec: SheetPrint, progress=None) -> DnsSheet:
     """Build the printed sheet ``spec`` describes and condense its voxel DNS on the four grips."""
+    return _solve(spec, progress, False)[0]
+
+
+def dns_sheet_walls(spec: SheetPrint, progress=None):
+    """(:class:`DnsSheet`, :class:`~.wall_limits.SheetWalls`): :func:`dns_sheet` with the
+    displacement of each of the 24 unit grip motions on the grid (all 24 columns solved, not 18;
+    about 0.9 GB per sheet at 0.3 mm on the paper's print) and the solid the grips hold."""
+    return _solve(spec, progress, True)
+
+
+def _solve(spec: SheetPrint, progress, displacements: bool):
     check_range("voxel_mm", spec.voxel_mm, 0.0, None, lo_open=True)
     C = np.asarray(spec.solid, float)
     if C.shape != (6, 6):
@@ -114,19 +125,25 @@ def dns_sheet(spec: SheetPrint, progress=None) -> DnsSheet:
     foam = printed_foam(tripod_region(spec.params), spec.fields, spec.design, voxel_mm=spec.voxel_mm,
                         gauge=spec.gauge, seed=spec.seed, max_voxels=spec.max_voxels)
     built = time.perf_counter() - t0
-    from .voxel_grips import (
-        rigid_bodies_stiffness,  # numba kernels compile on first use only
+    from .voxel_grips import (  # numba kernels compile on first use only
+        held_solid,
+        rigid_bodies_stiffness,
     )
 
     h = np.asarray(foam.voxel_mm, float)
     labels = grip_labels(foam.phases.shape, foam.origin, h, spec.params)
     refs = grip_references(spec.params) - foam.origin  # grid coordinates: node (i, j, k) at (i, j, k) h
     r = rigid_bodies_stiffness(foam.phases.astype(np.int64), foam.size, {1: C}, bodies=labels, references=refs,
-                               rtol=spec.rtol, progress=progress)
+                               rtol=spec.rtol, progress=progress, displacements=displacements)
     rep = foam.report
-    return DnsSheet(np.asarray(r.K), spec.label, int(spec.seed), spec.gauge, rep.shape, rep.voxel_mm,
-                    float(rep.solid_fraction_foam), float(rep.connected_share), float(r.kept_share), int(r.n_dof),
-                    tuple(int(i) for i in r.iterations), r.coarsening, float(r.asymmetry), built, float(r.seconds))
+    sheet = DnsSheet(np.asarray(r.K), spec.label, int(spec.seed), spec.gauge, rep.shape, rep.voxel_mm,
+                     float(rep.solid_fraction_foam), float(rep.connected_share), float(r.kept_share), int(r.n_dof),
+                     tuple(int(i) for i in r.iterations), r.coarsening, float(r.asymmetry), built, float(r.seconds))
+    if not displacements:
+        return sheet, None
+    from .wall_limits import SheetWalls
+
+    return sheet, SheetWalls(held_solid(foam.phases > 0, labels > 0), h, r.U)
 
 
 def compare(K_dns, K_fem, params: SheetParams) -> dict:
