@@ -9,7 +9,8 @@ motor direction into the walls' field per radian; along it the travel at which
 
 * the walls' largest principal strain reaches ``--strain-limit`` (forward and backward), and
 * two walls first touch (searched up to the strain limit's travel: past it the model is out of
-  its range anyway),
+  its range anyway; along each sheet's three motors together and all six, on the sheets those
+  motors hold: a search costs about a minute on a print),
 
 is found on each sheet. Directions: each motor alone, each sheet's three motors together, all six
 (the paper's roll of the rod), and, given ``--workspace`` (a workspace stage's folder), the rays
@@ -38,8 +39,9 @@ from _results import add_save_option, saved_output  # noqa: E402
 from dns_convergence import LABELS, _inputs  # noqa: E402
 
 
-def solved_walls(outputs: Path, voxel: float, gauge: str, seed: int | None, cache: Path):
-    """(robot, references, [(DnsSheet K, SheetWalls)] per label) from ``cache`` or solved now."""
+def solved_walls(outputs: Path, voxel: float, gauge: str, seed: int | None, cache: Path, labels=LABELS):
+    """(robot, references, [(K, SheetWalls, record)] per label of ``labels``, seed) from ``cache``
+    or solved now (and kept there)."""
     from metasheet.sheet.dns import SheetPrint, dns_sheet_walls
     from metasheet.sheet.grips import grip_references
     from metasheet.sheet.wall_limits import SheetWalls
@@ -48,7 +50,7 @@ def solved_walls(outputs: Path, voxel: float, gauge: str, seed: int | None, cach
     seed = design.seeds.seed if seed is None else seed
     cache.mkdir(parents=True, exist_ok=True)
     out = []
-    for lab in LABELS:
+    for lab in labels:
         path = cache / f"walls-{gauge}-{voxel:g}mm-{lab}-seed{seed}.npz"
         if not path.is_file():
             t0 = time.perf_counter()
@@ -135,8 +137,14 @@ def limits(robot, refs, sheets, strain_limit: float, workspace: Path | None) -> 
             for walls, F in zip((wa, wb), fields):
                 u = np.einsum("...im,m->...i", F, sign * d)
                 t_strain = travel_to_strain(u, walls.h, walls.solid, strain_limit)[0]
-                t_search = t_strain if np.isfinite(t_strain) else np.radians(30.0) / np.linalg.norm(d)
-                t_contact = first_contact(walls.solid, walls.h, u, t_search)[0]
+                # a contact search costs about a minute on a print: only along the map's axes
+                # and the rod's roll, and on a sheet whose own motors move
+                t_contact = np.nan
+                own = {"sheet A's motors together": (0,), "sheet B's motors together": (1,),
+                       "all six together": (0, 1)}.get(name, ())
+                if len(per) in own:
+                    t_search = t_strain if np.isfinite(t_strain) else np.radians(30.0) / np.linalg.norm(d)
+                    t_contact = first_contact(walls.solid, walls.h, u, t_search)[0]
                 per.append((t_strain * unit, t_contact * unit))
             row[label] = {"strain": [p[0] for p in per], "contact": [p[1] for p in per]}
         rows.append(row)
@@ -144,10 +152,94 @@ def limits(robot, refs, sheets, strain_limit: float, workspace: Path | None) -> 
     return rows
 
 
+def horns_turned(robot, refs, sheets, deg: float = 1.0) -> list[dict]:
+    """Each sheet with its centre held and its three horns turned by ``deg``: the linear walls'
+    largest principal strain and closest approach there, and the travel to the first contact
+    [deg]: the loading of the nonlinear DNS in docs/printed-sheet.md ("Beyond rest"), to compare
+    first order with it."""
+    from metasheet.fem.voxel.gaps import closest_approach
+    from metasheet.robot.condensed import robot_grip_maps
+    from metasheet.sheet.wall_limits import first_contact, principal_range
+
+    Ea, Eb = robot_grip_maps(robot, refs)
+    out = []
+    for (_, w, _), E, motors, lab in zip(sheets, (Ea, Eb), ((6, 7, 8), (9, 10, 11)), LABELS):
+        q = E[:, list(motors)].sum(axis=1)  # per radian of the three horns, the rod held
+        u = w.field(q)
+        a = closest_approach(w.solid, w.h, np.radians(deg) * u)
+        t, _ = first_contact(w.solid, w.h, u, np.radians(5.0))
+        out.append({"sheet": lab, "deg": deg, "wall_strain": principal_range(np.radians(deg) * u, w.h, w.solid)[0],
+                    "approach_mm": a.distance, "approach_rest_mm": a.rest_distance,
+                    "contact_deg": float(np.degrees(t))})
+    return out
+
+
+def slice_map(robot, sheets, refs, strain_limit: float, n: int = 72) -> dict:
+    """The walls' strain limit over the plane of sheet A's three motors together (x) and sheet
+    B's (y): per direction angle, the travel [deg of each motor] at which either sheet's walls
+    reach the limit, and the motor box's edges from rest [deg]."""
+    from metasheet.robot.condensed import grip_motions_per_motor
+    from metasheet.sheet.wall_limits import travel_to_strain
+
+    (Ka, wa, _), (Kb, wb, _) = sheets
+    Ga, Gb, _ = grip_motions_per_motor(Ka, Kb, robot, refs)
+    fa, fb = wa.per_motor(Ga), wb.per_motor(Gb)
+    phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    travel = []
+    for p in phi:
+        d = np.r_[np.full(3, np.cos(p)), np.full(3, np.sin(p))]
+        t = [travel_to_strain(np.einsum("...im,m->...i", F, d), w.h, w.solid, strain_limit)[0]
+             for w, F in ((wa, fa), (wb, fb))]
+        travel.append(np.degrees(min(t)))
+    rest = np.array([s.rest_angle for s in robot.coupling.servos])
+    box = [np.degrees(robot.angle_min - rest).tolist(), np.degrees(robot.angle_max - rest).tolist()]
+    return {"phi": phi.tolist(), "travel_deg": travel, "box_deg": box}
+
+
+def map_picture(res: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = res["map"]
+    phi, t = np.array(m["phi"]), np.array(m["travel_deg"])
+    fig, ax = plt.subplots(figsize=(5.5, 5.5))
+    lo, hi = np.array(m["box_deg"])
+    ax.add_patch(plt.Rectangle((lo[:3].max(), lo[3:].max()), hi[:3].min() - lo[:3].max(),
+                               hi[3:].min() - lo[3:].max(), fill=False, ls="--", color="0.5",
+                               label="the motor box (from rest)"))
+    x, y = np.r_[t * np.cos(phi), t[0]], np.r_[t * np.sin(phi), 0.0]
+    ax.fill(x, y, alpha=0.25, color="C0")
+    ax.plot(x, y, color="C0", label=f"wall strain {res['strain_limit']:g} reached (first order)")
+    for r in res["rows"]:
+        for label, sign in (("forward", 1), ("backward", -1)):
+            c = np.nanmin(r[label]["contact"])
+            if r["direction"].startswith("sheet A") and np.isfinite(c):
+                ax.plot(sign * c, 0, "rx")
+            if r["direction"].startswith("sheet B") and np.isfinite(c):
+                ax.plot(0, sign * c, "rx")
+            if r["direction"].startswith("all six") and np.isfinite(c):
+                ax.plot(sign * c, sign * c, "rx")
+    ax.plot([], [], "rx", label="two walls touch (first order)")
+    ax.axhline(0, color="0.8", lw=0.5)
+    ax.axvline(0, color="0.8", lw=0.5)
+    ax.set_xlabel("sheet A's three motors from rest [deg]")
+    ax.set_ylabel("sheet B's three motors from rest [deg]")
+    ax.set_title(f"Where the printed walls' limits bind\n(seed {res['seed']}, {res['voxel_mm']:g} mm voxels)")
+    ax.set_aspect("equal")
+    ax.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
 def table(res: dict) -> str:
     lines = [f"First-order limits of the print (seed {res['seed']}, gauge {res['gauge']}, {res['voxel_mm']} mm voxels; "
              f"wall strain limit {res['strain_limit']}): travel at which each limit binds, sheet A / B "
-             "(contact searched up to the strain limit's travel; inf: not before it)", "",
+             "(contact searched up to the strain limit's travel, inf: not before it; nan: not searched)", "",
              "| direction | unit | strain, forward | contact, forward | strain, backward | contact, backward |"
              + (" | prediction reached | reproduction reached |" if res.get("furthest") else ""),
              "|---|---|---|---|---|---|" + ("---|---|" if res.get("furthest") else "")]
@@ -163,6 +255,13 @@ def table(res: dict) -> str:
         elif far:
             cells += ["", ""]
         lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", "Each sheet with its centre held and its three horns turned by 1 deg (the nonlinear DNS's "
+              "loading in docs/printed-sheet.md), first order:", "",
+              "| sheet | largest wall strain | closest approach [mm] (at rest) | first contact [deg] |",
+              "|---|---|---|---|"]
+    for h in res.get("horns_turned", []):
+        lines.append(f"| {h['sheet']} | {h['wall_strain']:.3f} | {h['approach_mm']:.3g} ({h['approach_rest_mm']:.3g}) "
+                     f"| {h['contact_deg']:.3g} |")
     return "\n".join(lines)
 
 
@@ -175,9 +274,15 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, required=True, help="folder keeping each solved sheet's fields")
     ap.add_argument("--strain-limit", type=float, default=0.3, help="the walls' largest principal strain [-]")
     ap.add_argument("--workspace", type=Path, default=None, help="a workspace stage's folder: Fig. 5's rays")
+    ap.add_argument("--only", choices=LABELS, default=None, help="solve this sheet into the cache and stop "
+                    "(two processes solve the two sheets side by side)")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--picture", type=Path, default=None, help="PNG of the map over sheet A's and B's motors")
     add_save_option(ap)
     args = ap.parse_args()
+    if args.only:
+        solved_walls(args.outputs, args.voxel, args.gauge, args.seed, args.cache, (args.only,))
+        return
     robot, refs, sheets, seed = solved_walls(args.outputs, args.voxel, args.gauge, args.seed, args.cache)
     t0 = time.perf_counter()
     rows = limits(robot, refs, sheets, args.strain_limit, args.workspace)
@@ -186,9 +291,13 @@ def main() -> None:
            "limits_seconds": time.perf_counter() - t0,
            "furthest": ({c: {str(k): v for k, v in f.items()} for c, f in furthest(args.workspace).items()}
                         if args.workspace else None)}
+    res["map"] = slice_map(robot, sheets, refs, args.strain_limit)
+    res["horns_turned"] = horns_turned(robot, refs, sheets)
+    if args.picture:
+        map_picture(res, args.picture)
     if args.json:
         args.json.write_text(json.dumps(res, indent=1))
-    with saved_output(args, "wall_limits"):
+    with saved_output(__file__, args.save):
         print(table(res))
 
 
