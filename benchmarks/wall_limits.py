@@ -241,7 +241,7 @@ def table(res: dict) -> str:
              f"wall strain limit {res['strain_limit']}): travel at which each limit binds, sheet A / B "
              "(contact searched up to the strain limit's travel, inf: not before it; nan: not searched)", "",
              "| direction | unit | strain, forward | contact, forward | strain, backward | contact, backward |"
-             + (" | prediction reached | reproduction reached |" if res.get("furthest") else ""),
+             + (" prediction reached | reproduction reached |" if res.get("furthest") else ""),
              "|---|---|---|---|---|---|" + ("---|---|" if res.get("furthest") else "")]
     far = res.get("furthest") or {}
     for r in res["rows"]:

@@ -30,7 +30,10 @@ log = logging.getLogger(__name__)
 #: Which kernel families a stage's work units call on the workers.
 STAGE_KERNELS = {
     "homogenize": ("voxel",),
+    "chart": ("voxel",),
     "robot": ("corotational",),
+    "design": ("corotational",),
+    "dynamics": ("corotational",),
     "reduce": ("corotational",),
     "workspace": ("corotational",),
     "ranges": ("corotational",),
