@@ -122,7 +122,7 @@ def furthest(workspace: Path) -> dict[str, dict[int, float]]:
     return out
 
 
-def limits(robot, refs, sheets, strain_limit: float, workspace: Path | None) -> list[dict]:
+def limits(robot, refs, sheets, strain_limit: float, workspace: Path | None, ray_contact_every: int = 0) -> list[dict]:
     from metasheet.robot.condensed import grip_motions_per_motor
     from metasheet.sheet.wall_limits import first_contact, travel_to_strain
 
@@ -142,6 +142,9 @@ def limits(robot, refs, sheets, strain_limit: float, workspace: Path | None) -> 
                 t_contact = np.nan
                 own = {"sheet A's motors together": (0,), "sheet B's motors together": (1,),
                        "all six together": (0, 1)}.get(name, ())
+                if (ray_contact_every and name.startswith("Fig. 5 ray ") and sign > 0
+                        and int(name.rsplit(" ", 1)[1]) % ray_contact_every == 0):
+                    own = (0, 1)  # a ray's backward direction is another ray
                 if len(per) in own:
                     t_search = t_strain if np.isfinite(t_strain) else np.radians(30.0) / np.linalg.norm(d)
                     t_contact = first_contact(walls.solid, walls.h, u, t_search)[0]
@@ -274,6 +277,8 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, required=True, help="folder keeping each solved sheet's fields")
     ap.add_argument("--strain-limit", type=float, default=0.3, help="the walls' largest principal strain [-]")
     ap.add_argument("--workspace", type=Path, default=None, help="a workspace stage's folder: Fig. 5's rays")
+    ap.add_argument("--ray-contact-every", type=int, default=0, help="search the first contact on every K-th ray "
+                    "too (forward, both sheets; 0: none): minutes per ray on a print")
     ap.add_argument("--only", choices=LABELS, default=None, help="solve this sheet into the cache and stop "
                     "(two processes solve the two sheets side by side)")
     ap.add_argument("--json", type=Path, default=None)
@@ -285,7 +290,7 @@ def main() -> None:
         return
     robot, refs, sheets, seed = solved_walls(args.outputs, args.voxel, args.gauge, args.seed, args.cache)
     t0 = time.perf_counter()
-    rows = limits(robot, refs, sheets, args.strain_limit, args.workspace)
+    rows = limits(robot, refs, sheets, args.strain_limit, args.workspace, args.ray_contact_every)
     res = {"outputs": str(args.outputs), "voxel_mm": args.voxel, "gauge": args.gauge, "seed": seed,
            "strain_limit": args.strain_limit, "rows": rows, "solve": [s[2] for s in sheets],
            "limits_seconds": time.perf_counter() - t0,
