@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..errors import ConfigError, ConvergenceError
@@ -193,14 +194,30 @@ class _Active:
         L[i:n - 1, i:n - 1] = L[i + 1:n, i + 1:n]
         L[n - 1, :n] = 0.0
         L[:n, n - 1] = 0.0
-        T = L[i:n - 1, i:n - 1]
-        for k in range(n - 1 - i):
-            r = np.hypot(T[k, k], x[k])
-            c, s = r / T[k, k], x[k] / T[k, k]
-            T[k, k] = r
-            T[k + 1:, k] = (T[k + 1:, k] + s * x[k + 1:]) / c
-            x[k + 1:] = c * x[k + 1:] - s * T[k + 1:, k]
+        _givens_sweep(L[i:n - 1, i:n - 1], x)
         self.cols[:, i:n - 1] = self.cols[:, i + 1:n]
         self.P[i:n - 1], self.w[i:n - 1] = self.P[i + 1:n], self.w[i + 1:n]
         self.n = n - 1
         self.dependent[:] = False  # the span shrank: a refused column may be independent now
+
+
+@numba.njit(cache=True)
+def _givens_sweep(T, x):
+    """Absorb ``x`` (m,) into the lower factor ``T`` (m, m) in place by Givens rotations, column
+    by column: for each k, ``r = hypot(T_kk, x_k)``, ``c = r / T_kk``, ``s = x_k / T_kk``, then
+    ``T_jk = (T_jk + s x_j) / c`` and ``x_j = c x_j - s T_jk`` below the diagonal. The same
+    operations in the same order as the numpy loop it replaces (no fused multiply-add: numba
+    contracts none without fastmath), so the same bits, without that loop's strided column
+    slices of a C-ordered factor (12.8 of the reduce stage's 95 sampled seconds)."""
+    m = T.shape[0]
+    for k in range(m):
+        tkk = T[k, k]
+        xk = x[k]
+        r = np.hypot(tkk, xk)
+        c = r / tkk
+        s = xk / tkk
+        T[k, k] = r
+        for j in range(k + 1, m):
+            t = (T[j, k] + s * x[j]) / c
+            T[j, k] = t
+            x[j] = c * x[j] - s * t
