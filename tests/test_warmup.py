@@ -81,21 +81,19 @@ def _signatures() -> dict[str, set[str]]:
     import metasheet.fem.voxel as fv
 
     out = {}
-    for pkg in (fv, fc):
-        for m in pkgutil.iter_modules(pkg.__path__):
-            if m.name == "device":  # CuPy, not numba
-                continue
-            mod = importlib.import_module(f"{pkg.__name__}.{m.name}")
-            for k, v in vars(mod).items():
-                if isinstance(v, CPUDispatcher):
-                    out[f"{mod.__name__}.{k}"] = {str(s) for s in v.signatures}
+    modules = [f"{pkg.__name__}.{m.name}" for pkg in (fv, fc) for m in pkgutil.iter_modules(pkg.__path__)
+               if m.name != "device"]  # device: CuPy, not numba
+    for name in [*modules, "metasheet.rom.ecsw"]:
+        for k, v in vars(importlib.import_module(name)).items():
+            if isinstance(v, CPUDispatcher):
+                out[f"{name}.{k}"] = {str(s) for s in v.signatures}
     return out
 
 
 def test_warm_up_compiles_the_signatures_the_stages_call(quick_outputs, foam_robot_14):
-    """After the warm-up, a realisation's voxel homogenisation (the quick pipeline's cell) and a P1
-    and a P2 robot's equilibrium call no kernel signature the warm-up did not compile: in a fresh
-    run they load every kernel from the cache the warm-up wrote."""
+    """After the warm-up, a realisation's voxel homogenisation (the quick pipeline's cell), a P1
+    and a P2 robot's equilibrium and an ECSW fit that drops elements call no kernel signature the
+    warm-up did not compile: in a fresh run they load every kernel from the cache it wrote."""
     from metasheet.homogenize.voxels import homogenize_voxels
     from metasheet.published import paper
     from metasheet.robot.builder import SheetPair, six_dof_robot
@@ -116,6 +114,11 @@ def test_warm_up_compiles_the_signatures_the_stages_call(quick_outputs, foam_rob
                        density=paper.FOAM_DENSITY)
     for robot in (foam_robot_14, p2):
         solve_equilibrium(robot, robot.coupling.rest_angles + 0.02, tol=1e-8)
+    from metasheet.rom.ecsw import ecsw
+
+    rng = np.random.default_rng(0)
+    A = rng.random((40, 60))
+    ecsw(A, 1e-6, b=A[:, :5] @ np.array([1.0, 2.0, 0.5, 1.5, 3.0]), batch=0.5)  # batches enter and drop
     after = _signatures()
     new = {k: v - before.get(k, set()) for k, v in after.items() if v - before.get(k, set())}
     assert new == {}

@@ -34,7 +34,7 @@ STAGE_KERNELS = {
     "robot": ("corotational",),
     "design": ("corotational",),
     "dynamics": ("corotational",),
-    "reduce": ("corotational",),
+    "reduce": ("corotational",),  # and its ECSW kernel
     "workspace": ("corotational",),
     "ranges": ("corotational",),
     "anisotropy": ("corotational",),
@@ -127,7 +127,13 @@ def _voxel() -> None:
 
 
 def _corotational() -> None:
-    """A force and a tangent of a P1 and a P2 body (six tetrahedra of a cube, their midpoints)."""
+    """A force and a tangent of a P1 and a P2 body (six tetrahedra of a cube, their midpoints),
+    and the reduce stage's ECSW deletion (a block of a C-ordered factor, as it is called)."""
+    from ..rom.ecsw import _givens_sweep
+
+    L = np.eye(4)
+    _givens_sweep(L[1:3, 1:3], np.array([0.5, 0.25]))  # a strided block ("A" layout)
+    _givens_sweep(L[3:4, 3:4], np.array([0.5]))  # a 1 x 1 block is C-contiguous: numba's other type
     from ..fem.tet10 import elevate_to_p2
     from ..robot.body import ElasticBody
     from ..mechanics.material import Isotropic
