@@ -6,6 +6,12 @@ import sys
 
 import pytest
 
+# before anything loads numpy: the test processes compute on the code path a pipeline run and
+# its workers pin (metasheet.runtime.cpu); a test module that imported numpy first used to make
+# its whole process compute on this CPU's own kernels (AVX-512 here), so a test's numbers
+# depended on which file pytest collected first
+import metasheet  # noqa: F401, E402
+
 # bytecode caches for the test session, where PYTHONDONTWRITEBYTECODE turns them off: without
 # them every test process compiles the test modules again (pytest's assertion rewriting: 9 of
 # a worker's 16 s of collection) and every `metasheet` subprocess the sources it imports (about

@@ -44,3 +44,16 @@ def test_code_paths_reports_what_this_process_uses():
     assert info["decision"] in ("pinned", "native")
     assert info["numpy_dispatch"] and all(isinstance(t, str) for t in info["numpy_dispatch"])
     assert info["blas"] and all("openblas" in b or "mkl" in b for b in info["blas"])
+
+
+def test_the_test_processes_compute_on_the_pinned_path_whichever_file_is_collected_first():
+    """conftest imports metasheet before any test module loads numpy: a test file that imported
+    numpy first had put its whole process on this CPU's own kernels, and a reduced-model test's
+    outcome then depended on the file pytest collected first (a bound met within an ulp)."""
+    import pytest
+
+    if not cpu.has_avx2_fma():
+        pytest.skip("no AVX2 / FMA: nothing is pinned on this CPU")
+    paths = cpu.code_paths()
+    assert paths["decision"] == "pinned"
+    assert not any("512" in t or t == "X86_V4" for t in paths["numpy_dispatch"])

@@ -68,6 +68,10 @@ PAST_BOX = ("reduced", "full")
 #: elsewhere: on the paper pipeline's 20-70 motor range, reaches 20 deg below the box stopped at
 #: the strain limit where the full model reached.
 EXTRAPOLATE_STEPS = 1.0
+#: Rounding allowed on that bound [deg]: a full control step from the box's edge lands 5 deg
+#: outside it give or take an ulp, and which side of the bound it fell on changed with the CPU's
+#: kernels (AVX2 against AVX-512), and with it whether the reach was redone.
+OUTSIDE_EPS_DEG = 1e-9
 
 
 def file_hash(path: Path | str) -> str:
@@ -287,7 +291,7 @@ class ReducedFem(FemRobot):
             out = self.degrees_outside(st.angles)
             if out <= 0.0:
                 return False
-            if out > EXTRAPOLATE_STEPS * self.spec.full.max_step_deg:
+            if out > EXTRAPOLATE_STEPS * self.spec.full.max_step_deg + OUTSIDE_EPS_DEG:
                 far.append(st)
                 return True
             if self.max_principal_strain(st) <= limit:
