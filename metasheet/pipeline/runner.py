@@ -41,6 +41,7 @@ from pathlib import Path
 from ..errors import ConfigError, Interrupted, MetasheetError, OutputError, StageError, output_error
 from ..runtime.cpu import code_paths
 from ..runtime.executor import CpuMeter, Executor, own_threads
+from ..runtime.memory import keep_freed_memory
 from ..supervise import tell as tell_supervisor
 from . import manifest as mf
 from .config import Pipeline, upstream
@@ -169,6 +170,7 @@ def run_pipeline(
     out_root = Path(out_root) if out_root else pipeline.root / "outputs"
     base = output_folder(out_root, pipeline.name)
     names = plan(pipeline, only)
+    keep_freed_memory()  # before the workers start: they take it from the environment
     executor = executor or Executor(pipeline.section.workers, pipeline.section.scheduler)
     cancel = threading.Event()
     with output_lock(out_root, pipeline.name, wait=wait, report=report):
