@@ -60,10 +60,13 @@ def main() -> None:
     ap.add_argument("--sheet", choices=LABELS, default="normal")
     ap.add_argument("--deg", type=float, default=1.0, help="every horn turned by [deg]")
     ap.add_argument("--rtol", type=float, default=1e-4, help="free residual over the reactions")
+    ap.add_argument("--contact", action="store_true",
+                    help="penalty contact between the walls (metasheet.fem.voxel.contact, its defaults)")
     add_save_option(ap)
     args = ap.parse_args()
     robot, sheet, seed = voxel_sheet(args.outputs, args.voxel, args.gauge, args.seed, args.sheet)
-    gb = GripBody(sheet.phases, sheet.size, sheet.law, bodies=sheet.bodies, references=sheet.references - sheet.origin)
+    gb = GripBody(sheet.phases, sheet.size, sheet.law, bodies=sheet.bodies, references=sheet.references - sheet.origin,
+                  contact=True if args.contact else None)
     index = LABELS.index(args.sheet)
     history: list = []
     W, wall, sol = solve(gb, robot, sheet, index, args.deg, args.rtol, history)
@@ -82,7 +85,8 @@ def main() -> None:
               f"(per step: {', '.join(str(c) for c in sol.cg)}), stable: {sol.stable}. The solve at "
               f"{args.deg / 1000:g} deg: {wall_lin:.0f} s. The walls: largest principal Green-Lagrange "
               f"strain {float(np.nanmax(sol.strain)):.3f}; closest approach of two surfaces apart at rest "
-              f"{gap.distance:.3f} mm (from {gap.rest_distance:.3f} mm; closed: {gap.closed}).\n")
+              f"{gap.distance:.3f} mm (from {gap.rest_distance:.3f} mm; closed: {gap.closed}); wall pairs in "
+              f"contact: {sol.contact if sol.contact is not None else 'no contact modelled'}.\n")
         print(f"| grip | force, {args.deg:g} deg / linear | moment, {args.deg:g} deg / linear |")
         print("|---|---|---|")
         for k, name in enumerate(GRIPS):

@@ -59,7 +59,9 @@ class PrintedPose:
     Green-Lagrange strain in its walls [-]; ``approach`` each sheet's closest approach of two
     formerly separate wall surfaces (:class:`metasheet.fem.voxel.gaps.Approach`: self-contact);
     ``states`` each sheet's displacement field (warm starts); ``stable`` each sheet's stability
-    probe at the balance (:attr:`~metasheet.fem.voxel.nonlinear.NonlinearSolution.stable`)."""
+    probe at the balance (:attr:`~metasheet.fem.voxel.nonlinear.NonlinearSolution.stable`);
+    ``contact`` each sheet's wall pairs in contact (:attr:`~metasheet.fem.voxel.nonlinear.
+    NonlinearSolution.contact`; empty without contact)."""
 
     motors_deg: np.ndarray
     dp: np.ndarray
@@ -72,6 +74,7 @@ class PrintedPose:
     approach: tuple = ()
     states: tuple = field(repr=False, default=())
     stable: tuple = ()
+    contact: tuple = ()
 
 
 def sheet_grip_poses(Q, centre, references, origin, servos, dp, theta, dphi) -> tuple[np.ndarray, np.ndarray]:
@@ -102,9 +105,11 @@ class PrintedRobot:
     (:func:`metasheet.robot.condensed.condensed_robot_S` of the sheets' linear grip stiffness),
     the rod iteration's first Jacobian; None: by finite differences at the first pose.
     ``progress``: called as ``progress(desc, done, total)`` by each sheet's solve (long on a print).
+    ``contact``: the walls' penalty contact in each sheet (None: they pass through each other,
+    True: :meth:`metasheet.fem.voxel.contact.Contact.default`, or a Contact).
     """
 
-    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8, progress=None):
+    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8, progress=None, contact=None):
         c, centres = _check_robot(robot)
         if len(sheets) != 2 or not all(isinstance(s, VoxelSheet) for s in sheets):
             raise ConfigError("sheets: expected (sheet A, sheet B), two VoxelSheet")
@@ -113,8 +118,8 @@ class PrintedRobot:
         self.origin = np.asarray(c.origin, float)
         self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
         self.J0 = None if S_rest is None else np.asarray(S_rest, float)[:6, :6].copy()
-        self.bodies = tuple(GripBody(s.phases, s.size, s.law, bodies=s.bodies, references=s.references - s.origin)
-                            for s in self.sheets)  # each sheet's multigrid built once
+        self.bodies = tuple(GripBody(s.phases, s.size, s.law, bodies=s.bodies, references=s.references - s.origin,
+                                     contact=contact) for s in self.sheets)  # each sheet's multigrid built once
         self.states = [None, None]
         self.last = [None, None]
         self.newton = 0
@@ -175,7 +180,8 @@ class PrintedRobot:
                 strain, approach = self._walls()
                 return PrintedPose(np.degrees(motors), q[:3].copy(), q[3:].copy(), rel, it, per, self.newton,
                                    strain, approach, tuple(self.states),
-                                   tuple(g.solution.stable for g in self.last))
+                                   tuple(g.solution.stable for g in self.last),
+                                   tuple(g.solution.contact for g in self.last if g.solution.contact is not None))
             step = np.linalg.solve(J, -r)
             q_new = q + step
             r_new, per, scale = self.rod_wrench(q_new, motors)

@@ -63,10 +63,11 @@ class GripBody:
 
     phases : (nx, ny, nz) int, 0 = void, k > 0 solid; size : (3,) grid edges [mm];
     bodies : (nx + 1, ny + 1, nz + 1) int, 0 free, b >= 1 tied to grip b - 1; references :
-    (B, 3) [mm] grid coordinates.
+    (B, 3) [mm] grid coordinates; contact : the walls' penalty contact
+    (:class:`~metasheet.fem.voxel.nonlinear.HyperelasticBody`'s: None, True or a Contact).
     """
 
-    def __init__(self, phases, size, law: NeoHookean, *, bodies, references):
+    def __init__(self, phases, size, law: NeoHookean, *, bodies, references, contact=None):
         ph = np.asarray(phases)
         N = tuple(int(n) + 1 for n in ph.shape)
         body, self.B = _bodies(bodies, N)
@@ -81,7 +82,8 @@ class GripBody:
         self.tied = body > 0
         self.b = body[self.tied] - 1
         self.N = N
-        self.hyper = HyperelasticBody(np.where(kept, ph, 0), size, law, np.repeat(self.tied[..., None], 3, axis=3))
+        self.hyper = HyperelasticBody(np.where(kept, ph, 0), size, law, np.repeat(self.tied[..., None], 3, axis=3),
+                                      contact)
 
     def wrenches(self, rotations, translations, initial=None, rtol: float = 1e-8, progress=None,
                  probe: bool = True) -> GripWrenches:

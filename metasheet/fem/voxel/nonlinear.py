@@ -45,7 +45,9 @@ from threadpoolctl import threadpool_limits
 
 from ...errors import ConfigError, ConvergenceError, check_range
 from ..hex8 import HEX8_CORNERS
+from .contact import Contact, SurfacePairs
 from .element import validate_grid
+from .gaps import surface_nodes
 from .hyperelastic import (NeoHookean, colour_order, gauss_gradients, internal_forces, max_principal_strain,
                            tangent_apply)
 from .multigrid import build_hierarchy
@@ -67,6 +69,8 @@ class NonlinearSolution:
         strain : (nx, ny, nz) each solid voxel's largest principal Green-Lagrange strain over its
         Gauss points [-], NaN in the void; stable : the stability probe found no negative
         curvature (True), still found one after three escapes (False), or did not run (None).
+    contact : with a penalty (:mod:`.contact`), its pairs at the solution: ``pairs``,
+        ``min_distance_mm``, ``force_N`` (the pair forces' sum); None without one.
     """
 
     nodes: np.ndarray
@@ -81,6 +85,7 @@ class NonlinearSolution:
     h: np.ndarray
     strain: np.ndarray | None = None
     stable: bool | None = None
+    contact: dict | None = None
 
     def full(self, a: np.ndarray) -> np.ndarray:
         """(n, 3) node values -> (Nx, Ny, Nz, 3), zero off the body."""
@@ -109,11 +114,17 @@ class _Body:
         self.F = np.empty((len(self.voxels), 8, 3, 3))
         self.Finv = np.empty((len(self.voxels), 8, 3, 3))
         self.c = np.empty((len(self.voxels), 8))
+        self.contact: SurfacePairs | None = None  # the walls' penalty contact, when asked
 
     def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         f = np.zeros_like(u)
         energy, bad = internal_forces(u, self.voxels, self.order, self.starts, self.colours, self.dN, self.w, self.mu,
                                       self.lam, self.F, self.Finv, self.c, f)
+        if self.contact is not None:
+            fc, ec, crossed = self.contact.forces(u)
+            f += fc
+            energy += ec
+            bad += crossed  # walls passed through each other: refused as an inverted element is
         return f, energy, bad
 
     def tangent(self, v: np.ndarray) -> np.ndarray:
@@ -121,6 +132,8 @@ class _Body:
         y = np.zeros_like(v)
         tangent_apply(np.ascontiguousarray(v), self.voxels, self.order, self.starts, self.colours,
                       self.dN, self.w, self.mu, self.lam, self.Finv, self.c, y)
+        if self.contact is not None:
+            y += self.contact.tangent(v)
         return y
 
 
@@ -133,14 +146,24 @@ class HyperelasticBody:
     size : (3,) [mm] the grid's edges; node (i, j, k) sits at (i hx, j hy, k hz).
     prescribed : (nx + 1, ny + 1, nz + 1, 3) bool, the prescribed dofs (those on nodes the solid
         touches count).
+    contact : None (walls pass through each other), True (:meth:`.contact.Contact.default`) or a
+        :class:`~.contact.Contact`: penalty contact between wall surfaces that were apart.
     """
 
-    def __init__(self, phases, size, law: NeoHookean, prescribed):
+    def __init__(self, phases, size, law: NeoHookean, prescribed, contact: Contact | bool | None = None):
         self.law = law if isinstance(law, NeoHookean) else NeoHookean(*law)
         index, _, h, _ = validate_grid(phases, size, {p: np.eye(6) for p in _solid_phases(phases)})
         self.index, self.h = index, np.asarray(h, float)
         self.N = node_shape(index.shape, False)
         self.body = _Body(index, h, self.law)
+        if contact is True:
+            contact = Contact.default(h, self.law.E)
+        if contact not in (None, False):
+            if not isinstance(contact, Contact):
+                raise ConfigError(f"contact: {contact!r}: None, True or a Contact")
+            flat = surface_nodes(index >= 0)
+            rest = np.stack(np.unravel_index(flat, self.N), 1) * np.asarray(h, float)
+            self.body.contact = SurfacePairs(self.body.node_map[flat], rest, contact)
         touched = touched_nodes(index, False)
         fixed = _dofs(prescribed, "prescribed", self.N, bool) & touched[..., None]
         if not fixed.any():
@@ -190,10 +213,11 @@ class HyperelasticBody:
 
 def solve_hyperelastic(phases, size, law: NeoHookean, *, prescribed, values, initial=None, rtol: float = 1e-8,
                        max_newton: int = 60, max_substeps: int = 64, cg_maxiter: int = 2000, probe: bool = True,
-                       progress: Callable[[str, int, int], None] | None = None) -> NonlinearSolution:
+                       progress: Callable[[str, int, int], None] | None = None,
+                       contact: Contact | bool | None = None) -> NonlinearSolution:
     """One equilibrium of the solid of ``phases`` under prescribed displacements (module
     docstring; the arguments are :class:`HyperelasticBody`'s and :meth:`HyperelasticBody.solve`'s)."""
-    return HyperelasticBody(phases, size, law, prescribed).solve(
+    return HyperelasticBody(phases, size, law, prescribed, contact).solve(
         values, initial, rtol=rtol, max_newton=max_newton, max_substeps=max_substeps, cg_maxiter=cg_maxiter,
         probe=probe, progress=progress)
 
@@ -238,6 +262,8 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
                                    f"{res.iterations[0]} iterations, asked {tol:g}", history=res.history[:, 0].tolist())
         return hb.to_body(res.x[..., 0])
 
+    if body.contact is not None:
+        body.contact.reset()
     f, energy, bad = body.forces(u)
     if bad:
         raise ConfigError(f"initial: {bad} Gauss points inverted (det F <= 0) in the starting state")
@@ -286,8 +312,9 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
     max_principal_strain(body.F, per_voxel)
     strain = np.full(hb.index.shape, np.nan)
     strain[hb.index >= 0] = per_voxel  # argwhere's order, as the body's voxels
+    contact = None if body.contact is None else body.contact.summary(u)
     return NonlinearSolution(body.nodes, u, f, float(energy), resid, newton, tuple(cgs), steps, tuple(body.N),
-                             hb.h, strain, stable)
+                             hb.h, strain, stable, contact)
 
 
 #: the stability probe: CG iterations at most, and saddles left at most, per solve

@@ -1,0 +1,135 @@
+"""Penalty contact between voxel walls (metasheet/fem/voxel/contact.py) against exact answers: the
+forces are the energy's gradient and the tangent the forces' derivative (central differences),
+and two voxel bars pressed together across a gap whose closure is known by hand: each bar in
+homogeneous uniaxial stress (exact for trilinear voxels), the neo-Hookean closed form, the
+penalty's pairs in series."""
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from metasheet.errors import ConfigError
+from metasheet.fem.voxel.contact import Contact, SurfacePairs
+from metasheet.fem.voxel.hyperelastic import NeoHookean
+from metasheet.fem.voxel.nonlinear import solve_hyperelastic
+
+TPU = NeoHookean(12.0, 0.3)
+L, GAP_VOXELS = 10, 3  # each bar's length and the void between them [voxels of 1 mm]
+
+
+def _pairs(contact=Contact(0.3, 50.0, 1.5)):
+    """Two pairs of surface nodes 2 mm apart at rest, moved to within the gap (one pair
+    oblique), and a fifth node far from all."""
+    rest = np.array([[0, 0, 0], [2, 0, 0], [0, 5, 0], [2, 5, 0], [9, 9, 9]], float)
+    u = np.array([[0.9, 0.02, -0.01], [-0.95, 0.05, 0.03], [0.88, 0.0, 0.1], [-0.9, -0.12, 0.0], [0, 0, 0]])
+    return SurfacePairs(np.arange(5), rest, contact), u
+
+
+def test_the_forces_are_the_energys_gradient_and_the_tangent_their_derivative():
+    sp, u = _pairs()
+    f, e, crossed = sp.forces(u)
+    assert crossed == 0 and len(sp.pairs) == 2 and e > 0
+    assert np.allclose(f.sum(axis=0), 0.0, atol=1e-15) and not f[4].any()  # action = reaction
+    eps = 1e-6
+    for i in range(4):
+        for k in range(3):
+            d = np.zeros_like(u)
+            d[i, k] = eps
+            fd_e = (sp.forces(u + d)[1] - sp.forces(u - d)[1]) / (2 * eps)
+            assert fd_e == pytest.approx(f[i, k], rel=1e-7, abs=1e-12)
+    sp.forces(u)
+    v = np.random.default_rng(3).standard_normal(u.shape)
+    fd_t = (sp.forces(u + eps * v)[0] - sp.forces(u - eps * v)[0]) / (2 * eps)
+    sp.forces(u)
+    np.testing.assert_allclose(sp.tangent(v), fd_t, rtol=1e-6, atol=1e-9)
+
+
+def test_nodes_that_were_neighbours_or_are_beyond_the_gap_do_not_push():
+    sp, u = _pairs(Contact(0.3, 50.0, 2.5))  # the pairs were 2 mm apart: neighbours for this separation
+    f, e, _ = sp.forces(u)
+    assert e == 0.0 and not f.any() and not len(sp.pairs)
+    sp, u = _pairs()
+    f, e, _ = sp.forces(np.zeros_like(u))  # at rest: 2 mm apart, beyond the 0.3 mm gap
+    assert e == 0.0 and not f.any()
+
+
+def test_two_nodes_passing_each_other_in_one_step_are_refused():
+    sp, u = _pairs()
+    sp.forces(0.5 * u)  # approaching: 1 mm apart, within separation, not yet in contact
+    assert sp.forces(2.2 * u)[2] == 2  # both pairs carried through each other
+    sp.reset()
+    assert sp.forces(2.2 * u)[2] == 0  # from another start: nothing to compare with
+
+
+def _two_bars():
+    """Bars A (x in [0, L]) and B (x in [L + GAP, 2 L + GAP]), 1 x 1 mm, across a void; A's end
+    x = 0 and B's end x = 2 L + GAP slide on their planes (the lines y = 0, z = 0 hold them)."""
+    nx = 2 * L + GAP_VOXELS
+    phases = np.zeros((nx, 1, 1), np.int64)
+    phases[:L] = 1
+    phases[L + GAP_VOXELS:] = 1
+    N = (nx + 1, 2, 2)
+    fixed = np.zeros(N + (3,), bool)
+    for end in (0, -1):
+        fixed[end, :, :, 0] = True
+        fixed[end, 0, :, 1] = True
+        fixed[end, :, 0, 2] = True
+    return phases, np.array([nx, 1.0, 1.0]), N, fixed
+
+
+def _uniaxial(stretch):
+    """A bar's exact state in uniaxial stress: lateral stretch, first Piola stress P11 [MPa]."""
+    def p22(l2):
+        return TPU.mu * l2 + (TPU.lam * np.log(stretch * l2 * l2) - TPU.mu) / l2
+
+    l2 = brentq(p22, 0.2, 2.0)
+    return l2, TPU.mu * stretch + (TPU.lam * np.log(stretch * l2 * l2) - TPU.mu) / stretch
+
+
+@pytest.mark.parametrize("push", [2.85, 3.4])
+def test_two_bars_pressed_together_meet_the_hand_answer(push):
+    """B's end pushed by ``push`` [mm] towards A: the 3 mm void closes to the penalty's gap less
+    its give (four pairs, each carrying a quarter of the force: the consistent nodal forces of a
+    uniform stress on a 1 x 1 voxel face), and each bar is compressed to the stretch whose
+    uniaxial stress carries that force. 3.4 mm pushes B's face past where A's face was: one
+    predictor step would carry the walls through each other, which the solver refuses."""
+    phases, size, N, fixed = _two_bars()
+    values = np.zeros(N + (3,))
+    values[-1, :, :, 0] = -push
+    c = Contact.default(1.0, TPU.E)
+    sol = solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=values, rtol=1e-10, contact=c)
+
+    def closure(stretch):  # the motion the bars and the pairs take up, less the push
+        force = -_uniaxial(stretch)[1]  # compressive [N] on the 1 mm^2 section
+        return (GAP_VOXELS - c.gap + force / (4 * c.stiffness) + 2 * L * (1 - stretch)) - push
+
+    stretch = brentq(closure, 0.7, 1.0)
+    force = -_uniaxial(stretch)[1]
+    ends = sol.full(sol.forces)[:, :, :, 0]
+    assert ends[0].sum() == pytest.approx(-force, rel=1e-7)  # A's end holds it back
+    assert ends[-1].sum() == pytest.approx(force, rel=1e-7)  # B's end pushes
+    assert sol.contact["pairs"] == 4
+    assert sol.contact["force_N"] == pytest.approx(force, rel=1e-7)
+    assert sol.contact["min_distance_mm"] == pytest.approx(c.gap - force / (4 * c.stiffness), rel=1e-7)
+    l2 = _uniaxial(stretch)[0]  # the largest principal Green-Lagrange strain: the bars' lateral swelling
+    np.testing.assert_allclose(sol.strain[phases > 0], (l2**2 - 1) / 2, rtol=1e-6)
+
+
+def test_without_contact_the_walls_pass_through_each_other():
+    phases, size, N, fixed = _two_bars()
+    values = np.zeros(N + (3,))
+    values[-1, :, :, 0] = -3.4
+    sol = solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=values, rtol=1e-10)
+    assert sol.contact is None
+    x = np.arange(N[0])[:, None, None] + sol.full(sol.u)[:, :, :, 0]
+    assert (x[L + GAP_VOXELS] < x[L]).all()  # B's face is inside A: nothing stopped it
+
+
+def test_contact_parameters_are_checked():
+    with pytest.raises(ConfigError, match="contact.gap"):
+        Contact(2.0, 1.0, 1.0)
+    with pytest.raises(ConfigError, match="contact.stiffness"):
+        Contact(0.1, -1.0, 1.0)
+    phases, size, N, fixed = _two_bars()
+    with pytest.raises(ConfigError, match="contact"):
+        solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=np.zeros(N + (3,)), contact="yes")
