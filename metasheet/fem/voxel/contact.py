@@ -3,30 +3,36 @@ other away when they come closer than a gap (issue 62: the printed foam's walls 
 strain, Section VI of the paper, and past the first touch a model without contact lets them
 pass through each other).
 
-The surface is the nodes the solid shares with the void (:func:`.gaps.surface_nodes`). Two
-surface nodes ``a``, ``b`` whose rest distance is at least ``separation`` (two voxel edges by
-default: across a void or around a wall's end, never two neighbours in one wall) form a pair
-when their distance ``d`` is below ``gap``; each pair stores the energy
+The surface is the nodes of the voxel faces the solid shares with the void inside the grid
+(:func:`surface_areas`). Two surface nodes ``a``, ``b`` whose rest distance is at least
+``separation`` (two voxel edges by default: across a void or around a wall's end, never two
+neighbours in one wall) and that come within ``separation`` of each other are a pair; its
+direction ``m`` is fixed when it is first met (the unit vector from b to a then), and its gap
+is measured along it. A pair whose gap ``d`` is below ``gap`` stores the energy
 
-    E_ab = k / 2 (gap - d)^2,        d = |x_a - x_b|,   k = ``stiffness`` [N/mm],
+    E_ab = k / 2 (gap - d)^2,    d = (x_a - x_b) . m,    k = ``stiffness`` (A_a + A_b) / 2  [N/mm],
 
-so the force on ``a`` is ``k (gap - d) n``, ``n = (x_a - x_b) / d``, and its consistent
-tangent is ``k n n^T - k (gap - d) / d (I - n n^T)`` (``-`` that on ``b``, the cross blocks
-with the other sign). The energy is continuous in the positions and its gradient too, so the
-trust-region Newton method of :mod:`.nonlinear` minimises the walls' energy plus this one
-with its own acceptance test; the pairs are found again at every force evaluation (a k-d tree
-on the moved surface), in a fixed order: the same bits on any run.
+with ``A`` a node's share of those faces (a quarter of each face it is a corner of): a pressure
+per unit overlap [N/mm^3] spread over the nodes as a uniform pressure's consistent nodal forces
+are, so that two flat faces pressed together carry a uniform stress. The force on ``a`` is
+``k (gap - d) m`` (``-`` that on ``b``) and the tangent ``k m m^T``.
 
-A node-to-node penalty can be stepped over: a step that carries a node through the wall it
-faces lands where no pair is within the gap. So each evaluation also keeps the pairs within
-``separation`` (the approaching ones) with their direction, and a trial state in which one of
-them has turned by more than a right angle (the two nodes have passed each other) is refused
-like a state that inverts an element: the solver halves its load step or shrinks its trust
-region. A step that moves two nodes by more than ``separation`` past each other is not seen.
+Measured along a fixed direction, the gap is a half-space's: sliding sideways costs nothing (no
+friction), and a node pushed past the other one meets a growing force, not a vanishing one.
+(Measured along the nodes' own distance, two flat faces pressed together slid sideways until
+their nodes interleaved: the distance grows that way, so the energy falls.) The energy and its
+gradient are continuous while a pair is met, so the trust-region Newton method of
+:mod:`.nonlinear` minimises the walls' energy plus this one with its own acceptance test; the
+pairs are found again at every force evaluation (a k-d tree on the moved surface, in a fixed
+order: the same bits each run) and their directions kept for the solve (:meth:`SurfacePairs.reset`
+at its start). A pair met for the first time already past itself (a step carried a node
+through the wall it faces) is refused like a state that inverts an element: the solver halves
+its load step or shrinks its trust region.
 
-A penalty lets the surfaces come within ``gap - F / k`` of each other under a pair force F: the
-default stiffness, 10 E h per pair (E the walls' modulus, h the smallest voxel edge: ten times a
-voxel's own stiffness), keeps that to a small fraction of a voxel at the wall's own stresses.
+A penalty lets the surfaces come within ``gap - p / stiffness`` of each other under a contact
+pressure p: the default stiffness, 10 E / h (E the walls' modulus, h the smallest voxel edge:
+ten times a voxel's own stiffness per unit area), keeps that to a hundredth of a voxel at a
+tenth of E.
 """
 
 from __future__ import annotations
@@ -42,8 +48,9 @@ from ...errors import ConfigError
 @dataclass(frozen=True)
 class Contact:
     """The penalty's parameters: ``gap`` [mm] the distance below which two surface nodes push
-    apart, ``stiffness`` [N/mm] per pair, ``separation`` [mm] the rest distance a pair must have
-    had (module docstring). :meth:`default` sizes them on the voxel edge and the walls' modulus."""
+    apart, ``stiffness`` [N/mm^3] the pressure per unit overlap, ``separation`` [mm] the rest
+    distance a pair must have had (module docstring). :meth:`default` sizes them on the voxel
+    edge and the walls' modulus."""
 
     gap: float
     stiffness: float
@@ -61,70 +68,110 @@ class Contact:
     @staticmethod
     def default(h, E: float) -> "Contact":
         """``gap`` a quarter of the smallest voxel edge (the surface's staircase error, as
-        :func:`.gaps.closest_approach`'s touch), ``stiffness`` 10 E h, ``separation`` 2 h."""
+        :func:`.gaps.closest_approach`'s touch), ``stiffness`` 10 E / h, ``separation`` 2 h."""
         hmin = float(np.min(np.asarray(h, float)))
-        return Contact(0.25 * hmin, 10.0 * float(E) * hmin, 2.0 * hmin)
+        return Contact(0.25 * hmin, 10.0 * float(E) / hmin, 2.0 * hmin)
+
+
+def surface_areas(solid: np.ndarray, h) -> tuple[np.ndarray, np.ndarray]:
+    """(flat node indices (s,), their areas (s,) [mm^2]) of the faces between solid and void
+    voxels of ``solid`` (nx, ny, nz) bool with edges ``h`` (3,) [mm]: each node a quarter of every
+    such face it is a corner of (the grid's outer faces do not count: nothing lies beyond them)."""
+    sol = np.asarray(solid, bool)
+    h = np.asarray(h, float)
+    N = tuple(n + 1 for n in sol.shape)
+    area = np.zeros(N)
+    for d in range(3):
+        a, b = (d + 1) % 3, (d + 2) % 3
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[d], hi[d] = slice(0, -1), slice(1, None)
+        face = sol[tuple(lo)] != sol[tuple(hi)]  # between voxels i and i + 1 along d: node plane i + 1
+        quarter = 0.25 * h[a] * h[b] * face
+        for da in (0, 1):
+            for db in (0, 1):
+                idx = [slice(None)] * 3
+                idx[d] = slice(1, N[d] - 1)
+                idx[a] = slice(da, N[a] - 1 + da)
+                idx[b] = slice(db, N[b] - 1 + db)
+                area[tuple(idx)] += quarter
+    flat = np.flatnonzero(area.ravel() > 0)
+    return flat, area.ravel()[flat]
 
 
 class SurfacePairs:
-    """The penalty on one body: its surface nodes (body numbering) and their rest positions,
-    the pairs in contact at the last :meth:`forces` call (their tangent for :meth:`tangent`).
+    """The penalty on one body: its surface nodes (body numbering), their rest positions and
+    areas, the pairs in contact at the last :meth:`forces` call (their tangent for :meth:`tangent`).
 
-    nodes : (s,) int body-numbered surface nodes; rest : (s, 3) [mm] their rest positions.
+    nodes : (s,) int body-numbered surface nodes; rest : (s, 3) [mm] their rest positions;
+    areas : (s,) [mm^2] their shares of the surface (:func:`surface_areas`).
     """
 
-    def __init__(self, nodes: np.ndarray, rest: np.ndarray, contact: Contact):
+    def __init__(self, nodes: np.ndarray, rest: np.ndarray, areas: np.ndarray, contact: Contact):
         self.nodes = np.asarray(nodes, np.int64)
         self.rest = np.asarray(rest, float)
+        self.areas = np.asarray(areas, float)
+        if not (self.nodes.shape == self.areas.shape == self.rest.shape[:1]):
+            raise ConfigError("contact: nodes, rest positions and areas must have one row per surface node")
         self.contact = contact
         self.pairs = np.zeros((0, 2), np.int64)  # (p, 2) into nodes, each row (a, b) with a < b
         self._H = np.zeros((0, 3, 3))  # (p, 3, 3) the pairs' d f_a / d x_a
+        self._k = np.zeros(0)  # (p,) their stiffness [N/mm]
+        self._m, self._over = np.zeros((0, 3)), np.zeros(0)  # their directions and overlaps [mm]
         self.reset()
 
     def reset(self) -> None:
-        """Forget the approaching pairs (a solve from another start)."""
-        self._near = np.zeros((0, 2), np.int64)  # approaching pairs at the last state evaluated
-        self._near_r = np.zeros((0, 3))  # their x_a - x_b there [mm]
+        """Forget the pairs' directions (a solve from another start)."""
+        self._keys = np.zeros(0, np.int64)  # pairs met so far, a * s + b, increasing
+        self._dirs = np.zeros((0, 3))  # their directions m, fixed when first met
 
     def forces(self, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         """(n, 3) [N] the penalty's forces (the gradient of its energy, as the body's internal
-        forces), its energy [mJ] and the approaching pairs that passed each other since the last
-        call (module docstring; the state is then refused) at body displacements ``u`` (n, 3)
-        [mm]; keeps the pairs in contact and the approaching ones."""
+        forces), its energy [mJ] and the pairs met already past each other (module docstring:
+        the state is then refused) at body displacements ``u`` (n, 3) [mm]; keeps the pairs in
+        contact."""
         c = self.contact
         x = self.rest + u[self.nodes]
         f = np.zeros_like(u)
-        if len(self._near):
-            now = x[self._near[:, 0]] - x[self._near[:, 1]]
-            crossed = int(np.count_nonzero(np.einsum("ij,ij->i", now, self._near_r) <= 0.0))
-            if crossed:
-                return f, 0.0, crossed
         near = cKDTree(x).query_pairs(c.separation, output_type="ndarray")
         if len(near):
             near = np.sort(near, axis=1)
             near = near[np.linalg.norm(self.rest[near[:, 0]] - self.rest[near[:, 1]], axis=1) >= c.separation]
             near = near[np.lexsort((near[:, 1], near[:, 0]))]  # a fixed order: the same sums each run
         near = near.reshape(-1, 2).astype(np.int64)
-        r = x[near[:, 0]] - x[near[:, 1]]
-        d = np.linalg.norm(r, axis=1)
-        self._near, self._near_r = near, r
-        inside = d < c.gap
-        self.pairs = near[inside]
-        if not len(self.pairs):
-            self._H = np.zeros((0, 3, 3))
-            return f, 0.0, 0
-        a, b = self.pairs[:, 0], self.pairs[:, 1]
-        r, d = r[inside], d[inside]
-        if np.any(d <= 0.0):
-            raise ConfigError("contact: two surface nodes at the same point: the penalty has no direction there")
-        n = r / d[:, None]
-        over = c.gap - d  # > 0
-        g = -c.stiffness * over[:, None] * n  # dE/dx_a
+        a, b = near[:, 0], near[:, 1]
+        r = x[a] - x[b]
+        keys = a * len(self.nodes) + b  # increasing, as near is sorted
+        at = np.minimum(np.searchsorted(self._keys, keys), max(len(self._keys) - 1, 0))
+        known = (self._keys[at] == keys) if len(self._keys) else np.zeros(len(keys), bool)
+        m = np.empty_like(r)
+        m[known] = self._dirs[at[known]]
+        new = ~known
+        d_new = np.linalg.norm(r[new], axis=1)
+        if np.any(d_new <= 0.0):
+            raise ConfigError("contact: two surface nodes at the same point: the pair has no direction")
+        m[new] = r[new] / d_new[:, None]
+        # a pair met for the first time the wrong way round (its nodes' order along it reversed
+        # since rest) has passed through itself in one step: refused
+        crossed = int(np.count_nonzero(np.einsum("ij,ij->i", m[new], self.rest[a[new]] - self.rest[b[new]]) <= 0))
+        if crossed:
+            return f, 0.0, crossed
+        if new.any():
+            keys_all = np.concatenate([self._keys, keys[new]])
+            order = np.argsort(keys_all, kind="stable")
+            self._keys, self._dirs = keys_all[order], np.concatenate([self._dirs, m[new]])[order]
+        gn = np.einsum("ij,ij->i", r, m)  # the gap along the pair's direction [mm]
+        inside = gn < c.gap
+        self.pairs, self._m = near[inside], m[inside]
+        a, b = a[inside], b[inside]
+        over = c.gap - gn[inside]  # > 0
+        k = c.stiffness * 0.5 * (self.areas[a] + self.areas[b])  # (p,) [N/mm]
+        self._k, self._over = k, over
+        g = -(k * over)[:, None] * self._m  # dE/dx_a
         np.add.at(f, self.nodes[a], g)
         np.add.at(f, self.nodes[b], -g)
-        nn = n[:, :, None] * n[:, None, :]
-        self._H = c.stiffness * (nn - (over / d)[:, None, None] * (np.eye(3) - nn))
-        return f, float(0.5 * c.stiffness * np.sum(over * over)), 0
+        self._H = k[:, None, None] * (self._m[:, :, None] * self._m[:, None, :])
+        return f, float(0.5 * np.sum(k * over * over)), 0
 
     def tangent(self, v: np.ndarray) -> np.ndarray:
         """(n, 3) the penalty's tangent times ``v`` (n, 3), at the last :meth:`forces` call's pairs."""
@@ -138,11 +185,9 @@ class SurfacePairs:
         return y
 
     def summary(self, u: np.ndarray) -> dict:
-        """The pairs in contact at ``u``: their count, the smallest distance [mm] and the sum of
-        the pair forces' magnitudes [N] (at the last :meth:`forces` call's pairs)."""
+        """The pairs in contact at the last :meth:`forces` call: their count, the smallest gap
+        along a pair's direction [mm] and the sum of the pair forces [N]."""
         if not len(self.pairs):
             return {"pairs": 0, "min_distance_mm": None, "force_N": 0.0}
-        x = self.rest + u[self.nodes]
-        d = np.linalg.norm(x[self.pairs[:, 0]] - x[self.pairs[:, 1]], axis=1)
-        return {"pairs": int(len(d)), "min_distance_mm": float(d.min()),
-                "force_N": float(self.contact.stiffness * np.sum(self.contact.gap - d))}
+        return {"pairs": int(len(self.pairs)), "min_distance_mm": float(self.contact.gap - self._over.max()),
+                "force_N": float(np.sum(self._k * self._over))}

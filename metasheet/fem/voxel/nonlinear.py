@@ -45,9 +45,8 @@ from threadpoolctl import threadpool_limits
 
 from ...errors import ConfigError, ConvergenceError, check_range
 from ..hex8 import HEX8_CORNERS
-from .contact import Contact, SurfacePairs
+from .contact import Contact, SurfacePairs, surface_areas
 from .element import validate_grid
-from .gaps import surface_nodes
 from .hyperelastic import (NeoHookean, colour_order, gauss_gradients, internal_forces, max_principal_strain,
                            tangent_apply)
 from .multigrid import build_hierarchy
@@ -161,9 +160,9 @@ class HyperelasticBody:
         if contact not in (None, False):
             if not isinstance(contact, Contact):
                 raise ConfigError(f"contact: {contact!r}: None, True or a Contact")
-            flat = surface_nodes(index >= 0)
+            flat, areas = surface_areas(index >= 0, h)
             rest = np.stack(np.unravel_index(flat, self.N), 1) * np.asarray(h, float)
-            self.body.contact = SurfacePairs(self.body.node_map[flat], rest, contact)
+            self.body.contact = SurfacePairs(self.body.node_map[flat], rest, areas, contact)
         touched = touched_nodes(index, False)
         fixed = _dofs(prescribed, "prescribed", self.N, bool) & touched[..., None]
         if not fixed.any():
