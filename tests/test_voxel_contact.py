@@ -150,6 +150,8 @@ def test_without_contact_the_walls_pass_through_each_other():
 def test_contact_parameters_are_checked():
     with pytest.raises(ConfigError, match="contact.gap"):
         Contact(2.0, 1.0, 1.0)
+    with pytest.raises(ConfigError, match="reach"):
+        Contact(0.1, 1.0, 1.0, 2.0)
     with pytest.raises(ConfigError, match="contact.stiffness"):
         Contact(0.1, -1.0, 1.0)
     phases, size, N, fixed = _two_bars()

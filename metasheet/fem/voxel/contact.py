@@ -6,7 +6,8 @@ pass through each other).
 The surface is the nodes of the voxel faces the solid shares with the void inside the grid
 (:func:`surface_areas`). Two surface nodes ``a``, ``b`` whose rest distance is at least
 ``separation`` (two voxel edges by default: across a void or around a wall's end, never two
-neighbours in one wall) and that come within ``separation`` of each other are a pair; its
+neighbours in one wall) and that come within ``reach`` of each other (one voxel edge by
+default) are a pair; its
 direction ``m`` is fixed when it is first met (the unit vector from b to a then), and its gap
 is measured along it. A pair whose gap ``d`` is below ``gap`` stores the energy
 
@@ -49,28 +50,34 @@ from ...errors import ConfigError
 class Contact:
     """The penalty's parameters: ``gap`` [mm] the distance below which two surface nodes push
     apart, ``stiffness`` [N/mm^3] the pressure per unit overlap, ``separation`` [mm] the rest
-    distance a pair must have had (module docstring). :meth:`default` sizes them on the voxel
-    edge and the walls' modulus."""
+    distance a pair must have had, ``reach`` [mm] the distance at which a pair is met and its
+    direction fixed (None: ``separation``; module docstring). :meth:`default` sizes them on the
+    voxel edge and the walls' modulus."""
 
     gap: float
     stiffness: float
     separation: float
+    reach: float | None = None
 
     def __post_init__(self):
-        for name in ("gap", "stiffness", "separation"):
+        if self.reach is None:
+            object.__setattr__(self, "reach", self.separation)
+        for name in ("gap", "stiffness", "separation", "reach"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ConfigError(f"contact.{name}: {v!r}: must be finite and > 0")
-        if not self.gap < self.separation:
-            raise ConfigError(f"contact.gap: {self.gap:g} mm: must be below separation = {self.separation:g} mm "
-                              "(two nodes in contact must have been apart)")
+        if not self.gap < self.reach <= self.separation:
+            raise ConfigError(f"contact.gap, reach, separation: {self.gap:g}, {self.reach:g}, {self.separation:g} mm: "
+                              "need gap < reach <= separation (two nodes in contact must have been apart)")
 
     @staticmethod
     def default(h, E: float) -> "Contact":
         """``gap`` a quarter of the smallest voxel edge (the surface's staircase error, as
-        :func:`.gaps.closest_approach`'s touch), ``stiffness`` 10 E / h, ``separation`` 2 h."""
+        :func:`.gaps.closest_approach`'s touch), ``stiffness`` 10 E / h, ``separation`` 2 h,
+        ``reach`` h (the pairs within a voxel: on a printed sheet's 10^5 to 10^6 surface nodes
+        the search within two voxels would list every wall's own neighbours by the ten million)."""
         hmin = float(np.min(np.asarray(h, float)))
-        return Contact(0.25 * hmin, 10.0 * float(E) / hmin, 2.0 * hmin)
+        return Contact(0.25 * hmin, 10.0 * float(E) / hmin, 2.0 * hmin, hmin)
 
 
 def surface_areas(solid: np.ndarray, h) -> tuple[np.ndarray, np.ndarray]:
@@ -133,7 +140,7 @@ class SurfacePairs:
         c = self.contact
         x = self.rest + u[self.nodes]
         f = np.zeros_like(u)
-        near = cKDTree(x).query_pairs(c.separation, output_type="ndarray")
+        near = cKDTree(x).query_pairs(c.reach, output_type="ndarray")
         if len(near):
             near = np.sort(near, axis=1)
             near = near[np.linalg.norm(self.rest[near[:, 0]] - self.rest[near[:, 1]], axis=1) >= c.separation]
