@@ -191,7 +191,7 @@ class SurfacePairs:
         np.add.at(y, b, -w)
         return y
 
-    def summary(self, u: np.ndarray) -> dict:
+    def summary(self) -> dict:
         """The pairs in contact at the last :meth:`forces` call: their count, the smallest gap
         along a pair's direction [mm] and the sum of the pair forces [N]."""
         if not len(self.pairs):

@@ -311,7 +311,7 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
     max_principal_strain(body.F, per_voxel)
     strain = np.full(hb.index.shape, np.nan)
     strain[hb.index >= 0] = per_voxel  # argwhere's order, as the body's voxels
-    contact = None if body.contact is None else body.contact.summary(u)
+    contact = None if body.contact is None else body.contact.summary()
     return NonlinearSolution(body.nodes, u, f, float(energy), resid, newton, tuple(cgs), steps, tuple(body.N),
                              hb.h, strain, stable, contact)
 
