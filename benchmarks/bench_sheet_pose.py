@@ -41,7 +41,7 @@ def solve(gb, robot, sheet, sheet_index: int, deg: float, rtol: float, history: 
 
     def say(msg, k, n):
         if history is not None and "residual" in msg:
-            history.append((float(msg.split("residual ")[1].split()[0]), time.perf_counter() - t0))
+            history.append((float(msg.split("residual ")[1].split()[0].rstrip(",")), time.perf_counter() - t0))
         print(f"  {time.perf_counter() - t0:7.1f} s  {msg}", file=sys.stderr, flush=True)
 
     w = gb.wrenches(rot, trans, rtol=rtol, progress=say)

@@ -105,6 +105,36 @@ def _uniaxial(stretch):
     return l2, TPU.mu * stretch + (TPU.lam * np.log(stretch * l2 * l2) - TPU.mu) / stretch
 
 
+def _overlap(c: Contact, pressure: float) -> float:
+    """The overlap [mm] at which the penalty carries ``pressure`` [MPa]: phi'(o) / area =
+    s o^2 / (2 w) within the ramp w, s (o - w / 2) beyond (s the stiffness per unit area)."""
+    s, w = c.stiffness, c.ramp
+    return np.sqrt(2 * w * max(pressure, 0.0) / s) if pressure <= 0.5 * s * w else pressure / s + 0.5 * w
+
+
+def test_the_penalty_grows_smoothly_from_the_gap():
+    """phi, phi', phi'' continuous at o = 0 and at the ramp's end, phi' and phi'' its
+    derivatives (central differences), and beyond the ramp the plain quadratic shifted by w / 2."""
+    c = Contact(0.3, 50.0, 1.5, ramp=0.1)
+    k = np.full(1, 2.0)
+
+    def at(o):
+        return [float(v[0]) for v in c.penalty(np.array([o]), k)]
+
+    assert at(0.0) == [0.0, 0.0, 0.0]
+    below, above = at(0.1 - 1e-12), at(0.1 + 1e-12)
+    np.testing.assert_allclose(below, above, rtol=1e-9)
+    eps = 1e-6
+    for o in (0.03, 0.1, 0.25):
+        e, f, t = at(o)
+        assert (at(o + eps)[0] - at(o - eps)[0]) / (2 * eps) == pytest.approx(f, rel=1e-8)
+        assert (at(o + eps)[1] - at(o - eps)[1]) / (2 * eps) == pytest.approx(t, rel=1e-5)  # phi''' jumps at w
+    assert at(0.25)[1] == pytest.approx(2.0 * (0.25 - 0.05), rel=1e-14)
+    assert at(0.25)[2] == 2.0 and at(0.05)[2] == pytest.approx(1.0)  # half the stiffness half way
+    plain = Contact(0.3, 50.0, 1.5, ramp=0.0)
+    assert [float(v[0]) for v in plain.penalty(np.array([0.2]), k)] == pytest.approx([0.04, 0.4, 2.0])
+
+
 @pytest.mark.parametrize("push", [2.85, 3.2])
 def test_two_bars_pressed_together_meet_the_hand_answer(push):
     """B's end pushed by ``push`` [mm] towards A: the 3 mm void closes to the penalty's gap less
@@ -123,7 +153,7 @@ def test_two_bars_pressed_together_meet_the_hand_answer(push):
 
     def closure(stretch):  # the motion the bars and the pairs take up, less the push
         pressure = -_uniaxial(stretch)[1]  # compressive [MPa] (nominal: on the rest section)
-        return (GAP_VOXELS - c.gap + pressure / c.stiffness + 2 * L * (1 - stretch)) - push
+        return (GAP_VOXELS - c.gap + _overlap(c, pressure) + 2 * L * (1 - stretch)) - push
 
     stretch = brentq(closure, 0.7, 1.0)
     force = -_uniaxial(stretch)[1] * area
@@ -132,7 +162,7 @@ def test_two_bars_pressed_together_meet_the_hand_answer(push):
     assert ends[-1].sum() == pytest.approx(-force, rel=1e-7)  # and B right
     assert sol.contact["pairs"] == (SECTION + 1) ** 2 and sol.stable
     assert sol.contact["force_N"] == pytest.approx(force, rel=1e-7)
-    assert sol.contact["min_distance_mm"] == pytest.approx(c.gap - force / area / c.stiffness, rel=1e-7)
+    assert sol.contact["min_distance_mm"] == pytest.approx(c.gap - _overlap(c, force / area), rel=1e-7)
     l2 = _uniaxial(stretch)[0]  # the largest principal Green-Lagrange strain: the bars' lateral swelling
     np.testing.assert_allclose(sol.strain[phases > 0], (l2**2 - 1) / 2, rtol=1e-6)
 
@@ -154,6 +184,8 @@ def test_contact_parameters_are_checked():
         Contact(0.1, 1.0, 1.0, 2.0)
     with pytest.raises(ConfigError, match="contact.stiffness"):
         Contact(0.1, -1.0, 1.0)
+    with pytest.raises(ConfigError, match="contact.ramp"):
+        Contact(0.1, 1.0, 1.0, ramp=0.2)
     phases, size, N, fixed = _two_bars()
     with pytest.raises(ConfigError, match="contact"):
         solve_hyperelastic(phases, size, TPU, prescribed=fixed, values=np.zeros(N + (3,)), contact="yes")

@@ -9,14 +9,22 @@ The surface is the nodes of the voxel faces the solid shares with the void insid
 neighbours in one wall) and that come within ``reach`` of each other (one voxel edge by
 default) are a pair; its
 direction ``m`` is fixed when it is first met (the unit vector from b to a then), and its gap
-is measured along it. A pair whose gap ``d`` is below ``gap`` stores the energy
+is measured along it. A pair whose gap ``d`` is below ``gap`` stores the energy ``phi(o)`` of its overlap
+``o = gap - d`` (``d = (x_a - x_b) . m``), a penalty whose stiffness ``phi''`` grows linearly from
+zero to ``k = stiffness (A_a + A_b) / 2`` [N/mm] over the first ``ramp`` of overlap and stays
+there:
 
-    E_ab = k / 2 (gap - d)^2,    d = (x_a - x_b) . m,    k = ``stiffness`` (A_a + A_b) / 2  [N/mm],
+    phi(o) = k o^3 / (6 ramp)                        for 0 <= o <= ramp,
+    phi(o) = k / 2 (o - ramp / 2)^2 + k ramp^2 / 24  beyond,
 
 with ``A`` a node's share of those faces (a quarter of each face it is a corner of): a pressure
 per unit overlap [N/mm^3] spread over the nodes as a uniform pressure's consistent nodal forces
 are, so that two flat faces pressed together carry a uniform stress. The force on ``a`` is
-``k (gap - d) m`` (``-`` that on ``b``) and the tangent ``k m m^T``.
+``phi'(o) m`` (``-`` that on ``b``) and the tangent ``phi''(o) m m^T``. The ramp makes the energy
+twice continuously differentiable where a pair starts to push: with a plain ``k/2 o^2`` (``ramp``
+0) the tangent jumps by ``k`` (ten voxels' stiffness) as each pair enters, so that on a printed
+sheet, with pairs entering and leaving at every step, the trust region's quadratic model
+mispredicts every step that changes the set.
 
 Measured along a fixed direction, the gap is a half-space's: sliding sideways costs nothing (no
 friction), and a node pushed past the other one meets a growing force, not a vanishing one.
@@ -51,17 +59,21 @@ class Contact:
     """The penalty's parameters: ``gap`` [mm] the distance below which two surface nodes push
     apart, ``stiffness`` [N/mm^3] the pressure per unit overlap, ``separation`` [mm] the rest
     distance a pair must have had, ``reach`` [mm] the distance at which a pair is met and its
-    direction fixed (None: ``separation``; module docstring). :meth:`default` sizes them on the
-    voxel edge and the walls' modulus."""
+    direction fixed (None: ``separation``; module docstring), ``ramp`` [mm] the overlap over which
+    a pair's stiffness grows to its full value (None: half the gap; 0: none, a plain quadratic
+    penalty). :meth:`default` sizes them on the voxel edge and the walls' modulus."""
 
     gap: float
     stiffness: float
     separation: float
     reach: float | None = None
+    ramp: float | None = None
 
     def __post_init__(self):
         if self.reach is None:
             object.__setattr__(self, "reach", self.separation)
+        if self.ramp is None:
+            object.__setattr__(self, "ramp", 0.5 * self.gap)
         for name in ("gap", "stiffness", "separation", "reach"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -69,6 +81,22 @@ class Contact:
         if not self.gap < self.reach <= self.separation:
             raise ConfigError(f"contact.gap, reach, separation: {self.gap:g}, {self.reach:g}, {self.separation:g} mm: "
                               "need gap < reach <= separation (two nodes in contact must have been apart)")
+        if not (np.isfinite(self.ramp) and 0 <= self.ramp <= self.gap):
+            raise ConfigError(f"contact.ramp: {self.ramp!r}: allowed range [0, gap = {self.gap:g}] mm")
+
+    def penalty(self, over: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(energy [mJ], force [N], stiffness [N/mm]), each (p,), of pairs of full stiffness ``k``
+        (p,) [N/mm] at overlaps ``over`` (p,) >= 0 [mm]: ``phi``, ``phi'`` and ``phi''`` of the
+        module docstring."""
+        w = self.ramp
+        if w == 0:
+            return 0.5 * k * over * over, k * over, k.copy()
+        low = over <= w
+        lo = np.where(low, over, w)
+        hi = np.where(low, 0.5 * w, over) - 0.5 * w  # o - w/2 beyond the ramp, 0 within it
+        energy = np.where(low, k * lo**3 / (6 * w), 0.5 * k * hi * hi + k * w * w / 24)
+        force = np.where(low, 0.5 * k * lo * lo / w, k * hi)
+        return energy, force, np.where(low, k * lo / w, k)
 
     @staticmethod
     def default(h, E: float) -> "Contact":
@@ -123,7 +151,7 @@ class SurfacePairs:
         self.contact = contact
         self.pairs = np.zeros((0, 2), np.int64)  # (p, 2) into nodes, each row (a, b) with a < b
         self._H = np.zeros((0, 3, 3))  # (p, 3, 3) the pairs' d f_a / d x_a
-        self._k = np.zeros(0)  # (p,) their stiffness [N/mm]
+        self._force = np.zeros(0)  # (p,) their forces [N]
         self._m, self._over = np.zeros((0, 3)), np.zeros(0)  # their directions and overlaps [mm]
         self.reset()
 
@@ -172,13 +200,22 @@ class SurfacePairs:
         self.pairs, self._m = near[inside], m[inside]
         a, b = a[inside], b[inside]
         over = c.gap - gn[inside]  # > 0
-        k = c.stiffness * 0.5 * (self.areas[a] + self.areas[b])  # (p,) [N/mm]
-        self._k, self._over = k, over
-        g = -(k * over)[:, None] * self._m  # dE/dx_a
+        energy, force, stiff = c.penalty(over, c.stiffness * 0.5 * (self.areas[a] + self.areas[b]))
+        self._force, self._over = force, over
+        g = -force[:, None] * self._m  # dE/dx_a
         np.add.at(f, self.nodes[a], g)
         np.add.at(f, self.nodes[b], -g)
-        self._H = k[:, None, None] * (self._m[:, :, None] * self._m[:, None, :])
-        return f, float(0.5 * np.sum(k * over * over)), 0
+        self._H = stiff[:, None, None] * (self._m[:, :, None] * self._m[:, None, :])
+        return f, float(np.sum(energy)), 0
+
+    def save(self) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs' directions met so far, for :meth:`restore`."""
+        return self._keys, self._dirs
+
+    def restore(self, saved: tuple[np.ndarray, np.ndarray]) -> None:
+        """Forget the directions met since :meth:`save` gave ``saved``: a refused trial state
+        leaves no pair's direction behind, so the energy stays a function of the kept state."""
+        self._keys, self._dirs = saved
 
     def tangent(self, v: np.ndarray) -> np.ndarray:
         """(n, 3) the penalty's tangent times ``v`` (n, 3), at the last :meth:`forces` call's pairs."""
@@ -197,4 +234,4 @@ class SurfacePairs:
         if not len(self.pairs):
             return {"pairs": 0, "min_distance_mm": None, "force_N": 0.0}
         return {"pairs": int(len(self.pairs)), "min_distance_mm": float(self.contact.gap - self._over.max()),
-                "force_N": float(np.sum(self._k * self._over))}
+                "force_N": float(np.sum(self._force))}

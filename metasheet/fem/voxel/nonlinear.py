@@ -279,10 +279,11 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
         dp = np.zeros_like(u)
         dp[fixed_b] = (goal[fixed_b] - u0p) * step
         trial = u + dp + cg(-hb.on_free(body.tangent(dp))[..., None], 1e-6)  # the consistent predictor
+        kept = _save_pairs(body)
         f_t, e_t, bad = body.forces(trial)
         if bad:
             frac = step / 2
-            body.forces(u)  # the tangent back at the accepted state
+            _back(body, u, kept)
             continue
         moved = float(np.linalg.norm(hb.on_free(trial - u - dp)))
         radius = max(radius or 0.0, moved, float(hb.h.min()))
@@ -372,7 +373,9 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
         gn = float(np.linalg.norm(g))
         ref = max(float(np.linalg.norm(f[hb.fixed_b])), 1e-300)
         hist.append(gn / ref)
-        say(f"hyperelastic: Newton, residual {gn / ref:.1e} (CG {sum(cgs)} iterations so far)", it, max_newton)
+        pairs = "" if body.contact is None else f", {len(body.contact.pairs)} wall pairs pushing"
+        say(f"hyperelastic: Newton, residual {gn / ref:.1e}, radius {radius or 0.0:.2g} mm (CG {sum(cgs)} iterations so "
+            f"far{pairs})", it, max_newton)
         if gn <= max(rtol * ref, hb.floor(u)):
             return u, f, energy, it, radius
         if it == max_newton:
@@ -381,6 +384,7 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
                         maxiter=cg_maxiter, flexible=hb.H.flexible)
         cgs.append(step.iterations)
         trial = u + to_body(step.p)
+        kept = _save_pairs(body)
         f_t, e_t, bad = body.forces(trial)
         rho = -np.inf
         if not bad and step.model < 0:
@@ -396,12 +400,25 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
         if rho > 0.1:
             u, f, energy = trial, f_t, e_t
         else:
-            body.forces(u)  # the tangent back at the kept state
+            _back(body, u, kept)
         if radius < smallest:
             raise ConvergenceError(f"hyperelastic: the trust region shrank below {smallest:.1e} mm at residual "
                                    f"{gn / ref:.2e}: no step lowers the energy", history=hist)
     raise ConvergenceError(f"hyperelastic: Newton reached {hist[-1]:.2e} after {max_newton} iterations, asked "
                            f"{rtol:g}", history=hist)
+
+
+def _save_pairs(body):
+    """The contact pairs' directions before a trial state (None without contact)."""
+    return None if body.contact is None else body.contact.save()
+
+
+def _back(body, u, kept) -> None:
+    """Back to the kept state ``u`` after a refused trial: the pairs the trial met forgotten
+    (``kept``, :func:`_save_pairs`), the tangent evaluated at ``u`` again."""
+    if kept is not None:
+        body.contact.restore(kept)
+    body.forces(u)
 
 
 def law_table(law: NeoHookean, h) -> np.ndarray:
