@@ -264,7 +264,8 @@ def test_a_pipeline_of_every_stage_with_defaults_validates(project):
     (project / "cells" / "quick_foam.toml").write_text("")
     paper = Path(__file__).resolve().parents[1] / "cells" / "paper_polyfoam.toml"  # scalemap's, printcheck's
     (project / "cells" / "paper_polyfoam.toml").write_text(paper.read_text())
-    names = [n for n in stages() if n not in ("cell", "homogenize", "sheet")]  # cell needs a design (and sheet, cell)
+    # cell needs a design (and sheet, cell; printed, sheet)
+    names = [n for n in stages() if n not in ("cell", "homogenize", "sheet", "printed")]
     # the design stage's rest problem takes P1 sheets only (orient's default is P2)
     assert load_pipeline(write(project, pipeline(", ".join(f'"{n}"' for n in names), '[orient]\nelement = "p1"\n')))
 

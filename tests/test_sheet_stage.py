@@ -64,7 +64,7 @@ picture = false
 PIPELINE = """
 [pipeline]
 name = "s"
-stages = ["cell", "homogenize", "material", "orient", "printmap", "robot", "sheet", "report"]
+stages = ["cell", "homogenize", "material", "orient", "printmap", "robot", "sheet", "printed", "report"]
 
 [cell]
 design = "{design}"
@@ -214,3 +214,36 @@ def test_stage_compares_the_prints_with_the_plate_continuum(run):
     report = (out / "report" / "report.md").read_text()
     gm = d["plate"]["membrane"]["spread"]["geometric_mean_ratio_normal"]["mean"]
     assert "| the plate's membrane moduli |" in report and f"{gm:.3g}" in report
+
+
+def test_the_printed_robot_stage_states_each_claim_from_its_prints(run):
+    """The ``printed`` stage on the same prints: the walls' limit is the first contact over the
+    directions searched, the superelement robot's rest roll is the sheet stage's linear one (two
+    codes: the condensed Schur complement and the superelement's differenced energy), each status
+    follows its numbers, and the report states the claims."""
+    _, out = run
+    d = json.loads((out / "printed" / "printed.json").read_text())
+    dns = json.loads((out / "sheet" / "sheet_dns.json").read_text())
+    assert d["seeds"] == dns["seeds"] and len(d["realisations"]) == 2
+    for r, row in zip(d["realisations"], dns["realisations"]):
+        lim = r["limits"]
+        found = [v["contact_deg"] for v in lim["directions"].values() if v["contact_deg"] is not None]
+        assert lim["valid_deg"] == min(found) and lim["directions"][lim["binding"]]["contact_deg"] == lim["valid_deg"]
+        assert len(lim["strain_per_deg"]) == 6 and min(min(s) for s in lim["strain_per_deg"]) >= 0
+        rot = r["rotations"]
+        assert rot["rest_rod_roll_deg_per_deg"] == pytest.approx(row["robot"]["rod_rotation_deg_per_deg"], rel=1e-6)
+        roll = r["roll"]
+        at = roll["rod_rotation_within_limits_deg"]
+        rolled = at["pull"] * at["push"] < 0 and min(abs(at["pull"]), abs(at["push"])) >= 1.0
+        assert (roll["status"] != "not predicted") == rolled
+        for name in ("pull", "push"):
+            path = np.asarray(roll[name]["path"])
+            assert path[0].tolist() == [0.0, 0.0] and path[-1, 0] == roll[name]["travel_deg"]
+        goals = rot["goals"].values()
+        assert (rot["status"] == "predicted") == all(g["reached"] for g in goals)
+    order = ("predicted", "predicted up to the walls' limit", "not predicted")
+    for key in ("roll", "rotations"):
+        assert d["claims"][key] == max((r[key]["status"] for r in d["realisations"]), key=order.index)
+    assert (out / "printed" / "printed_robot.png").stat().st_size > 0
+    report = (out / "report" / "report.md").read_text()
+    assert "The printed robot against the paper's robot" in report and d["claims"]["roll"] in report

@@ -16,6 +16,7 @@ from .convergence import HEADING as CONVERGENCE_HEADING, convergence_section
 from .design import design_section, print_check_section
 from .dynamics import HEADING as DYNAMICS_HEADING, dynamics_section
 from .model import model_section
+from .printed import printed_robot_section
 from .reduce import reduce_section
 from .scale_map import scale_map_section
 from .sheet import sheet_dns_section
@@ -204,6 +205,9 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
         pic = [f"![robot]({pictures['robot']})", ""] if "robot" in pictures else []
         lines += ["## Robot, silicone vs foam (reproduces paper Fig. 4 and Fig. 8)", "", *pic, _table(flat), ""]
     section, found = sheet_dns_section(s.get("sheet_dns"), pictures, s.get("material"))
+    lines += section
+    diffs += found
+    section, found = printed_robot_section(s.get("printed"), pictures)
     lines += section
     diffs += found
     section, found = scale_map_section(s.get("scale_map"), pictures)

@@ -16,7 +16,11 @@ twisting. How much that costs is measured against it (``benchmarks/bench_printed
 tests/test_robot_superelement.py).
 
 The rod's pose at given motor angles minimises the two sheets' energy over the rod's six
-coordinates; the gradient and Hessian are central differences of the energy.
+coordinates ``(dp [mm], theta [rad])``. Its gradient and Hessian are central differences of the
+energy, evaluated for all the stencil's points at once (:meth:`SuperelementRobot.energies`, a
+batch of rotations), so that one Newton step costs one vectorised evaluation: about a
+millisecond. The pose's derivative in the motors follows from the implicit function theorem,
+``dq/dphi = -H_qq^-1 H_qphi``, with the mixed block by central differences too.
 """
 
 from __future__ import annotations
@@ -24,12 +28,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, ConvergenceError
-from ..mechanics.rotations import rotation_vector
+from ..mechanics.rotations import rotation_vector, skew
 from .condensed import _check_robot
 from .robots import Q_A, Q_B
-from .voxel_robot import sheet_grip_poses
+
+#: central-difference step of the energy's derivatives [mm, rad]; the gradient is fourth order
+FD_STEP = 1e-4
 
 
 @dataclass(frozen=True)
@@ -42,72 +49,146 @@ class SuperPose:
     energy: float
     iterations: int
 
+    @property
+    def q(self) -> np.ndarray:
+        """(6,) ``(dp, theta)``."""
+        return np.concatenate([self.dp, self.theta])
+
 
 def local_motions(references, rotations, translations) -> np.ndarray:
     """(18,) the three arm grips' motions in the centre grip's frame (module docstring), from the
     four grips' poses (rotation vectors (4, 3) [rad], translations (4, 3) [mm] of their reference
     points, in the sheet's frame) and rest ``references`` (4, 3) [mm]."""
-    from ..mechanics.rotations import rotation_matrix
-
     r = np.asarray(references, float)
-    R = [rotation_matrix(v) for v in np.asarray(rotations, float)]
+    R0 = Rotation.from_rotvec(np.asarray(rotations, float)[0])
     x = r + np.asarray(translations, float)
     q = np.empty((3, 6))
     for b in range(1, 4):
-        q[b - 1, :3] = R[0].T @ (x[b] - x[0]) - (r[b] - r[0])
-        q[b - 1, 3:] = rotation_vector(R[0].T @ R[b])
+        q[b - 1, :3] = R0.inv().apply(x[b] - x[0]) - (r[b] - r[0])
+        q[b - 1, 3:] = rotation_vector(R0.inv().as_matrix() @ Rotation.from_rotvec(np.asarray(rotations, float)[b]).as_matrix())
     return q.ravel()
+
+
+def left_jacobian(theta) -> np.ndarray:
+    """(3, 3) the spatial angular velocity per rate of the rotation vector ``theta`` (3,) [rad]:
+    ``I + (1 - cos t)/t^2 K + (t - sin t)/t^3 K^2``, ``K = skew(theta)``."""
+    th = np.asarray(theta, float)
+    t = float(np.linalg.norm(th))
+    K = skew(th)
+    if t < 1e-6:
+        return np.eye(3) + 0.5 * K + K @ K / 6.0
+    return np.eye(3) + (1 - np.cos(t)) / t**2 * K + (t - np.sin(t)) / t**3 * K @ K
 
 
 class SuperelementRobot:
     """The six-DOF ``robot``'s geometry with two corotational sheets of grip stiffness ``K_a``,
     ``K_b`` (24, 24, each in its sheet's frame, :mod:`metasheet.sheet.grips` conventions) and
-    grip ``references`` (4, 3) [mm]."""
+    grip ``references`` (4, 3) [mm]. Only plain arrays are kept (the model pickles small)."""
 
     def __init__(self, robot, K_a, K_b, references):
         c, centres = _check_robot(robot)
-        self.K = [np.asarray(K, float)[6:, 6:] for K in (K_a, K_b)]
-        if any(K.shape != (18, 18) for K in self.K):
-            raise ConfigError("K_a, K_b: expected (24, 24) grip stiffnesses")
+        self.K = np.stack([np.asarray(K, float)[6:, 6:] for K in (K_a, K_b)])
+        if self.K.shape != (2, 18, 18) or not np.all(np.isfinite(self.K)):
+            raise ConfigError("K_a, K_b: expected finite (24, 24) grip stiffnesses")
         self.refs = np.asarray(references, float)
-        self.frames = ((Q_A, centres[0], list(c.servos[:3])), (Q_B, centres[1], list(c.servos[3:])))
+        if self.refs.shape != (4, 3):
+            raise ConfigError(f"references: shape {self.refs.shape}: expected (4, 3) [mm]")
+        self.Q = np.stack([Q_A, Q_B])
+        # the grips' reference points at rest in the world, per sheet (2, 4, 3)
+        self.world = np.stack([self.refs @ Q.T + centres[s] for s, Q in enumerate(self.Q)])
+        self.axes = np.array([np.asarray(s.axis, float) for s in c.servos])
+        self.pivots = np.array([np.asarray(s.pivot, float) for s in c.servos])
         self.origin = np.asarray(c.origin, float)
         self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
 
-    def energy(self, q, motors_rad) -> float:
-        """The two sheets' strain energy [mJ] at effector motion ``q`` = (dp [mm], theta [rad])."""
-        dphi = np.asarray(motors_rad, float) - self.rest_angles
-        e = 0.0
-        for s, (Q, centre, servos) in enumerate(self.frames):
-            rot, trans = sheet_grip_poses(Q, centre, self.refs, self.origin, servos, q[:3], q[3:], dphi[3 * s:3 * s + 3])
-            m = local_motions(self.refs, rot, trans)
-            e += 0.5 * m @ self.K[s] @ m
-        return float(e)
+    # ------------------------------------------------------------------ energy
+    def energies(self, Z) -> np.ndarray:
+        """(B,) the two sheets' strain energy [mJ] at each row of ``Z`` (B, 12): the effector's
+        ``dp`` (3) [mm] and ``theta`` (3) [rad], the six motors' change from rest (6) [rad]."""
+        Z = np.atleast_2d(np.asarray(Z, float))
+        dp, th, dphi = Z[:, :3], Z[:, 3:6], Z[:, 6:]
+        Re = Rotation.from_rotvec(th)
+        total = np.zeros(len(Z))
+        for s in range(2):
+            Q, w = self.Q[s], self.world[s]
+            # the centre grip moves with the effector, in the sheet's frame
+            x0 = self.refs[0] + (self.origin + dp + Re.apply(w[0] - self.origin) - w[0]) @ Q
+            R0inv = Rotation.from_rotvec(th @ Q).inv()
+            m = np.empty((len(Z), 3, 6))
+            for k in range(3):
+                j = 3 * s + k
+                turn = dphi[:, j:j + 1] * self.axes[j]  # (B, 3) world rotation vectors of the horn
+                moved = self.pivots[j] + Rotation.from_rotvec(turn).apply(w[k + 1] - self.pivots[j])
+                xk = self.refs[k + 1] + (moved - w[k + 1]) @ Q
+                m[:, k, :3] = R0inv.apply(xk - x0) - (self.refs[k + 1] - self.refs[0])
+                m[:, k, 3:] = (R0inv * Rotation.from_rotvec(turn @ Q)).as_rotvec()
+            m = m.reshape(len(Z), 18)
+            total += 0.5 * np.einsum("bi,ij,bj->b", m, self.K[s], m)
+        return total
 
+    def energy(self, q, motors_rad) -> float:
+        """The two sheets' strain energy [mJ] at effector motion ``q`` = (dp [mm], theta [rad])
+        and absolute motor angles ``motors_rad`` (6,) [rad]."""
+        z = np.concatenate([np.asarray(q, float), np.asarray(motors_rad, float) - self.rest_angles])
+        return float(self.energies(z[None])[0])
+
+    def _derivatives(self, z) -> tuple[float, np.ndarray, np.ndarray]:
+        """(energy, gradient (6,), Hessian (6, 6)) in the effector's coordinates at ``z`` (12,):
+        central differences, one batch (the gradient fourth order, the Hessian second)."""
+        d, eye = FD_STEP, np.eye(12)[:6] * FD_STEP
+        ii, jj = np.triu_indices(6, 1)
+        rows = [z[None], z + eye, z - eye, z + 2 * eye, z - 2 * eye,
+                z + eye[ii] + eye[jj], z + eye[ii] - eye[jj], z - eye[ii] + eye[jj], z - eye[ii] - eye[jj]]
+        e = self.energies(np.concatenate(rows))
+        e0, ep, em, e2p, e2m = e[0], e[1:7], e[7:13], e[13:19], e[19:25]
+        n = len(ii)
+        pp, pm, mp, mm = (e[25 + n * k:25 + n * (k + 1)] for k in range(4))
+        g = (8 * (ep - em) - (e2p - e2m)) / (12 * d)
+        H = np.diag((ep - 2 * e0 + em) / d**2)
+        H[ii, jj] = H[jj, ii] = (pp - pm - mp + mm) / (4 * d * d)
+        return float(e0), g, H
+
+    # ------------------------------------------------------------------ equilibrium
     def equilibrium(self, motors_deg, q0=None, max_iterations: int = 50) -> SuperPose:
-        """The rod's pose minimising the energy at ``motors_deg`` (6,) [deg]: Newton on central
-        differences of the energy (steps 1e-4 mm / rad; the gradient to fourth order), until a step
-        is below 1e-10 (mm, rad)."""
+        """The rod's pose minimising the energy at ``motors_deg`` (6,) [deg], from ``q0`` (6,)
+        (None: rest): Newton on the central differences (a step that raises the energy is
+        halved), until a step is below 1e-10 (mm, rad) relative to the pose."""
         motors = np.radians(np.asarray(motors_deg, float))
         if motors.shape != (6,) or not np.all(np.isfinite(motors)):
             raise ConfigError(f"motors_deg: {np.asarray(motors_deg).tolist()}: six finite angles [deg]")
+        dphi = motors - self.rest_angles
         q = np.zeros(6) if q0 is None else np.asarray(q0, float).copy()
-        d, eye = 1e-4, np.eye(6) * 1e-4
-        f = lambda v: self.energy(v, motors)  # noqa: E731
         for it in range(max_iterations):
-            e0 = f(q)
-            ep = np.array([f(q + eye[k]) for k in range(6)])
-            em = np.array([f(q - eye[k]) for k in range(6)])
-            # fourth order: the energy's cubic terms (finite rotations) would leave a d^2 error
-            g = (8 * (ep - em) - np.array([f(q + 2 * eye[k]) - f(q - 2 * eye[k]) for k in range(6)])) / (12 * d)
-            H = np.diag((ep - 2 * e0 + em) / d**2)
-            for i in range(6):
-                for j in range(i + 1, 6):
-                    H[i, j] = H[j, i] = (f(q + eye[i] + eye[j]) - f(q + eye[i] - eye[j]) - f(q - eye[i] + eye[j])
-                                         + f(q - eye[i] - eye[j])) / (4 * d**2)
-            step = -np.linalg.solve(H, g) if np.any(g != 0) else np.zeros(6)
+            e0, g, H = self._derivatives(np.concatenate([q, dphi]))
+            try:
+                step = -np.linalg.solve(H, g) if np.any(g != 0) else np.zeros(6)
+            except np.linalg.LinAlgError:
+                step = np.zeros(6)
+            if not np.all(np.isfinite(step)) or g @ step > 0:  # not a descent direction: gradient
+                step = -g / max(float(np.abs(np.diag(H)).max()), 1e-30)
+            for _ in range(30):  # halve a step that raises the energy (far from the minimum)
+                if self.energy(q + step, motors) <= e0 + 1e-12 * abs(e0):
+                    break
+                step = 0.5 * step
             q = q + step
             if float(np.abs(step).max()) <= 1e-10 * (1.0 + float(np.abs(q).max())):
-                return SuperPose(q[:3].copy(), q[3:].copy(), f(q), it)
+                return SuperPose(q[:3].copy(), q[3:].copy(), self.energy(q, motors), it)
         raise ConvergenceError(f"superelement robot: no equilibrium at motors {np.degrees(motors).round(3).tolist()} "
                                f"deg after {max_iterations} Newton steps")
+
+    def jacobian(self, pose: SuperPose, motors_deg) -> np.ndarray:
+        """(6, 6) the effector's motion per motor [mm/rad, rad/rad] at the equilibrium ``pose`` of
+        ``motors_deg``: position rows ``d dp / d phi``, rotation rows the spatial angular
+        velocity (the rate of ``theta`` through :func:`left_jacobian`), as the inverse model's
+        pose error measures a rotation."""
+        z = np.concatenate([pose.q, np.radians(np.asarray(motors_deg, float)) - self.rest_angles])
+        _, _, H = self._derivatives(z)
+        d, eye = FD_STEP, np.eye(12) * FD_STEP
+        a, b = np.repeat(np.arange(6), 6), np.tile(np.arange(6, 12), 6)  # (q_i, phi_j) pairs
+        e = self.energies(np.concatenate([z + eye[a] + eye[b], z + eye[a] - eye[b], z - eye[a] + eye[b],
+                                          z - eye[a] - eye[b]]))
+        n = 36
+        Hqp = ((e[:n] - e[n:2 * n] - e[2 * n:3 * n] + e[3 * n:]) / (4 * d * d)).reshape(6, 6)
+        dq = -np.linalg.solve(H, Hqp)
+        dq[3:] = left_jacobian(pose.theta) @ dq[3:]
+        return dq

@@ -71,7 +71,7 @@ def dns_study(sheets: Sequence[DnsSheet], homogenised: tuple[np.ndarray, np.ndar
         dns = rest_numbers_condensed(a.K, b.K, robot, refs, length_scale=length_scale)
         row = {"seed": a.seed,
                # wall times go to the manifest only: the same config and seed give the same bytes
-               "sheets": {s.label: {**{k: v for k, v in s.to_dict().items() if k not in ("K", "build_s", "solve_s")},
+               "sheets": {s.label: {**{k: v for k, v in s.to_dict().items() if k not in ("build_s", "solve_s")},
                                     **compare(s.K, K, params)}
                           for s, K in ((a, Ka), (b, Kb))},
                "robot": {**dns, "rod_roll_ratio": dns["rod_rotation_deg_per_deg"] / hom["rod_rotation_deg_per_deg"],

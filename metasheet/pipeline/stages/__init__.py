@@ -8,7 +8,7 @@ import importlib
 import pkgutil
 
 CANONICAL = (
-    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot", "reduce", "sheet", "scalemap",
+    "material", "cell", "homogenize", "chart", "orient", "printmap", "robot", "reduce", "sheet", "printed", "scalemap",
     "workspace", "ranges", "anisotropy", "maze", "report",
 )
 

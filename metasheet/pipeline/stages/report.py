@@ -130,6 +130,11 @@ def run(ctx: StageContext) -> dict:
             if (ctx.inputs["sheet"] / f"{key}.png").exists():
                 shutil.copyfile(ctx.inputs["sheet"] / f"{key}.png", ctx.path(f"{key}.png"))
                 pictures[key] = f"{key}.png"
+    if "printed" in ctx.inputs and (ctx.inputs["printed"] / "printed.json").exists():  # the printed robot (issue 62)
+        summaries["printed"] = json.loads((ctx.inputs["printed"] / "printed.json").read_text())
+        if (ctx.inputs["printed"] / "printed_robot.png").exists():
+            shutil.copyfile(ctx.inputs["printed"] / "printed_robot.png", ctx.path("printed_robot.png"))
+            pictures["printed_robot"] = "printed_robot.png"
     if "scalemap" in ctx.inputs and (ctx.inputs["scalemap"] / "scale_map.json").exists():  # issue 63's map
         summaries["scale_map"] = json.loads((ctx.inputs["scalemap"] / "scale_map.json").read_text())
         if (ctx.inputs["scalemap"] / "scale_map.png").exists():
@@ -257,7 +262,7 @@ def _cell_shrink(ctx: StageContext) -> float | None:
 register(Stage(
     name="report", params=ReportParams, run=run,
     optional=("cell", "homogenize", "chart", "material", "orient", "printmap", "robot", "reduce", "workspace",
-              "ranges", "anisotropy", "maze", "sheet", "scalemap", "design", "printcheck", "dynamics"),
+              "ranges", "anisotropy", "maze", "sheet", "printed", "scalemap", "design", "printcheck", "dynamics"),
     siblings=sibling_folders, outputs=("report.md",),
     doc="Markdown report of the studies, labelled with the paper's figures",
 ))

@@ -95,9 +95,32 @@ def _fields(ctx: StageContext, label: str):
     return printmap_fields(info, label, texts)
 
 
-def run(ctx: StageContext) -> dict:
+def scene_robot(ctx: StageContext, pair, material):
+    """The six-DOF robot of the robot stage's scene on ``pair`` (orient's sheets): it places the
+    grips (its servos, rod and centres)."""
     from ...robot.builder import six_dof_robot
-    from ...sheet.dns import SheetPrint, dns_sheet
+
+    sc = read_robot_scene(ctx.inputs["robot"])
+    mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": material.density}
+    return six_dof_robot(pair, model=material.model, rod_length=sc.rod_length, geometry=sc.servo_geometry(),
+                         gravity=sc.gravity, **mass)
+
+
+def sheet_prints(ctx: StageContext, seeds, gauge: str, voxel_mm: float, rtol: float, max_voxels: int) -> list:
+    """The :class:`~metasheet.sheet.dns.SheetPrint` of each seed's normal and mirrored sheet (in that
+    order), from the cell stage's design and the print maps (``ctx.inputs``: cell, orient, printmap)."""
+    from ...sheet.dns import SheetPrint
+
+    design = _design(ctx)
+    params = read_orient(ctx.inputs["orient"]).sheet_params
+    solid = design.material.material().stiffness()
+    fields = {label: _fields(ctx, label) for label in LABELS}
+    return [SheetPrint(label, seed, gauge, voxel_mm, design, params, fields[label], solid, rtol, max_voxels)
+            for seed in seeds for label in LABELS]
+
+
+def run(ctx: StageContext) -> dict:
+    from ...sheet.dns import dns_sheet
     from ...studies.sheet_dns import dns_study, homogenised_grips
 
     p: SheetDnsParams = ctx.params
@@ -107,15 +130,9 @@ def run(ctx: StageContext) -> dict:
     pair = orient.sheets()
     material = read_material(ctx.inputs["material"])
     sc = read_robot_scene(ctx.inputs["robot"])
-    mass = {"sheet_mass_g": sc.sheet_mass_g} if sc.sheet_mass_g else {"density": material.density}
-    robot = six_dof_robot(pair, model=material.model, rod_length=sc.rod_length, geometry=sc.servo_geometry(),
-                          gravity=sc.gravity, **mass)
-    solid = design.material.material().stiffness()
+    robot = scene_robot(ctx, pair, material)
     seed0 = design.seeds.seed if p.seed is None else p.seed
-    fields = {label: _fields(ctx, label) for label in LABELS}
-    specs = [SheetPrint(label, seed0 + r, p.gauge, p.voxel_mm, design, orient.sheet_params, fields[label], solid,
-                        p.rtol, p.max_voxels)
-             for r in range(p.realisations) for label in LABELS]
+    specs = sheet_prints(ctx, [seed0 + r for r in range(p.realisations)], p.gauge, p.voxel_mm, p.rtol, p.max_voxels)
     ctx.progress("homogenised sheets", 0, 3)
     with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bytes on any thread count
         hom = homogenised_grips(pair, material.model)

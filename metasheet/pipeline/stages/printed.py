@@ -1,0 +1,138 @@
+"""Stage ``printed``: the printed robot, print by print, claim by claim against the paper's
+physical robot (issue 62, items 4 and 5; docs/printed-sheet.md).
+
+For each print the ``sheet`` stage solved (its seeds, voxel size and gauge), the robot's two
+sheets are corotational superelements of their grips with the print's linear DNS stiffness
+(:mod:`metasheet.studies.printed_adapter`). Their validity comes from the print's own walls
+(:mod:`metasheet.studies.printed_limits`, one work unit per printed sheet): the walls' first
+self-contact along the searched motor directions, the walls' strain rate per motor, and where
+each binds. Within them, :mod:`metasheet.studies.printed_claims` computes the paper's claims
+(the rod rolled both ways, pulling 15 deg and pushing 35 deg; 10 deg about each axis at rest),
+and the stage states each claim's status over the prints and the print-to-print spread.
+
+Outputs: ``printed.json`` (per print: the walls' limits, the claims; the spread and the
+verdicts), ``printed_robot.png`` (the rod's roll against the motor travel per print, where the
+walls touch), and the report's section "The printed robot against the paper's robot".
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from pydantic import Field
+
+from ...errors import ConfigError
+from ..artefacts import read_material, read_orient
+from ..manifest import write_bytes_atomic, write_json_atomic
+from ..registry import Params, Stage, StageContext, register
+
+#: statuses from best to worst: a claim over the prints is the worst print's
+STATUSES = ("predicted", "predicted up to the walls' limit", "not predicted")
+
+
+class PrintedParams(Params):
+    realisations: int | None = Field(None, ge=1, le=20, description="the sheet stage's first n prints (None: all)")
+    contact: bool = Field(True, description="search each printed sheet's walls for their first self-contact (one "
+                          "voxel DNS with its fields per sheet: 5 to 10 minutes and 7 GB each at 0.25 mm on the "
+                          "paper's sheet); false: no walls' limit (the claims then hold the model alone)")
+    motor_directions: bool = Field(False, description="search each motor alone too (12 more directions), not only "
+                                   "all six and each sheet's three, up and down")
+    search_deg: float = Field(10.0, gt=0, le=90, description="the contact search's motor travel [deg]")
+    strain_limit: float = Field(0.3, gt=0, le=5, description="the walls' strain limit [-] (the neo-Hookean law's "
+                                "range, not NinjaFlex's failure: docs/printed-sheet.md)")
+    pull_deg: float = Field(15.0, gt=0, le=90, description="all motors pulled by (paper Fig. 7) [deg]")
+    push_deg: float = Field(35.0, gt=0, le=90, description="all motors pushed by (paper Fig. 7) [deg]")
+    rot_deg: float = Field(10.0, gt=0, le=45, description="rotation about each axis at rest (paper Fig. 5) [deg]")
+    tol_mm: float = Field(1.0, gt=0, le=10, description="position tolerance of the rotations [mm]")
+    tol_deg: float = Field(2.0, gt=0, le=10, description="rotation tolerance of the rotations [deg]")
+    max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
+    rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
+    picture: bool = Field(True, description="write printed_robot.png")
+
+
+def _worst(statuses) -> str:
+    return max(statuses, key=STATUSES.index)
+
+
+def _spread(values) -> dict:
+    v = np.asarray([x for x in values if x is not None], float)
+    if not len(v):
+        return {"mean": None, "min": None, "max": None, "std": None, "n": 0}
+    return {"mean": float(v.mean()), "min": float(v.min()), "max": float(v.max()),
+            "std": float(v.std(ddof=1)) if len(v) > 1 else None, "n": int(len(v))}
+
+
+def run(ctx: StageContext) -> dict:
+    from ...robot.condensed import grip_motions_per_motor
+    from ...sheet.grips import grip_references
+    from ...studies.printed_adapter import printed_spec
+    from ...studies.printed_claims import roll_claim, rotation_claim
+    from ...studies.printed_limits import WallUnit, combine, directions, wall_unit
+    from .sheet import scene_robot, sheet_prints
+
+    p: PrintedParams = ctx.params
+    dns = json.loads((ctx.inputs["sheet"] / "sheet_dns.json").read_text())
+    rows = dns["realisations"][:p.realisations]
+    if any("K" not in r["sheets"]["normal"] for r in rows):
+        raise ConfigError("sheet: its sheet_dns.json has no grip stiffness K (written before issue 62): run the "
+                          "sheet stage again (--force)")
+    orient = read_orient(ctx.inputs["orient"])
+    robot = scene_robot(ctx, orient.sheets(), read_material(ctx.inputs["material"]))
+    refs = grip_references(orient.sheet_params)
+    motor_range = (float(np.degrees(np.min(robot.angle_min))), float(np.degrees(np.max(robot.angle_max))))
+    Ks = [(np.asarray(r["sheets"]["normal"]["K"]), np.asarray(r["sheets"]["mirrored"]["K"])) for r in rows]
+    limits = [None] * len(rows)
+    if p.contact:
+        prints = sheet_prints(ctx, [r["seed"] for r in rows], dns["gauge"], dns["voxel_mm"], 1e-6, 200_000_000)
+        dirs = tuple(directions(p.motor_directions).items())
+        units = []
+        for i, (Ka, Kb) in enumerate(Ks):
+            Ga, Gb, _ = grip_motions_per_motor(Ka, Kb, robot, refs)
+            units += [WallUnit(prints[2 * i], tuple(map(tuple, Ga)), dirs, p.search_deg, p.strain_limit),
+                      WallUnit(prints[2 * i + 1], tuple(map(tuple, Gb)), dirs, p.search_deg, p.strain_limit)]
+        found = ctx.executor.map(wall_unit, units, progress=lambda d, n: ctx.progress("printed walls", d, n))
+        limits = [combine(found[2 * i], found[2 * i + 1]) for i in range(len(rows))]
+    out_rows = []
+    for i, (r, (Ka, Kb)) in enumerate(zip(rows, Ks)):
+        ctx.progress("claims", i, len(rows))
+        lim = limits[i] or {}
+        spec = printed_spec(robot, Ka, Kb, refs, label=f"seed {r['seed']}", motor_range=motor_range,
+                            valid_deg=lim.get("valid_deg"), max_step_deg=p.max_step_deg, rot_weight=p.rot_weight,
+                            wall_strain_per_deg=lim.get("strain_per_deg"))
+        out_rows.append({"seed": r["seed"], "limits": limits[i],
+                         "roll": roll_claim(spec, p.pull_deg, p.push_deg, lim),
+                         "rotations": rotation_claim(spec, p.rot_deg, p.tol_mm, p.tol_deg)})
+    claims = {"roll": _worst(r["roll"]["status"] for r in out_rows),
+              "rotations": _worst(r["rotations"]["status"] for r in out_rows)}
+    spread = {"valid_deg": _spread(r["limits"]["valid_deg"] if r["limits"] else None for r in out_rows),
+              "rod_rotation_pull_deg": _spread(r["roll"]["pull"]["rod_rotation_deg"] for r in out_rows),
+              "rod_rotation_push_deg": _spread(r["roll"]["push"]["rod_rotation_deg"] for r in out_rows),
+              "smallest_singular_value": _spread(min(r["rotations"]["rest_singular_values_mm_per_rad"])
+                                                 for r in out_rows)}
+    out = {"method": "each print's two sheets as corotational superelements of their grips (the sheet stage's "
+                     "linear DNS stiffness, metasheet.studies.printed_adapter), valid to the walls' first "
+                     "self-contact (first order, metasheet.studies.printed_limits)",
+           "voxel_mm": dns["voxel_mm"], "gauge": dns["gauge"], "seeds": [r["seed"] for r in rows],
+           "params": p.model_dump(), "motor_range_deg": list(motor_range),
+           "realisations": out_rows, "claims": claims, "spread": spread}
+    write_json_atomic(ctx.path("printed.json"), out)
+    if p.picture:
+        from ...viz.printed_robot import printed_robot_picture
+
+        write_bytes_atomic(ctx.path("printed_robot.png"), printed_robot_picture(out))
+    ctx.progress("done", len(rows), len(rows))
+    return {"claims": claims, "valid_deg": [r["limits"]["valid_deg"] if r["limits"] else None for r in out_rows]}
+
+
+register(
+    Stage(
+        name="printed",
+        params=PrintedParams,
+        run=run,
+        requires=("sheet", "cell", "orient", "material", "printmap", "robot"),
+        outputs=("printed.json",),
+        doc="the printed robot print by print (superelement sheets from the voxel DNS) within its walls' limits "
+            "(first self-contact, wall strain), claim by claim against the paper's physical robot",
+    )
+)

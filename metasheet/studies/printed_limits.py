@@ -1,0 +1,114 @@
+"""The printed robot's validity from its own walls, print by print (issue 62, item 4): one work
+unit per printed sheet solves the linear voxel DNS with its displacement fields
+(:func:`metasheet.sheet.dns.dns_sheet_walls`), carries them to the robot's motors with the rod
+in equilibrium (:func:`metasheet.robot.condensed.grip_motions_per_motor`) and reads off
+
+* each motor's walls' strain rate: the largest principal strain per degree of that motor
+  turned up and down alone (:func:`metasheet.sheet.wall_limits.principal_range`), which bounds
+  the first-order walls' strain at any motor offset (:mod:`.printed_adapter`);
+* along each of a few motor directions, the travel at which two walls first touch
+  (:func:`metasheet.sheet.wall_limits.first_contact`, searched to ``search_deg``) and the travel
+  at which the walls' strain reaches its limit.
+
+Directions are motor offsets per degree of the largest motor's travel: ``"roll up"`` turns all
+six motors up by the same angle (pulling, paper Fig. 7), ``"roll down"`` all six down
+(pushing), ``"A up"`` / ``"A down"`` sheet A's three motors (0-2), ``"B up"`` / ``"B down"``
+sheet B's (3-5), and with ``motors`` each motor alone both ways. A motor direction moves
+both sheets (through the rod), so each sheet is searched along every direction.
+
+Both limits are first order in the motion, as :mod:`metasheet.sheet.wall_limits` says: the
+nonlinear DNS closes the mirrored print's gaps faster than this, so the contact travels are
+late estimates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, check_range
+
+#: motor directions by name: the offsets per degree of the largest motor's travel
+BASE_DIRECTIONS = {
+    "roll up": (1.0,) * 6, "roll down": (-1.0,) * 6,
+    "A up": (1.0, 1.0, 1.0, 0.0, 0.0, 0.0), "A down": (-1.0, -1.0, -1.0, 0.0, 0.0, 0.0),
+    "B up": (0.0, 0.0, 0.0, 1.0, 1.0, 1.0), "B down": (0.0, 0.0, 0.0, -1.0, -1.0, -1.0),
+}
+
+
+def directions(motors: bool = False) -> dict[str, tuple[float, ...]]:
+    """The searched directions (module docstring): the six base ones, and each motor alone both
+    ways when ``motors``."""
+    out = dict(BASE_DIRECTIONS)
+    if motors:
+        for k in range(6):
+            for sign, word in ((1.0, "up"), (-1.0, "down")):
+                d = [0.0] * 6
+                d[k] = sign
+                out[f"motor {k} {word}"] = tuple(d)
+    return out
+
+
+@dataclass(frozen=True)
+class WallUnit:
+    """One printed sheet's walls to search: ``sheet`` its :class:`~metasheet.sheet.dns.SheetPrint`;
+    ``G`` (24, 6) its grips' motion per motor [mm/rad, rad/rad] with the rod in equilibrium;
+    ``dirs`` the named directions; ``search_deg`` [deg] the contact search's travel;
+    ``strain_limit`` [-] the walls' strain limit."""
+
+    sheet: object
+    G: tuple
+    dirs: tuple
+    search_deg: float
+    strain_limit: float
+
+    def __post_init__(self):
+        check_range("search_deg", self.search_deg, 0.0, 90.0, lo_open=True)
+        check_range("strain_limit", self.strain_limit, 0.0, None, lo_open=True)
+        if np.shape(self.G) != (24, 6):
+            raise ConfigError(f"G: shape {np.shape(self.G)}: expected (24, 6) grip motions per motor")
+
+
+def wall_unit(u: WallUnit) -> dict:
+    """The sheet's strain rates and, per direction, its first contact and strain travel [deg]
+    (None: not within the search, or the strain never reaches the limit); the kept solid share."""
+    from ..sheet.dns import dns_sheet_walls
+    from ..sheet.wall_limits import first_contact, principal_range, travel_to_strain
+
+    sheet, walls = dns_sheet_walls(u.sheet)
+    F = walls.per_motor(np.asarray(u.G, float))  # (..., 3, 6) [mm per rad of each motor]
+    deg = np.pi / 180.0
+    rates = []
+    for k in range(6):
+        hi, lo = principal_range(F[..., k], walls.h, walls.solid)
+        rates.append([max(hi, 0.0) * deg, max(-lo, 0.0) * deg])  # per degree, up and down
+    out = {}
+    for name, d in u.dirs:
+        field = np.einsum("...im,m->...i", F, np.asarray(d, float))
+        t, pair = first_contact(walls.solid, walls.h, field, np.radians(u.search_deg))
+        s = travel_to_strain(field, walls.h, walls.solid, u.strain_limit)[0]
+        out[name] = {"contact_deg": None if not np.isfinite(t) else float(np.degrees(t)),
+                     "contact_nodes": [int(v) for v in pair],
+                     "strain_deg": None if not np.isfinite(s) else float(np.degrees(s))}
+    return {"label": sheet.label, "seed": sheet.seed, "kept_share": sheet.kept_share,
+            "strain_per_deg": rates, "directions": out}
+
+
+def combine(a: dict, b: dict) -> dict:
+    """The robot's limits from its two sheets' units: per direction the first contact and the
+    strain travel of either sheet (the smaller), which sheet binds, and per motor the larger
+    strain rate; ``valid_deg`` the first contact over the directions searched (None: none
+    within the search)."""
+    dirs = {}
+    for name in a["directions"]:
+        da, db = a["directions"][name], b["directions"][name]
+        row = {}
+        for key in ("contact_deg", "strain_deg"):
+            vals = [(v[key], s["label"]) for v, s in ((da, a), (db, b)) if v[key] is not None]
+            row[key], row[key.replace("_deg", "_sheet")] = min(vals) if vals else (None, None)
+        dirs[name] = row
+    contacts = [(r["contact_deg"], n) for n, r in dirs.items() if r["contact_deg"] is not None]
+    valid, binding = min(contacts) if contacts else (None, None)
+    rates = np.maximum(np.asarray(a["strain_per_deg"]), np.asarray(b["strain_per_deg"]))
+    return {"valid_deg": valid, "binding": binding, "directions": dirs, "strain_per_deg": rates.tolist()}
