@@ -20,6 +20,7 @@ import pytest
 from metasheet.errors import ConfigError
 from metasheet.pipeline.config import load_pipeline
 from metasheet.pipeline.runner import run_pipeline
+from metasheet.studies.grid import star_grid
 
 DESIGN = """
 kind = "polyfoam"
@@ -87,6 +88,13 @@ source = "homogenize"
 [sheet]
 voxel_mm = 0.5
 realisations = 2
+
+[printed]
+n_azimuth = 4
+n_elevation = 1
+n_steps = 4
+extent_mm = 6.0
+ranges = [[0.0, 90.0], [10.0, 80.0]]
 """
 
 APPARENT = """
@@ -241,7 +249,15 @@ def test_the_printed_robot_stage_states_each_claim_from_its_prints(run):
             assert path[0].tolist() == [0.0, 0.0] and path[-1, 0] == roll[name]["travel_deg"]
         goals = rot["goals"].values()
         assert (rot["status"] == "predicted") == all(g["reached"] for g in goals)
+        st = r["studies"]
+        grid = star_grid(n_azimuth=4, n_elevation=1, n_steps=4, extent_axial=6.0, extent_lateral=6.0)
+        assert st["workspace"]["points"] == len(grid) and st["workspace"]["left_domain"] >= 0
+        assert (st["maze"]["verdict"]["status"] == "predicted") == (not st["maze"]["foam_impossible_segments"])
+        assert list(st["ranges"]["reachable"]) == ["[0, 90]", "[10, 80]"]
     order = ("predicted", "predicted up to the walls' limit", "not predicted")
+    for key in ("workspace", "ranges", "maze"):
+        assert d["claims"][key] == max((r["studies"][key]["verdict"]["status"] for r in d["realisations"]),
+                                       key=order.index)
     for key in ("roll", "rotations"):
         assert d["claims"][key] == max((r[key]["status"] for r in d["realisations"]), key=order.index)
     assert (out / "printed" / "printed_robot.png").stat().st_size > 0

@@ -258,7 +258,7 @@ def test_scene_facts_section_judges_each_fact_from_the_numbers():
 
 
 def test_near_rest_control_counts_the_reachable_points_within_the_radius():
-    from metasheet.pipeline.stages.workspace import near_rest_control
+    from metasheet.studies.workspace import near_rest_control
 
     goals = [[1, 0, 0], [0, 2, 0], [0, 0, 2.9], [3.1, 0, 0], [0, 1, 0], [0, 0, 0.5]]
     cls = [3, 3, 1, 3, 3, 0]

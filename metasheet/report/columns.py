@@ -83,6 +83,13 @@ def _deg(v) -> str:
 ROWS = {"workspace": _workspace, "ranges": _ranges, "anisotropy": _anisotropy, "maze": _maze}
 
 
+def study_verdict(study: str, summary: Mapping) -> tuple[str, bool]:
+    """(text, met) of the paper's statement for ``study`` (a key of :data:`STATEMENTS`) on a
+    column's ``summary`` (the study stage's JSON, or the printed stage's per-print summary in
+    the same keys)."""
+    return ROWS[study](summary)
+
+
 def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping[str, str]) -> list[str]:
     """Markdown lines: per study that ran a reproduction column, the paper's statement, the
     reproduction, the prediction and the verdict; ``columns`` is study -> column -> summary,

@@ -369,6 +369,20 @@ def _concat(parts: list[PointRecords]) -> PointRecords:
     return PointRecords(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in PointRecords.__dataclass_fields__})
 
 
+def near_rest_control(goals, cls, reached, rest_p, radius_mm: float) -> dict:
+    """Full control around rest (paper Fig. 5: "at the initial position ... and in a whole area
+    around it, we have a full 6 DOF control"): of the reachable goals (n, 3) [mm] within
+    ``radius_mm`` of the rest position (3,) [mm], how many pass all three rotations (class 3).
+    The share is the figure the report's verdict reads; a ball in which every point passes
+    would hinge on the single worst grid point next to rest."""
+    d = np.linalg.norm(np.asarray(goals, float) - np.asarray(rest_p, float), axis=1)
+    near = np.asarray(reached, bool) & (d <= radius_mm)
+    full = near & (np.asarray(cls) == 3)
+    n = int(near.sum())
+    return {"radius_mm": float(radius_mm), "reachable": n, "full_control": int(full.sum()),
+            "share": round(int(full.sum()) / n, 4) if n else None}
+
+
 def explore_workspace(
     spec: ModelSpec,
     grid: StarGrid,

@@ -18,6 +18,7 @@ walls touch), and the report's section "The printed robot against the paper's ro
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 from pydantic import Field
@@ -46,9 +47,23 @@ class PrintedParams(Params):
     rot_deg: float = Field(10.0, gt=0, le=45, description="rotation about each axis at rest (paper Fig. 5) [deg]")
     tol_mm: float = Field(1.0, gt=0, le=10, description="position tolerance of the rotations [mm]")
     tol_deg: float = Field(2.0, gt=0, le=10, description="rotation tolerance of the rotations [deg]")
+    studies: bool = Field(True, description="run the paper's Fig. 5 (workspace and rotation test), Fig. 6 (motor "
+                          "ranges) and the maze on each print's robot, within its walls' box")
+    n_azimuth: int = Field(12, ge=2, le=720, description="workspace grid: ray directions around the rod [-]")
+    n_elevation: int = Field(5, ge=1, le=181, description="workspace grid: elevation rings [-]")
+    n_steps: int = Field(37, ge=1, le=10000, description="workspace grid: points per ray before thinning [-]")
+    extent_mm: float = Field(20.0, gt=0, le=500, description="workspace grid: reach along and across the rod [mm]")
+    ranges: list[tuple[float, float]] = Field([(0.0, 90.0), (10.0, 80.0), (20.0, 70.0)], min_length=1,
+                                              description="Fig. 6's motor ranges, widest first [deg]")
+    maze_tilt_deg: float = Field(1.5, gt=0, le=45, description="the maze's tilt, which rolls the marble [deg] "
+                                 "(the prediction column's: a marble on PLA rolls from well under 1 deg)")
+    maze_tol_deg: float = Field(0.3, gt=0, le=10, description="the maze's orientation tolerance [deg]")
+    maze_tol_mm: float = Field(0.5, gt=0, le=10, description="the maze's position tolerance [mm]")
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     picture: bool = Field(True, description="write printed_robot.png")
+    resume: bool = Field(True, description="keep each printed sheet's walls' limits as it finishes, so an "
+                         "interrupted run resumes")
 
 
 def _worst(statuses) -> str:
@@ -63,12 +78,60 @@ def _spread(values) -> dict:
             "std": float(v.std(ddof=1)) if len(v) > 1 else None, "n": int(len(v))}
 
 
+def _claims(rows: list, studies: bool) -> tuple[dict, dict]:
+    """(claims, spread): each claim's status over the prints (the worst print's), and the
+    spread of the figures behind them. With ``studies``, each print's Fig. 5, Fig. 6 and maze
+    summary gets its verdict, read as the continuum columns' are
+    (:func:`metasheet.report.columns.study_verdict`)."""
+    from ...report.columns import study_verdict
+
+    claims = {"roll": _worst(r["roll"]["status"] for r in rows),
+              "rotations": _worst(r["rotations"]["status"] for r in rows)}
+    spread = {"valid_deg": _spread(r["limits"]["valid_deg"] if r["limits"] else None for r in rows),
+              "rod_rotation_pull_deg": _spread(r["roll"]["pull"]["rod_rotation_deg"] for r in rows),
+              "rod_rotation_push_deg": _spread(r["roll"]["push"]["rod_rotation_deg"] for r in rows),
+              "smallest_singular_value": _spread(min(r["rotations"]["rest_singular_values_mm_per_rad"]) for r in rows)}
+    if not studies:
+        return claims, spread
+    for key in ("workspace", "ranges", "maze"):
+        for r in rows:
+            text, ok = study_verdict(key, r["studies"][key])
+            r["studies"][key]["verdict"] = {"text": text, "status": "predicted" if ok else "not predicted"}
+        claims[key] = _worst(r["studies"][key]["verdict"]["status"] for r in rows)
+    ws = [r["studies"]["workspace"] for r in rows]
+    spread["workspace_reachable"] = _spread(w["reachable"] for w in ws)
+    spread["workspace_full_control"] = _spread(w["counts"].get("3 rotations", 0) for w in ws)
+    spread["workspace_left_domain"] = _spread(w["left_domain"] for w in ws)
+    mz = [r["studies"]["maze"] for r in rows]
+    spread["maze_segments_solved"] = _spread(m["segments"] - len(m["foam_impossible_segments"]) for m in mz)
+    return claims, spread
+
+
+def _studies(p: PrintedParams):
+    """The :class:`~metasheet.studies.printed_studies.PrintStudies` of the stage's keys: the
+    workspace stage's grid and paper rotation test, the maze stage's path."""
+    from ...studies.grid import star_grid
+    from ...studies.maze import MazeSettings
+    from ...studies.printed_studies import PrintStudies
+    from ...studies.workspace import WorkspaceSettings
+    from .maze import DEFAULT_PATH
+
+    grid = star_grid(n_azimuth=p.n_azimuth, n_elevation=p.n_elevation, n_steps=p.n_steps,
+                     extent_axial=p.extent_mm, extent_lateral=p.extent_mm)
+    settings = WorkspaceSettings.for_test("paper", tol_mm=p.tol_mm, rot_deg=p.rot_deg, tol_rot_deg=p.tol_deg,
+                                          rot_stop_after=2, strain_limit=p.strain_limit)
+    maze = MazeSettings(tilt_deg=p.maze_tilt_deg, tol_deg=p.maze_tol_deg, tol_mm=p.maze_tol_mm)
+    return PrintStudies(grid, settings, tuple(map(tuple, p.ranges)), tuple(map(tuple, DEFAULT_PATH)), maze)
+
+
 def run(ctx: StageContext) -> dict:
     from ...robot.condensed import grip_motions_per_motor
     from ...sheet.grips import grip_references
     from ...studies.printed_adapter import printed_spec
     from ...studies.printed_claims import roll_claim, rotation_claim
     from ...studies.printed_limits import WallUnit, combine, directions, wall_unit
+    from ...studies.printed_studies import print_studies
+    from ...studies.resume import UnitCache
     from .sheet import scene_robot, sheet_prints
 
     p: PrintedParams = ctx.params
@@ -91,7 +154,8 @@ def run(ctx: StageContext) -> dict:
             Ga, Gb, _ = grip_motions_per_motor(Ka, Kb, robot, refs)
             units += [WallUnit(prints[2 * i], tuple(map(tuple, Ga)), dirs, p.search_deg, p.strain_limit),
                       WallUnit(prints[2 * i + 1], tuple(map(tuple, Gb)), dirs, p.search_deg, p.strain_limit)]
-        found = ctx.executor.map(wall_unit, units, progress=lambda d, n: ctx.progress("printed walls", d, n))
+        cache = UnitCache(ctx.workdir.parent / ".printed.units" if p.resume else None)
+        found = cache.map(ctx.executor, wall_unit, units, progress=lambda d, n: ctx.progress("printed walls", d, n))
         limits = [combine(found[2 * i], found[2 * i + 1]) for i in range(len(rows))]
     out_rows = []
     for i, (r, (Ka, Kb)) in enumerate(zip(rows, Ks)):
@@ -100,16 +164,13 @@ def run(ctx: StageContext) -> dict:
         spec = printed_spec(robot, Ka, Kb, refs, label=f"seed {r['seed']}", motor_range=motor_range,
                             valid_deg=lim.get("valid_deg"), max_step_deg=p.max_step_deg, rot_weight=p.rot_weight,
                             wall_strain_per_deg=lim.get("strain_per_deg"))
-        out_rows.append({"seed": r["seed"], "limits": limits[i],
-                         "roll": roll_claim(spec, p.pull_deg, p.push_deg, lim),
-                         "rotations": rotation_claim(spec, p.rot_deg, p.tol_mm, p.tol_deg)})
-    claims = {"roll": _worst(r["roll"]["status"] for r in out_rows),
-              "rotations": _worst(r["rotations"]["status"] for r in out_rows)}
-    spread = {"valid_deg": _spread(r["limits"]["valid_deg"] if r["limits"] else None for r in out_rows),
-              "rod_rotation_pull_deg": _spread(r["roll"]["pull"]["rod_rotation_deg"] for r in out_rows),
-              "rod_rotation_push_deg": _spread(r["roll"]["push"]["rod_rotation_deg"] for r in out_rows),
-              "smallest_singular_value": _spread(min(r["rotations"]["rest_singular_values_mm_per_rad"])
-                                                 for r in out_rows)}
+        row = {"seed": r["seed"], "limits": limits[i], "roll": roll_claim(spec, p.pull_deg, p.push_deg, lim),
+               "rotations": rotation_claim(spec, p.rot_deg, p.tol_mm, p.tol_deg)}
+        if p.studies:
+            row["studies"] = print_studies(spec, _studies(p), executor=ctx.executor,
+                                           progress=lambda d, j, n, i=i: ctx.progress(f"print {i + 1}: {d}", j, n))
+        out_rows.append(row)
+    claims, spread = _claims(out_rows, p.studies)
     out = {"method": "each print's two sheets as corotational superelements of their grips (the sheet stage's "
                      "linear DNS stiffness, metasheet.studies.printed_adapter), valid to the walls' first "
                      "self-contact (first order, metasheet.studies.printed_limits)",
@@ -117,6 +178,7 @@ def run(ctx: StageContext) -> dict:
            "params": p.model_dump(), "motor_range_deg": list(motor_range),
            "realisations": out_rows, "claims": claims, "spread": spread}
     write_json_atomic(ctx.path("printed.json"), out)
+    shutil.rmtree(ctx.workdir.parent / ".printed.units", ignore_errors=True)
     if p.picture:
         from ...viz.printed_robot import printed_robot_picture
 

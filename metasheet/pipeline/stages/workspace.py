@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import Field
 
 from ...studies.model import MODELS
-from ...studies.workspace import CLASS_NAMES, WorkspaceSettings, explore_workspace
+from ...studies.workspace import CLASS_NAMES, WorkspaceSettings, explore_workspace, near_rest_control
 from ..manifest import write_json_atomic
 from ..registry import Stage, StageContext, register
 from ._studies import (run_columns, GridParams, build_spec, certification, drop_cache, grid_from, model_record, progress,
@@ -54,20 +54,6 @@ def settings_from(p) -> WorkspaceSettings:
         rotations=p.rotations, rot_stop_after=p.rot_stop_after, stop_after=p.stop_after, strain_limit=p.strain_limit,
         stop_beyond_strain=p.stop_beyond_strain, past_box=p.past_box, continuity=p.continuity,
         substeps=p.substeps, hold_orientation=p.hold_orientation)
-
-
-def near_rest_control(goals, cls, reached, rest_p, radius_mm: float) -> dict:
-    """Full control around rest (paper Fig. 5: "at the initial position ... and in a whole area
-    around it, we have a full 6 DOF control"): of the reachable goals (n, 3) [mm] within
-    ``radius_mm`` of the rest position (3,) [mm], how many pass all three rotations (class 3).
-    The share is the figure the report's verdict reads; a ball in which every point passes
-    would hinge on the single worst grid point next to rest."""
-    d = np.linalg.norm(np.asarray(goals, float) - np.asarray(rest_p, float), axis=1)
-    near = np.asarray(reached, bool) & (d <= radius_mm)
-    full = near & (np.asarray(cls) == 3)
-    n = int(near.sum())
-    return {"radius_mm": float(radius_mm), "reachable": n, "full_control": int(full.sum()),
-            "share": round(int(full.sum()) / n, 4) if n else None}
 
 
 def left_out_mask(r, s: WorkspaceSettings) -> np.ndarray:
