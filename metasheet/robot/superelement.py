@@ -192,3 +192,20 @@ class SuperelementRobot:
         dq = -np.linalg.solve(H, Hqp)
         dq[3:] = left_jacobian(pose.theta) @ dq[3:]
         return dq
+
+
+def pose_errors_against(reference, model: SuperelementRobot, motors_deg) -> list[dict]:
+    """The superelement ``model`` against a ``reference`` robot (the finite-strain voxel robot,
+    :class:`.voxel_robot.PrintedRobot`, or anything whose ``equilibrium(motors_deg)`` returns a
+    pose with ``dp`` and ``theta``) at each row of ``motors_deg`` (n, 6) [deg]: per pose the
+    reference's motion (``move_mm``, ``turn_deg``) and the model's errors (``error_mm``, the
+    distance of the rod's centres; ``error_deg``, the angle of the rotation between them)."""
+    out = []
+    for m in np.atleast_2d(np.asarray(motors_deg, float)):
+        ref, got = reference.equilibrium(m), model.equilibrium(m)
+        R = Rotation.from_rotvec(np.asarray(ref.theta, float)) * Rotation.from_rotvec(got.theta).inv()
+        out.append({"motors_deg": m.tolist(), "move_mm": float(np.linalg.norm(ref.dp)),
+                    "turn_deg": float(np.degrees(np.linalg.norm(ref.theta))),
+                    "error_mm": float(np.linalg.norm(np.asarray(ref.dp, float) - got.dp)),
+                    "error_deg": float(np.degrees(R.magnitude()))})
+    return out
