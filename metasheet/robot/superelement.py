@@ -36,7 +36,9 @@ from .condensed import _check_robot
 from .robots import Q_A, Q_B
 
 #: central-difference step of the energy's derivatives [mm, rad]; the gradient is fourth order
-FD_STEP = 1e-4
+FD_STEP = 3e-4
+#: Newton stops after a step below this, relative to the pose (mm, rad)
+STEP_TOL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,51 @@ def left_jacobian(theta) -> np.ndarray:
     return np.eye(3) + (1 - np.cos(t)) / t**2 * K + (t - np.sin(t)) / t**3 * K @ K
 
 
+def _rodrigues(V) -> tuple[np.ndarray, np.ndarray]:
+    """(sin t / t, (1 - cos t) / t^2), each (B,), of rotation vectors ``V`` (B, 3), series below 1e-4 rad."""
+    t2 = np.einsum("bi,bi->b", V, V)
+    t = np.sqrt(t2)
+    small = t < 1e-4
+    ts = np.where(small, 1.0, t)
+    a = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(ts) / ts)
+    half = np.sin(0.5 * ts) / ts  # 1 - cos t = 2 sin^2(t/2): no cancellation at small angles
+    b = np.where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, 2.0 * half * half)
+    return a, b
+
+
+def rotate(V, x) -> np.ndarray:
+    """(B, 3) the vectors ``x`` ((3,) or (B, 3)) turned by the rotation vectors ``V`` (B, 3) [rad]."""
+    a, b = _rodrigues(V)
+    x = np.broadcast_to(np.asarray(x, float), V.shape)
+    kx = np.cross(V, x)
+    return x + a[:, None] * kx + b[:, None] * np.cross(V, kx)
+
+
+def _quaternions(V) -> np.ndarray:
+    """(B, 4) unit quaternions (w, x, y, z) of rotation vectors ``V`` (B, 3) [rad]."""
+    t2 = np.einsum("bi,bi->b", V, V)
+    t = np.sqrt(t2)
+    small = t < 1e-4
+    ts = np.where(small, 1.0, t)
+    s = np.where(small, 0.5 - t2 / 48.0 + t2 * t2 / 3840.0, np.sin(0.5 * ts) / ts)
+    return np.concatenate([np.cos(0.5 * t)[:, None], s[:, None] * V], axis=1)
+
+
+def relative_rotations(V0, V1) -> np.ndarray:
+    """(B, 3) the rotation vectors of ``R(V0)^T R(V1)`` [rad], |.| <= pi (quaternions)."""
+    p, q = _quaternions(V0), _quaternions(V1)
+    pw, pv, qw, qv = p[:, 0], -p[:, 1:], q[:, 0], q[:, 1:]  # the conjugate of p, times q
+    w = pw * qw - np.einsum("bi,bi->b", pv, qv)
+    v = pw[:, None] * qv + qw[:, None] * pv + np.cross(pv, qv)
+    sign = np.where(w < 0, -1.0, 1.0)  # the shorter way round
+    w, v = w * sign, v * sign[:, None]
+    n = np.sqrt(np.einsum("bi,bi->b", v, v))
+    small = n < 1e-8
+    ns = np.where(small, 1.0, n)
+    f = np.where(small, 2.0 / np.where(w > 0, w, 1.0), 2.0 * np.arctan2(n, w) / ns)
+    return f[:, None] * v
+
+
 class SuperelementRobot:
     """The six-DOF ``robot``'s geometry with two corotational sheets of grip stiffness ``K_a``,
     ``K_b`` (24, 24, each in its sheet's frame, :mod:`metasheet.sheet.grips` conventions) and
@@ -106,25 +153,28 @@ class SuperelementRobot:
         """(B,) the two sheets' strain energy [mJ] at each row of ``Z`` (B, 12): the effector's
         ``dp`` (3) [mm] and ``theta`` (3) [rad], the six motors' change from rest (6) [rad]."""
         Z = np.atleast_2d(np.asarray(Z, float))
+        B = len(Z)
         dp, th, dphi = Z[:, :3], Z[:, 3:6], Z[:, 6:]
-        Re = Rotation.from_rotvec(th)
-        total = np.zeros(len(Z))
-        for s in range(2):
-            Q, w = self.Q[s], self.world[s]
-            # the centre grip moves with the effector, in the sheet's frame
-            x0 = self.refs[0] + (self.origin + dp + Re.apply(w[0] - self.origin) - w[0]) @ Q
-            R0inv = Rotation.from_rotvec(th @ Q).inv()
-            m = np.empty((len(Z), 3, 6))
-            for k in range(3):
-                j = 3 * s + k
-                turn = dphi[:, j:j + 1] * self.axes[j]  # (B, 3) world rotation vectors of the horn
-                moved = self.pivots[j] + Rotation.from_rotvec(turn).apply(w[k + 1] - self.pivots[j])
-                xk = self.refs[k + 1] + (moved - w[k + 1]) @ Q
-                m[:, k, :3] = R0inv.apply(xk - x0) - (self.refs[k + 1] - self.refs[0])
-                m[:, k, 3:] = (R0inv * Rotation.from_rotvec(turn @ Q)).as_rotvec()
-            m = m.reshape(len(Z), 18)
-            total += 0.5 * np.einsum("bi,ij,bj->b", m, self.K[s], m)
-        return total
+        sheet = np.repeat([0, 1], 3)  # arm j (motor j) belongs to sheet j // 3
+        # the centre grips move with the effector: in each sheet's frame (B, 2, 3)
+        c = np.repeat(th, 2, axis=0)
+        x0 = self.refs[0] + np.einsum("bsi,sij->bsj", (self.origin + dp[:, None] - self.world[:, 0]).reshape(B, 2, 3)
+                                      + rotate(c, np.tile(self.world[:, 0] - self.origin, (B, 1))).reshape(B, 2, 3),
+                                      self.Q)
+        th0 = np.einsum("bi,sij->bsj", th, self.Q)  # the centres' rotation vectors, sheet frames
+        # the horns turn the arm grips about the servos' axes (B, 6, 3), world
+        turn = dphi[:, :, None] * self.axes
+        arm_world = self.world[sheet, np.tile([1, 2, 3], 2)]  # (6, 3) the arm grips at rest
+        moved = self.pivots + rotate(turn.reshape(-1, 3), np.tile(arm_world - self.pivots, (B, 1))).reshape(B, 6, 3)
+        Qa = self.Q[sheet]  # (6, 3, 3)
+        xk = self.refs[np.tile([1, 2, 3], 2)] + np.einsum("bji,jik->bjk", moved - arm_world, Qa)
+        c0 = th0[:, sheet].reshape(-1, 3)
+        m = np.empty((B, 6, 6))
+        m[:, :, :3] = (rotate(-c0, (xk - x0[:, sheet]).reshape(-1, 3)).reshape(B, 6, 3)
+                       - (self.refs[np.tile([1, 2, 3], 2)] - self.refs[0]))
+        m[:, :, 3:] = relative_rotations(c0, np.einsum("bji,jik->bjk", turn, Qa).reshape(-1, 3)).reshape(B, 6, 3)
+        m = m.reshape(B, 2, 18)
+        return 0.5 * np.einsum("bsi,sij,bsj->b", m, self.K, m)
 
     def energy(self, q, motors_rad) -> float:
         """The two sheets' strain energy [mJ] at effector motion ``q`` = (dp [mm], theta [rad])
@@ -152,27 +202,34 @@ class SuperelementRobot:
     def equilibrium(self, motors_deg, q0=None, max_iterations: int = 50) -> SuperPose:
         """The rod's pose minimising the energy at ``motors_deg`` (6,) [deg], from ``q0`` (6,)
         (None: rest): Newton on the central differences (a step that raises the energy is
-        halved), until a step is below 1e-10 (mm, rad) relative to the pose."""
+        halved, found at the next step's own evaluation), until a step is below
+        :data:`STEP_TOL` (mm, rad) relative to the pose."""
         motors = np.radians(np.asarray(motors_deg, float))
         if motors.shape != (6,) or not np.all(np.isfinite(motors)):
             raise ConfigError(f"motors_deg: {np.asarray(motors_deg).tolist()}: six finite angles [deg]")
         dphi = motors - self.rest_angles
         q = np.zeros(6) if q0 is None else np.asarray(q0, float).copy()
+        last, step, halved, previous = np.inf, np.zeros(6), 0, np.inf
         for it in range(max_iterations):
             e0, g, H = self._derivatives(np.concatenate([q, dphi]))
+            if e0 > last + 1e-12 * abs(last) and halved < 30:  # the last step raised the energy: half of it
+                step, halved = 0.5 * step, halved + 1
+                q = q - step
+                continue
+            last, halved = e0, 0
             try:
                 step = -np.linalg.solve(H, g) if np.any(g != 0) else np.zeros(6)
             except np.linalg.LinAlgError:
                 step = np.zeros(6)
             if not np.all(np.isfinite(step)) or g @ step > 0:  # not a descent direction: gradient
                 step = -g / max(float(np.abs(np.diag(H)).max()), 1e-30)
-            for _ in range(30):  # halve a step that raises the energy (far from the minimum)
-                if self.energy(q + step, motors) <= e0 + 1e-12 * abs(e0):
-                    break
-                step = 0.5 * step
             q = q + step
-            if float(np.abs(step).max()) <= 1e-10 * (1.0 + float(np.abs(q).max())):
+            # the differenced gradient's round-off keeps steps at ~1e-10 to 1e-9 mm: stop below
+            # STEP_TOL, or once small steps stop contracting (round-off, not convergence, moves q)
+            size, scale = float(np.abs(step).max()), 1.0 + float(np.abs(q).max())
+            if size <= STEP_TOL * scale or (size <= 1e-6 * scale and size > 0.5 * previous):
                 return SuperPose(q[:3].copy(), q[3:].copy(), self.energy(q, motors), it)
+            previous = size
         raise ConvergenceError(f"superelement robot: no equilibrium at motors {np.degrees(motors).round(3).tolist()} "
                                f"deg after {max_iterations} Newton steps")
 
