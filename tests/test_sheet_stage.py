@@ -190,7 +190,8 @@ def test_bad_sheet_settings_are_named(tmp_path):
 @pytest.mark.bytes
 def test_two_workers_give_the_same_bytes(run):
     """Each sheet of each realisation is a work unit: on a pool of two the stage writes the serial
-    run's sheet_dns.json and voxel file, byte for byte (wall times live in the manifest only).
+    run's sheet_dns.json and voxel file, byte for byte (wall times live in the manifest only);
+    the printed stage's walls' units and studies too (printed.json).
     Default-selection sibling: test_stage_writes_the_comparison_and_the_report (the serial run;
     no cheaper pool-of-two run exists yet: the stage's whole pipeline is the cost)."""
     from metasheet.runtime.executor import Executor
@@ -198,10 +199,12 @@ def test_two_workers_give_the_same_bytes(run):
     tmp, out = run
     names = ("sheet_dns.json", "sheet_normal.npz")
     serial = {name: (out / "sheet" / name).read_bytes() for name in names}
-    run_pipeline(load_pipeline(tmp / "p.toml"), out_root=tmp / "out", only="sheet", force=True,
-                 executor=Executor(workers=2))
+    printed = (out / "printed" / "printed.json").read_bytes()
+    run_pipeline(load_pipeline(tmp / "p.toml"), out_root=tmp / "out", only="printed", force=True,
+                 executor=Executor(workers=2))  # the sheet stage too (printed needs it), then the printed
     for name in names:
         assert (out / "sheet" / name).read_bytes() == serial[name]
+    assert (out / "printed" / "printed.json").read_bytes() == printed  # the walls' units on the pool
 
 
 def test_stage_compares_the_prints_with_the_plate_continuum(run):

@@ -66,6 +66,19 @@ class PrintedParams(Params):
                          "interrupted run resumes")
 
 
+def grip_stiffnesses(rows) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each print's (normal, mirrored) grip stiffness (24, 24) from the sheet stage's
+    ``realisations`` rows; a :class:`ConfigError` when a row has none (an older sheet stage)."""
+    out = []
+    for r in rows:
+        K = [r["sheets"][label].get("K") for label in ("normal", "mirrored")]
+        if any(k is None or np.shape(k) != (24, 24) for k in K):
+            raise ConfigError(f"sheet: sheet_dns.json, seed {r.get('seed')}: no (24, 24) grip stiffness K (written "
+                              "before issue 62): run the sheet stage again (metasheet run --stage sheet --force)")
+        out.append((np.asarray(K[0], float), np.asarray(K[1], float)))
+    return out
+
+
 def _worst(statuses) -> str:
     return max(statuses, key=STATUSES.index)
 
@@ -137,14 +150,11 @@ def run(ctx: StageContext) -> dict:
     p: PrintedParams = ctx.params
     dns = json.loads((ctx.inputs["sheet"] / "sheet_dns.json").read_text())
     rows = dns["realisations"][:p.realisations]
-    if any("K" not in r["sheets"]["normal"] for r in rows):
-        raise ConfigError("sheet: its sheet_dns.json has no grip stiffness K (written before issue 62): run the "
-                          "sheet stage again (--force)")
+    Ks = grip_stiffnesses(rows)
     orient = read_orient(ctx.inputs["orient"])
     robot = scene_robot(ctx, orient.sheets(), read_material(ctx.inputs["material"]))
     refs = grip_references(orient.sheet_params)
     motor_range = (float(np.degrees(np.min(robot.angle_min))), float(np.degrees(np.max(robot.angle_max))))
-    Ks = [(np.asarray(r["sheets"]["normal"]["K"]), np.asarray(r["sheets"]["mirrored"]["K"])) for r in rows]
     limits = [None] * len(rows)
     if p.contact:
         prints = sheet_prints(ctx, [r["seed"] for r in rows], dns["gauge"], dns["voxel_mm"], 1e-6, 200_000_000)
