@@ -55,3 +55,21 @@ def test_rest_is_an_equilibrium_and_the_jacobian_at_rest_is_the_linear_models(co
     for k in (0, 4):
         col = (4 * central(k, d / 2) - central(k, d)) / 3
         assert np.abs(col - J[:, k]).max() <= 1e-6 * np.abs(J[:, k]).max()
+
+
+def test_the_batched_rotations_are_scipys():
+    """rotate and relative_rotations (plain numpy, over a batch) against scipy's Rotation, at
+    small, ordinary and near-half-turn angles."""
+    from scipy.spatial.transform import Rotation
+
+    from metasheet.robot.superelement import relative_rotations, rotate
+
+    rng = np.random.default_rng(5)
+    axes = rng.normal(size=(6, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    V = axes * np.array([1e-12, 3e-5, 2e-4, 0.7, 2.5, np.pi - 1e-6])[:, None]
+    W = V[::-1] * 0.9
+    x = rng.normal(size=3) * 50.0
+    np.testing.assert_allclose(rotate(V, x), Rotation.from_rotvec(V).apply(x), rtol=0, atol=1e-13)
+    ref = (Rotation.from_rotvec(V).inv() * Rotation.from_rotvec(W)).as_rotvec()
+    np.testing.assert_allclose(relative_rotations(V, W), ref, rtol=0, atol=1e-12)
