@@ -20,7 +20,7 @@ import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 NAMES = ("cell_constants", "chart_lookup", "sheet_printmap", "jacobian_silicone_vs_foam", "goto", "small_workspace",
-         "motor_program")
+         "motor_program", "printed_robot")
 
 
 def load(name: str):
@@ -178,3 +178,17 @@ def test_an_example_run_as_is_writes_under_outputs(name):
     """Issue 61: each example wrote its picture into docs/examples/ (tracked files) by default."""
     source = (EXAMPLES / f"{name}.py").read_text()
     assert 'ROOT / "outputs" / "examples" /' in source and '"docs" / "examples"' not in source
+
+
+@pytest.mark.slow
+def test_printed_robot(tmp_path):
+    """Default-selection sibling: tests/test_sheet_stage.py's printed stage on a small printed
+    sheet (the same functions through the pipeline)."""
+    n = run("printed_robot", tmp_path)
+    # measured: the small tripod's two prints at 0.5 mm, seed 1 (CG to 1e-6)
+    assert n["binding"] == "roll down" and n["valid_deg"] == pytest.approx(1.9019, rel=1e-3)
+    assert n["rod_pull_deg"] == pytest.approx(-33.869, rel=1e-3)
+    assert n["rod_pull_within_deg"] == pytest.approx(-15.967, rel=1e-3)
+    # physics: pulled and pushed, the rod turns opposite ways before the walls touch
+    assert n["rod_pull_within_deg"] * n["rod_push_within_deg"] < 0
+    assert n["status"] == "predicted up to the walls' limit"
