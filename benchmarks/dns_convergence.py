@@ -81,8 +81,8 @@ def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, len
     from threadpoolctl import threadpool_limits
 
     from metasheet.sheet.dns import SheetPrint
-    from metasheet.studies.richardson import richardson
-    from metasheet.studies.sheet_dns import dns_study, homogenised_grips
+    from metasheet.studies.dns_ladder import ladder_fits, ladder_row
+    from metasheet.studies.sheet_dns import homogenised_grips
 
     design, orient, material, robot, fields = _inputs(outputs)
     solid = design.material.material().stiffness()
@@ -97,29 +97,14 @@ def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, len
         if tuple(labels) != LABELS:
             continue
         with threadpool_limits(limits=1, user_api="blas"):
-            st = dns_study(sheets, hom, robot, orient.sheet_params, length_scale=length_scale)
-        r = st["realisations"][0]
-        rows.append({"voxel_mm": float(v), "unknowns": [s.n_dof for s in sheets],
-                     "kept_share": [s.kept_share for s in sheets],
-                     "iterations": [max(s.iterations) for s in sheets],
-                     "seconds": [s.build_s + s.solve_s for s in sheets],
-                     "geometric_mean_ratio": [r["sheets"][lab]["geometric_mean_ratio"] for lab in LABELS],
-                     "softest_ratio": [min(r["sheets"][lab]["eigen_ratios"]) for lab in LABELS],
-                     "rod_roll": r["robot"]["rod_rotation_deg_per_deg"],
-                     "singular_values": r["robot"]["singular_values"]})
+            row = ladder_row(v, sheets, hom, robot, orient.sheet_params, length_scale=length_scale)
+        rows.append({**row, "seconds": [s.build_s + s.solve_s for s in sheets]})
     if tuple(labels) != LABELS:
         return None
-    out = {"outputs": str(outputs), "gauge": gauge, "seed": seed, "rows": rows,
-           "homogenised": {"rod_roll": st["homogenised_robot"]["rod_rotation_deg_per_deg"],
-                           "singular_values": st["homogenised_robot"]["singular_values"]}}
-    if len(rows) >= 3:
-        h = [row["voxel_mm"] for row in rows]
-        q = {"geometric mean, normal": [row["geometric_mean_ratio"][0] for row in rows],
-             "geometric mean, mirrored": [row["geometric_mean_ratio"][1] for row in rows],
-             "softest mode, normal": [row["softest_ratio"][0] for row in rows],
-             "rod roll [deg/deg]": [row["rod_roll"] for row in rows],
-             **{f"singular value {i + 1} [mm/deg]": [row["singular_values"][i] for row in rows] for i in range(6)}}
-        out["richardson"] = {k: richardson(h, v).to_dict() for k, v in q.items()}
+    out = {"outputs": str(outputs), "gauge": gauge, "seed": seed, "rows": rows, "homogenised": rows[-1]["homogenised"]}
+    fits = ladder_fits(rows)
+    if fits:
+        out["richardson"] = fits
     return out
 
 

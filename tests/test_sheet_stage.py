@@ -95,6 +95,8 @@ n_elevation = 1
 n_steps = 4
 extent_mm = 6.0
 ranges = [[0.0, 90.0], [10.0, 80.0]]
+ladder = [0.7, 0.6]
+other_gauge = true
 """
 
 APPARENT = """
@@ -263,6 +265,19 @@ def test_the_printed_robot_stage_states_each_claim_from_its_prints(run):
                                        key=order.index)
     for key in ("roll", "rotations"):
         assert d["claims"][key] == max((r[key]["status"] for r in d["realisations"]), key=order.index)
+    # the first print converged in the voxel size (0.7, 0.6 and the sheet stage's 0.5 mm) and under the other gauge
+    lad = d["ladder"]
+    assert [r["voxel_mm"] for r in lad["rows"]] == [0.7, 0.6, 0.5] and lad["seed"] == dns["seeds"][0]
+    own = dns["realisations"][0]
+    assert lad["rows"][-1]["rod_roll"] == own["robot"]["rod_rotation_deg_per_deg"]
+    assert lad["rows"][-1]["geometric_mean_ratio"][0] == own["sheets"]["normal"]["geometric_mean_ratio"]
+    assert set(lad["richardson"]) >= {"geometric mean, normal", "rod roll [deg/deg]"}
+    for f in lad["richardson"].values():
+        assert f["h"] == [0.7, 0.6, 0.5] and np.isfinite(f["limit"])
+    og = d["other_gauge"]
+    assert og["gauge"] == "point" and og["row"]["gauge"] == "point"
+    assert og["ratio"]["rod_roll"] == pytest.approx(og["row"]["rod_roll"] / own["robot"]["rod_rotation_deg_per_deg"])
     assert (out / "printed" / "printed_robot.png").stat().st_size > 0
     report = (out / "report" / "report.md").read_text()
     assert "The printed robot against the paper's robot" in report and d["claims"]["roll"] in report
+    assert "Under the other gauge (`point`" in report and "| 0.7 |" in report

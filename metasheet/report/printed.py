@@ -67,6 +67,41 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
                      f"the rod turns {_f(at['pull'])} deg pulled and {_f(at['push'])} deg pushed up to the walls' "
                      "limit.")
     lines.append("")
-    diffs = [f"Printed robot: {text[k]}: {d['claims'][k]}." for k in ("roll", "rotations")
-             if d["claims"][k] != "predicted"]
+    lines += _resolution_lines(d)
+    keys = [k for k in ("roll", "rotations", "workspace", "ranges", "maze") if k in d["claims"]]
+    diffs = [f"Printed robot: {text.get(k, k)}: {d['claims'][k]}." for k in keys if d["claims"][k] != "predicted"]
     return lines, diffs
+
+
+def _resolution_lines(d: Mapping) -> list[str]:
+    """The first print's figures over the voxel sizes (with their Richardson limits) and under
+    the other gauge, when the stage computed them."""
+    out = []
+    lad = d.get("ladder")
+    if lad:
+        out += [f"The first print (seed {lad['seed']}, gauge `{lad['gauge']}`) at each voxel size: printed over "
+                "homogenised stiffness (geometric mean of the 18 modes), the rod's roll per motor degree, the "
+                "smallest singular value.", "",
+                "| voxel [mm] | geometric mean (normal, mirrored) | rod roll [deg/deg] | smallest singular value "
+                "[mm/deg] |", "|---|---|---|---|"]
+        for r in lad["rows"]:
+            g = r["geometric_mean_ratio"]
+            out.append(f"| {r['voxel_mm']:g} | {g[0]:.3f}, {g[1]:.3f} | {r['rod_roll']:+.4f} | "
+                       f"{min(r['singular_values']):.3g} |")
+        fits = lad.get("richardson") or {}
+        for key in ("geometric mean, normal", "rod roll [deg/deg]"):
+            f = fits.get(key)
+            if f:
+                order = "no order claimed" if f["order"] is None else f"order {f['order']:.2f}"
+                out.append(f"- {key}: Richardson limit {f['limit']:.4g} ({order}); the finest size "
+                           f"{100 * f['relative_errors'][-1]:+.1f} % from it.")
+        out.append("")
+    og = d.get("other_gauge")
+    if og:
+        r = og["ratio"]
+        out += [f"Under the other gauge (`{og['gauge']}`, the unpublished assumption of how IceSL turns the cells), "
+                f"the same print at {og['voxel_mm']:g} mm: rod roll x{r['rod_roll']:.3f}, stiffness (geometric mean) "
+                f"x{r['geometric_mean'][0]:.2f} (normal) and x{r['geometric_mean'][1]:.2f} (mirrored), singular "
+                f"values x{min(r['singular_values']):.2f} to x{max(r['singular_values']):.2f}: the named uncertainty "
+                "of every figure above.", ""]
+    return out

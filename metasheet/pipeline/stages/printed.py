@@ -27,6 +27,7 @@ from ...errors import ConfigError
 from ..artefacts import read_material, read_orient
 from ..manifest import write_bytes_atomic, write_json_atomic
 from ..registry import Params, Stage, StageContext, register
+from .sheet import cell_design, check_voxel
 
 #: statuses from best to worst: a claim over the prints is the worst print's
 STATUSES = ("predicted", "predicted up to the walls' limit", "not predicted")
@@ -62,6 +63,11 @@ class PrintedParams(Params):
     max_step_deg: float = Field(5.0, gt=0, le=90, description="largest motor change per control step [deg]")
     rot_weight: float = Field(50.0, gt=0, description="inverse QP weight of rotation errors [mm/rad]")
     picture: bool = Field(True, description="write printed_robot.png")
+    ladder: list[float] = Field([], max_length=8, description="voxel sizes besides the sheet stage's own at which "
+                                "the first print's two sheets are solved again: its figures converged in the voxel "
+                                "size, with their Richardson limits (three sizes or more) [mm]")
+    other_gauge: bool = Field(False, description="solve the first print under the other gauge assumption too (the "
+                              "sheet stage's voxel size): the unpublished gauge's share of every figure")
     resume: bool = Field(True, description="keep each printed sheet's walls' limits as it finishes, so an "
                          "interrupted run resumes")
 
@@ -118,6 +124,44 @@ def _claims(rows: list, studies: bool) -> tuple[dict, dict]:
     mz = [r["studies"]["maze"] for r in rows]
     spread["maze_segments_solved"] = _spread(m["segments"] - len(m["foam_impossible_segments"]) for m in mz)
     return claims, spread
+
+
+def _resolution(ctx: StageContext, p: PrintedParams, dns: dict, first: dict, robot, params) -> dict:
+    """The first print's figures at the ``ladder``'s voxel sizes beside the sheet stage's own,
+    with their Richardson fits, and under the other gauge (``other_gauge``); {} with neither.
+    Each sheet is a resumable executor unit."""
+    from ...sheet.dns import dns_sheet
+    from ...studies.dns_ladder import ladder_fits, ladder_row, study_row
+    from ...studies.resume import UnitCache
+    from .sheet import sheet_prints
+
+    voxel, gauge = float(dns["voxel_mm"]), dns["gauge"]
+    sizes = sorted({float(v) for v in p.ladder} - {voxel}, reverse=True)
+    other = "point" if gauge == "seed" else "seed"
+    jobs = [(v, gauge) for v in sizes] + ([(voxel, other)] if p.other_gauge else [])
+    if not jobs:
+        return {}
+    for v, _ in jobs:
+        check_voxel(v, cell_design(ctx).bead_width, "printed.ladder")
+    prints = [s for v, g in jobs for s in sheet_prints(ctx, [first["seed"]], g, v, 1e-6, 200_000_000)]
+    cache = UnitCache(ctx.workdir.parent / ".printed.units" if p.resume else None)
+    solved = cache.map(ctx.executor, dns_sheet, prints, progress=lambda d, n: ctx.progress("ladder", d, n))
+    hom = tuple(np.asarray(dns["homogenised_K"][lab], float) for lab in ("normal", "mirrored"))
+    rows = {(v, g): ladder_row(v, solved[2 * i:2 * i + 2], hom, robot, params) for i, (v, g) in enumerate(jobs)}
+    own = study_row(voxel, gauge, first, dns["homogenised_robot"])
+    out = {}
+    if sizes:
+        ladder = sorted([own] + [rows[(v, gauge)] for v in sizes], key=lambda r: -r["voxel_mm"])
+        out["ladder"] = {"seed": first["seed"], "gauge": gauge, "rows": ladder, "richardson": ladder_fits(ladder)}
+    if p.other_gauge:
+        r = rows[(voxel, other)]
+        out["other_gauge"] = {"seed": first["seed"], "gauge": other, "voxel_mm": voxel, "row": r, "own": own,
+                              "ratio": {"rod_roll": r["rod_roll"] / own["rod_roll"],
+                                        "geometric_mean": [a / b for a, b in zip(r["geometric_mean_ratio"],
+                                                                                 own["geometric_mean_ratio"])],
+                                        "singular_values": [a / b for a, b in zip(r["singular_values"],
+                                                                                  own["singular_values"])]}}
+    return out
 
 
 def _studies(p: PrintedParams):
@@ -181,12 +225,13 @@ def run(ctx: StageContext) -> dict:
                                            progress=lambda d, j, n, i=i: ctx.progress(f"print {i + 1}: {d}", j, n))
         out_rows.append(row)
     claims, spread = _claims(out_rows, p.studies)
+    resolution = _resolution(ctx, p, dns, rows[0], robot, orient.sheet_params)
     out = {"method": "each print's two sheets as corotational superelements of their grips (the sheet stage's "
                      "linear DNS stiffness, metasheet.studies.printed_adapter), valid to the walls' first "
                      "self-contact (first order, metasheet.studies.printed_limits)",
            "voxel_mm": dns["voxel_mm"], "gauge": dns["gauge"], "seeds": [r["seed"] for r in rows],
            "params": p.model_dump(), "motor_range_deg": list(motor_range),
-           "realisations": out_rows, "claims": claims, "spread": spread}
+           "realisations": out_rows, "claims": claims, "spread": spread, **resolution}
     write_json_atomic(ctx.path("printed.json"), out)
     shutil.rmtree(ctx.workdir.parent / ".printed.units", ignore_errors=True)
     if p.picture:

@@ -75,7 +75,7 @@ def check_voxel(voxel_mm: float, bead_width: float, field: str = "sheet.voxel_mm
                           "(a wall must be at least one voxel)")
 
 
-def _design(ctx: StageContext):
+def cell_design(ctx: StageContext):
     from ...cells.catalogue import parse_design
     from ...cells.polyfoam import PolyfoamDesign
 
@@ -111,7 +111,7 @@ def sheet_prints(ctx: StageContext, seeds, gauge: str, voxel_mm: float, rtol: fl
     order), from the cell stage's design and the print maps (``ctx.inputs``: cell, orient, printmap)."""
     from ...sheet.dns import SheetPrint
 
-    design = _design(ctx)
+    design = cell_design(ctx)
     params = read_orient(ctx.inputs["orient"]).sheet_params
     solid = design.material.material().stiffness()
     fields = {label: _fields(ctx, label) for label in LABELS}
@@ -124,7 +124,7 @@ def run(ctx: StageContext) -> dict:
     from ...studies.sheet_dns import dns_study, homogenised_grips
 
     p: SheetDnsParams = ctx.params
-    design = _design(ctx)
+    design = cell_design(ctx)
     check_voxel(p.voxel_mm, design.bead_width)
     orient = read_orient(ctx.inputs["orient"])
     pair = orient.sheets()
