@@ -48,6 +48,21 @@ def solve(gb, robot, sheet, sheet_index: int, deg: float, rtol: float, history: 
     return np.asarray(w.wrenches, float), time.perf_counter() - t0, w.solution
 
 
+def _contact(args, sheet):
+    """The walls' contact of the command line: the defaults, or the stiffness and ramp asked."""
+    from dataclasses import replace
+
+    from metasheet.fem.voxel.contact import Contact
+
+    h = np.asarray(sheet.size, float) / np.asarray(sheet.phases.shape)
+    c = Contact.default(h, sheet.law.E)
+    if args.contact_stiffness is not None:
+        c = replace(c, stiffness=args.contact_stiffness * sheet.law.E / float(h.min()))
+    if args.contact_ramp is not None:
+        c = replace(c, ramp=args.contact_ramp * c.gap)
+    return c
+
+
 def main() -> None:
     from metasheet.fem.voxel.gaps import closest_approach
     from metasheet.sheet.voxel_grips_nonlinear import GripBody
@@ -62,11 +77,16 @@ def main() -> None:
     ap.add_argument("--rtol", type=float, default=1e-4, help="free residual over the reactions")
     ap.add_argument("--contact", action="store_true",
                     help="penalty contact between the walls (metasheet.fem.voxel.contact, its defaults)")
+    ap.add_argument("--contact-stiffness", type=float, default=None,
+                    help="with --contact: the penalty's stiffness as a multiple of E / h (default 10)")
+    ap.add_argument("--contact-ramp", type=float, default=None,
+                    help="with --contact: the overlap over which a pair's stiffness ramps in, as a share of the "
+                         "gap (default 0.5; 0: none)")
     add_save_option(ap)
     args = ap.parse_args()
     robot, sheet, seed = voxel_sheet(args.outputs, args.voxel, args.gauge, args.seed, args.sheet)
     gb = GripBody(sheet.phases, sheet.size, sheet.law, bodies=sheet.bodies, references=sheet.references - sheet.origin,
-                  contact=True if args.contact else None)
+                  contact=_contact(args, sheet) if args.contact else None)
     index = LABELS.index(args.sheet)
     history: list = []
     W, wall, sol = solve(gb, robot, sheet, index, args.deg, args.rtol, history)
