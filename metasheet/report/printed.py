@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from .columns import STATEMENTS
+
 #: the paper's physical robot, claim by claim (Section V-B, Fig. 5 and 7)
 CLAIMS = {
     "roll": "the rod rolled one way with all six motors pulled by {pull:g} deg and the other way pushed by "
@@ -50,6 +52,10 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
     for key in ("roll", "rotations"):
         per = ", ".join(f"seed {r['seed']}: {r[key]['status']}" for r in rows)
         lines.append(f"| {text[key]} | **{d['claims'][key]}** | {per} |")
+    for key in ("workspace", "ranges", "maze"):
+        if key in d["claims"]:
+            per = "; ".join(f"seed {r['seed']}: {r['studies'][key]['verdict']['text']}" for r in rows)
+            lines.append(f"| {STATEMENTS[key]} | **{d['claims'][key]}** | {per} |")
     lines.append("")
     spr = d["spread"]
     lines += [f"- Walls' first contact (the model's limit): {_span(spr['valid_deg'])} deg of motor travel "
@@ -69,7 +75,8 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
     lines.append("")
     lines += _resolution_lines(d)
     keys = [k for k in ("roll", "rotations", "workspace", "ranges", "maze") if k in d["claims"]]
-    diffs = [f"Printed robot: {text.get(k, k)}: {d['claims'][k]}." for k in keys if d["claims"][k] != "predicted"]
+    text.update({k: STATEMENTS[k] for k in ("workspace", "ranges", "maze")})
+    diffs = [f"Printed robot: {text[k]}: {d['claims'][k]}." for k in keys if d["claims"][k] != "predicted"]
     return lines, diffs
 
 

@@ -60,8 +60,9 @@ def printed_robot_picture(study: dict) -> bytes:
     else:
         b.text(0.5, 0.5, "walls not searched (contact = false)", ha="center", va="center", transform=b.transAxes)
         b.set_axis_off()
-    claims = study["claims"]
-    fig.suptitle(f"Printed robot, {len(rows)} print(s): rod rolled both ways: {claims['roll']}; "
-                 f"10 deg about each axis at rest: {claims['rotations']}", fontsize=9, wrap=True)
+    names = {"roll": "rod rolled both ways (Fig. 7)", "rotations": "10 deg about each axis at rest",
+             "workspace": "Fig. 5", "ranges": "Fig. 6", "maze": "maze"}
+    said = "; ".join(f"{names[k]}: {v}" for k, v in study["claims"].items() if k in names)
+    fig.suptitle(f"Printed robot, {len(rows)} print(s). {said}", fontsize=9, wrap=True)
     fig.tight_layout()
     return figure_png(fig, dpi=110)
