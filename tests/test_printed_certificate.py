@@ -48,4 +48,7 @@ def test_the_superelement_robot_is_certified_over_five_degrees(pair):
     """Held-out poses up to 5 deg from rest, the rod's roll both ways included (measured: 0.10 mm
     and 0.057 deg at (5, -5, 2.5, 0, 4, -3), walls strained 24 %; 10 deg misses the orientation
     target: 0.25 mm, 0.54 deg). Default-selection sibling: the 2 deg pose above."""
-    _check(pair, [[5.0, -5.0, 2.5, 0.0, 4.0, -3.0], [5.0] * 6, [-5.0] * 6])
+    # all six motors alike first: the rod's Broyden Jacobian carried from that pose is poor in the
+    # directions it never explored, and a full step from it turned the rod past a half turn (the
+    # step is bounded now: metasheet.robot.voxel_robot.MAX_TURN)
+    _check(pair, [[5.0] * 6, [-5.0] * 6, [5.0, -5.0, 2.5, 0.0, 4.0, -3.0], [-3.0, 4.0, 5.0, -2.0, 0.0, 3.0]])

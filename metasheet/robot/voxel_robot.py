@@ -97,6 +97,10 @@ def sheet_grip_poses(Q, centre, references, origin, servos, dp, theta, dphi) -> 
     return rot, trans
 
 
+#: the rod's largest Broyden step: a turn [rad] and a move [share of an arm's reach]
+MAX_TURN, MAX_MOVE = 0.1, 0.25
+
+
 class PrintedRobot:
     """The two printed sheets on the six-DOF ``robot``'s rod and horns (module docstring).
 
@@ -183,6 +187,11 @@ class PrintedRobot:
                                    tuple(g.solution.stable for g in self.last),
                                    tuple(g.solution.contact for g in self.last if g.solution.contact is not None))
             step = np.linalg.solve(J, -r)
+            # a Jacobian carried from another pose can be poor in the directions that pose never
+            # explored (all six motors alike move the rod along one axis only): a full step from
+            # it turned the rod by more than a half turn; Broyden learns from the shorter step too
+            step = step * min(1.0, MAX_TURN / max(float(np.linalg.norm(step[3:])), 1e-300),
+                              MAX_MOVE * length / max(float(np.linalg.norm(step[:3])), 1e-300))
             q_new = q + step
             r_new, per, scale = self.rod_wrench(q_new, motors)
             y = r_new - r
