@@ -243,6 +243,20 @@ def test_the_printed_robot_stage_states_each_claim_from_its_prints(run):
         found = [v["contact_deg"] for v in lim["directions"].values() if v["contact_deg"] is not None]
         assert lim["valid_deg"] == min(found) and lim["directions"][lim["binding"]]["contact_deg"] == lim["valid_deg"]
         assert len(lim["strain_per_deg"]) == 6 and min(min(s) for s in lim["strain_per_deg"]) >= 0
+        # the validity map: 16 directions around the plane of the common modes, the rays of the study's grid
+        vm = r["map"]
+        assert len(vm["plane"]) == 16 and {x["name"] for x in vm["plane"]} >= {"roll up", "roll down", "A up"}
+        grid_rays = star_grid(n_azimuth=4, n_elevation=1, n_steps=4, extent_axial=6.0, extent_lateral=6.0).directions
+        assert len(vm["rays"]) == len(grid_rays)
+        for x, e in zip(vm["rays"], grid_rays):
+            assert x["direction"] == pytest.approx(e.tolist()) and x["mm_per_deg"] > 0
+            assert x["contact_deg"] == lim["directions"][x["name"]]["contact_deg"]
+            if x["contact_deg"] is not None:
+                assert x["contact_mm"] == pytest.approx(x["contact_deg"] * x["mm_per_deg"], rel=1e-12)
+                assert x["contact_deg"] >= lim["valid_deg"]
+        for x in vm["plane"] + vm["rays"]:
+            c, s_ = (np.inf if v is None else v for v in (x["contact_deg"], x["strain_deg"]))
+            assert x["binds"] == (None if c == s_ == np.inf else ("contact" if c <= s_ else "strain"))
         rot = r["rotations"]
         assert rot["rest_rod_roll_deg_per_deg"] == pytest.approx(row["robot"]["rod_rotation_deg_per_deg"], rel=1e-6)
         roll = r["roll"]
@@ -281,3 +295,4 @@ def test_the_printed_robot_stage_states_each_claim_from_its_prints(run):
     report = (out / "report" / "report.md").read_text()
     assert "The printed robot against the paper's robot" in report and d["claims"]["roll"] in report
     assert "Under the other gauge (`point`" in report and "| 0.7 |" in report
+    assert "rays of Fig. 5, orientation held" in report

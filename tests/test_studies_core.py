@@ -259,7 +259,7 @@ def test_continuity_paths_from_one_point_share_its_equilibrium(monkeypatch):
     """Paths from the same start solve its equilibrium once, with the same verdicts as paths
     tested one by one."""
     from metasheet.studies.standin import StandInRobot
-    from metasheet.studies.workspace import EdgeTask, test_paths
+    from metasheet.studies.continuity import EdgeTask, test_paths
 
     spec, s = StandInSpec(), WorkspaceSettings(substeps=2)
     m = MODELS.get(spec)

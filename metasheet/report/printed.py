@@ -73,11 +73,56 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
                      f"the rod turns {_f(at['pull'])} deg pulled and {_f(at['push'])} deg pushed up to the walls' "
                      "limit.")
     lines.append("")
+    lines += _map_lines(d)
     lines += _resolution_lines(d)
     keys = [k for k in ("roll", "rotations", "workspace", "ranges", "maze") if k in d["claims"]]
     text.update({k: STATEMENTS[k] for k in ("workspace", "ranges", "maze")})
     diffs = [f"Printed robot: {text[k]}: {d['claims'][k]}." for k in keys if d["claims"][k] != "predicted"]
     return lines, diffs
+
+
+def _map_lines(d: Mapping) -> list[str]:
+    """The validity map from the walls, over the prints: the plane of the sheets' common modes and
+    the rays of Fig. 5 (:func:`metasheet.studies.printed_limits.validity_map`)."""
+    maps = [(r["seed"], r["map"]) for r in d["realisations"] if r.get("map")]
+    if not maps:
+        return []
+    out = ["Where the walls stop the printed robot (the validity map; picture, middle and right):"]
+    plane = [(s, [x for x in m["plane"]]) for s, m in maps if m["plane"]]
+    if plane:
+        per = "; ".join(f"seed {s}: {_f(_min(x['contact_deg'] for x in xs))} to {_f(_max(x['contact_deg'] for x in xs))} "
+                        f"deg" for s, xs in plane)
+        out.append(f"- Around the plane of the two sheets' common modes ({len(plane[0][1])} directions), the walls "
+                   f"first touch after {per} of the largest motor's travel.")
+    rays = [(s, m["rays"]) for s, m in maps if m["rays"]]
+    if rays:
+        per = "; ".join(f"seed {s}: {_f(_min(x['contact_mm'] for x in xs))} to {_f(_max(x['contact_mm'] for x in xs))} "
+                        f"mm (median {_f(_median(x['contact_mm'] for x in xs))})" for s, xs in rays)
+        strain = sum(x["binds"] == "strain" for _, xs in rays for x in xs)
+        free = sum(x["binds"] is None for _, xs in rays for x in xs)
+        out.append(f"- Along the {len(rays[0][1])} rays of Fig. 5, orientation held, the rod moves {per} before two "
+                   f"walls touch; the walls' strain limit binds first on {strain} of the {sum(len(xs) for _, xs in rays)} "
+                   f"rays over the prints, neither within the search on {free}.")
+    return out + [""]
+
+
+def _values(vals) -> list[float]:
+    return [v for v in vals if v is not None]
+
+
+def _min(vals):
+    v = _values(vals)
+    return min(v) if v else None
+
+
+def _max(vals):
+    v = _values(vals)
+    return max(v) if v else None
+
+
+def _median(vals):
+    v = sorted(_values(vals))
+    return None if not v else (v[len(v) // 2] if len(v) % 2 else 0.5 * (v[len(v) // 2 - 1] + v[len(v) // 2]))
 
 
 def _resolution_lines(d: Mapping) -> list[str]:

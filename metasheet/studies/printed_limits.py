@@ -16,6 +16,13 @@ six motors up by the same angle (pulling, paper Fig. 7), ``"roll down"`` all six
 sheet B's (3-5), and with ``motors`` each motor alone both ways. A motor direction moves
 both sheets (through the rod), so each sheet is searched along every direction.
 
+The validity map (issue 62, item 4) adds two families: :func:`plane_directions`, evenly around
+the plane of sheet A's and sheet B's common modes (it holds the six base directions), and
+:func:`ray_directions`, the motor directions that move the rod along the rays of the workspace
+study's grid (paper Fig. 5) with its orientation held, to first order (the rest Jacobian).
+:func:`validity_map` reads both back from :func:`combine`'s limits: per direction the travel
+to the walls' first contact and to their strain limit, and which binds first.
+
 Both limits are first order in the motion, as :mod:`metasheet.sheet.wall_limits` says: the
 nonlinear DNS closes the mirrored print's gaps faster than this, so the contact travels are
 late estimates.
@@ -48,6 +55,46 @@ def directions(motors: bool = False) -> dict[str, tuple[float, ...]]:
                 d[k] = sign
                 out[f"motor {k} {word}"] = tuple(d)
     return out
+
+
+def _unit_offsets(d) -> tuple[float, ...]:
+    d = np.asarray(d, float)
+    return tuple(float(v) for v in d / np.abs(d).max())
+
+
+def plane_directions(n: int) -> dict[str, tuple[float, ...]]:
+    """``n`` directions at angles ``phi = 360 k / n`` deg in the plane of sheet A's common mode
+    (phi = 0: ``"A up"``) and sheet B's (phi = 90: ``"B up"``; 45: ``"roll up"``), named
+    ``"plane <phi>"`` or by the base direction they coincide with, each scaled to a largest motor
+    offset of one."""
+    check_range("n", n, 0, 360)
+    out = {}
+    base = {v: k for k, v in BASE_DIRECTIONS.items()}
+    for k in range(int(n)):
+        phi = 360.0 * k / n
+        c, s = np.cos(np.radians(phi)), np.sin(np.radians(phi))
+        d = _unit_offsets([c, c, c, s, s, s])
+        d = tuple(round(v, 12) + 0.0 for v in d)  # so that 45 deg is (1, ..., 1) exactly
+        out[base.get(d, f"plane {phi:g}")] = d
+    return out
+
+
+def ray_directions(J, rays) -> tuple[dict[str, tuple[float, ...]], list[float]]:
+    """({"ray <r>": motor offsets per degree of the largest motor}, mm_per_deg): for each unit ray
+    of ``rays`` (n, 3), the motor direction ``J^-1 (ray, 0)`` that moves the rod along it with
+    its orientation held (first order), and the rod's travel along the ray per degree of that
+    direction's largest motor [mm/deg]. ``J`` (6, 6): the effector's (dp [mm], dtheta [rad])
+    per motor [rad] at rest (:func:`metasheet.robot.condensed.grip_motions_per_motor`)."""
+    J = np.asarray(J, float)
+    rays = np.asarray(rays, float).reshape(-1, 3)
+    if J.shape != (6, 6) or not np.isfinite(J).all():
+        raise ConfigError(f"J: shape {J.shape}: expected a finite (6, 6) rest Jacobian")
+    m = np.linalg.solve(J, np.vstack([rays.T, np.zeros((3, len(rays)))])).T  # (n, 6) [rad per mm]
+    scale = np.abs(m).max(axis=1)
+    if not (scale > 0).all():
+        raise ConfigError("rays: a zero ray direction")
+    dirs = {f"ray {r}": _unit_offsets(row) for r, row in enumerate(m)}
+    return dirs, [float(np.radians(1.0) / s) for s in scale]
 
 
 @dataclass(frozen=True)
@@ -112,3 +159,35 @@ def combine(a: dict, b: dict) -> dict:
     valid, binding = min(contacts) if contacts else (None, None)
     rates = np.maximum(np.asarray(a["strain_per_deg"]), np.asarray(b["strain_per_deg"]))
     return {"valid_deg": valid, "binding": binding, "directions": dirs, "strain_per_deg": rates.tolist()}
+
+
+def _binds(contact, strain) -> str | None:
+    c, s = (np.inf if v is None else v for v in (contact, strain))
+    return None if c == s == np.inf else ("contact" if c <= s else "strain")
+
+
+def validity_map(limits: dict, plane: dict, rays: list[dict]) -> dict:
+    """The validity map of one robot from its :func:`combine`'d ``limits``: ``plane`` the
+    :func:`plane_directions` searched (name -> offsets), ``rays`` per ray of the grid its
+    ``direction`` (3,), ``name`` and ``mm_per_deg`` (:func:`ray_directions`). Per plane direction
+    its angle [deg] and the travels [deg of the largest motor]; per ray the rod's travel along it
+    [mm] to the walls' first contact and to their strain limit; each with the limit that binds."""
+    d = limits["directions"]
+
+    def row(name):
+        r = d[name]
+        return {"contact_deg": r["contact_deg"], "strain_deg": r["strain_deg"],
+                "binds": _binds(r["contact_deg"], r["strain_deg"]), "sheet": r["contact_sheet"]}
+
+    out_plane = []
+    for name, off in plane.items():
+        phi = float(np.degrees(np.arctan2(off[3], off[0]))) % 360.0
+        out_plane.append({"name": name, "phi_deg": phi, **row(name)})
+    out_rays = []
+    for ray in rays:
+        r, k = row(ray["name"]), ray["mm_per_deg"]
+        out_rays.append({**{key: ray[key] for key in ("name", "direction", "azimuth", "elevation", "mm_per_deg")},
+                         "contact_mm": None if r["contact_deg"] is None else r["contact_deg"] * k,
+                         "strain_mm": None if r["strain_deg"] is None else r["strain_deg"] * k,
+                         **r})
+    return {"plane": out_plane, "rays": out_rays}

@@ -34,7 +34,7 @@ model's domain on the way: :attr:`PointRecords.rot_beyond`), the smallest Jacobi
 control), and continuity: a graph whose nodes are the reached points (and the rest pose),
 with an edge along each ray where continuation went, and an edge between points at the same
 step of neighbouring rays when the inverse model walks from one to the other through
-``substeps`` intermediate goals, each reached. Its connected components are reported.
+``substeps`` intermediate goals, each reached (:mod:`.continuity`). Its connected components are reported.
 """
 
 from __future__ import annotations
@@ -44,8 +44,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError, ConvergenceError, check_range
+from ..errors import ConfigError, check_range
 from ..runtime.executor import Executor
+from .continuity import continuity
 from .grid import StarGrid
 from .model import MODELS, ModelSpec, pose_errors
 from .reduced_adapter import PAST_BOX
@@ -300,48 +301,6 @@ def classify(reached: np.ndarray, rot_ok: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class EdgeTask:
-    """Paths to test: from each start (motor angles (6,) [deg], pose (6,)) to a goal pose (6,)."""
-
-    spec: ModelSpec
-    settings: WorkspaceSettings
-    starts_motors: np.ndarray  # (e, n_motors)
-    starts_pose: np.ndarray  # (e, 6)
-    goals: np.ndarray  # (e, 6)
-
-
-def test_paths(task: EdgeTask) -> np.ndarray:
-    """Work unit: (e,) bool, True where the inverse model walks from start to goal through
-    ``substeps`` evenly spaced goals, each reached within ``tol_mm``."""
-    model = MODELS.get(task.spec)
-    s = task.settings
-    out = np.zeros(len(task.goals), bool)
-    starts: dict[bytes, tuple | None] = {}  # a point starts ~2 paths: its equilibrium is solved once
-    for e, (q, a, b) in enumerate(zip(task.starts_motors, task.starts_pose, task.goals)):
-        key = np.asarray(q, float).tobytes()
-        if key not in starts:
-            try:
-                starts[key] = model.equilibrium(q)
-            except ConvergenceError:  # no equilibrium found there: the path is not proven
-                starts[key] = None
-        if starts[key] is None:
-            continue
-        pose, state = starts[key]
-        if pose_errors(a, pose)[0] > s.tol_mm:  # the forward model lands elsewhere (another branch)
-            continue
-        ok = True
-        for t in np.arange(1, s.substeps + 1) / s.substeps:
-            g = a + t * (b - a)
-            r = model.reach(g, state=state, tol_mm=s.tol_mm, max_steps=s.max_steps, rot_weight=s.point_rot_weight)
-            if pose_errors(g, r.pose)[0] > s.tol_mm or not r.converged:
-                ok = False
-                break
-            state = r.state
-        out[e] = ok
-    return out
-
-
-@dataclass(frozen=True)
 class WorkspaceResult:
     """Everything the workspace study found; per-point arrays have n = len(grid) rows.
 
@@ -414,40 +373,6 @@ def explore_workspace(
     cls = classify(records.reached, records.rot_ok)
     valid = records.reached & (records.strain <= settings.strain_limit)
 
-    import networkx as nx  # here: 0.13 s of every command's start
-
-    G = nx.Graph()
-    G.add_node(-1)  # the rest pose
-    reached = np.flatnonzero(records.reached)
-    G.add_nodes_from(reached.tolist())
-    G.add_edges_from((int(i), int(parent[i])) for i in reached)
-    tested = passed = 0
-    if settings.continuity:
-        pairs = []
-        for ra, rb in grid.neighbour_rays():
-            ia, ib = grid.ray_points(ra), grid.ray_points(rb)
-            common = np.intersect1d(grid.index[ia], grid.index[ib])
-            for step in common:
-                a = int(ia[grid.index[ia] == step][0])
-                b = int(ib[grid.index[ib] == step][0])
-                if records.reached[a] and records.reached[b]:
-                    pairs.append((a, b))
-        pairs.sort()  # the paths from one point in the same unit: its equilibrium is solved once
-        pose = lambda i: np.concatenate([goals[i], rest[3:]])  # noqa: E731
-        edge_tasks = [
-            EdgeTask(spec, settings, records.motors_deg[[a for a, _ in ch]], np.array([pose(a) for a, _ in ch]),
-                     np.array([pose(b) for _, b in ch]))
-            for ch in (pairs[i:i + edges_per_unit] for i in range(0, len(pairs), edges_per_unit))
-        ]
-        oks = cache.map(executor, test_paths, edge_tasks, progress=lambda d, n: progress("continuity", d, n))
-        flags = np.concatenate(oks) if oks else np.zeros(0, bool)
-        tested, passed = len(pairs), int(flags.sum())
-        G.add_edges_from(p for p, ok in zip(pairs, flags) if ok)
-    comps = sorted(nx.connected_components(G), key=lambda c: (-1 not in c, -len(c), min(c)))
-    component = np.full(len(grid), -1)
-    for c_id, comp in enumerate(comps):
-        for i in comp:
-            if i >= 0:
-                component[i] = c_id
-    n_comp = sum(1 for c in comps if any(i >= 0 for i in c))
+    component, n_comp, tested, passed = continuity(spec, settings, grid, records, parent, goals, rest, executor=executor,
+                                                   progress=progress, cache=cache, edges_per_unit=edges_per_unit)
     return WorkspaceResult(goals, cls, records, valid, component, n_comp, tested, passed, settings)

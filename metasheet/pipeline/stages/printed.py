@@ -40,6 +40,12 @@ class PrintedParams(Params):
                           "paper's sheet); false: no walls' limit (the claims then hold the model alone)")
     motor_directions: bool = Field(False, description="search each motor alone too (12 more directions), not only "
                                    "all six and each sheet's three, up and down")
+    map_plane: int = Field(16, ge=0, le=360, description="the validity map: this many directions around the plane "
+                           "of the two sheets' common modes (holding the six base directions; a few seconds each "
+                           "per sheet)")
+    map_rays: bool = Field(True, description="the validity map on the rays of Fig. 5: the walls searched along the "
+                           "motor direction of each ray of the workspace grid (first order; 62 rays by default, a "
+                           "few seconds each per sheet)")
     search_deg: float = Field(10.0, gt=0, le=90, description="the contact search's motor travel [deg]")
     strain_limit: float = Field(0.3, gt=0, le=5, description="the walls' strain limit [-] (the neo-Hookean law's "
                                 "range, not NinjaFlex's failure: docs/printed-sheet.md)")
@@ -110,6 +116,11 @@ def _claims(rows: list, studies: bool) -> tuple[dict, dict]:
               "rod_rotation_pull_deg": _spread(r["roll"]["pull"]["rod_rotation_deg"] for r in rows),
               "rod_rotation_push_deg": _spread(r["roll"]["push"]["rod_rotation_deg"] for r in rows),
               "smallest_singular_value": _spread(min(r["rotations"]["rest_singular_values_mm_per_rad"]) for r in rows)}
+    rays = [[x["contact_mm"] for x in r["map"]["rays"] if x["contact_mm"] is not None]
+            for r in rows if r.get("map") and r["map"]["rays"]]
+    if rays:
+        spread["ray_contact_mm_min"] = _spread(min(v) if v else None for v in rays)
+        spread["ray_contact_mm_median"] = _spread(float(np.median(v)) if v else None for v in rays)
     if not studies:
         return claims, spread
     for key in ("workspace", "ranges", "maze"):
@@ -164,6 +175,21 @@ def _resolution(ctx: StageContext, p: PrintedParams, dns: dict, first: dict, rob
     return out
 
 
+def _rays(p: PrintedParams, J) -> tuple[dict, list[dict]]:
+    """The validity map's ray directions (:func:`~metasheet.studies.printed_limits.ray_directions`)
+    on the rays of the stage's workspace grid, and each ray's description."""
+    from ...studies.grid import star_grid
+    from ...studies.printed_limits import ray_directions
+
+    grid = star_grid(n_azimuth=p.n_azimuth, n_elevation=p.n_elevation, n_steps=p.n_steps,
+                     extent_axial=p.extent_mm, extent_lateral=p.extent_mm)
+    dirs, per = ray_directions(J, grid.directions)
+    meta = [{"name": name, "direction": [float(v) for v in e], "azimuth": int(a), "elevation": int(el),
+             "mm_per_deg": k}
+            for name, e, a, el, k in zip(dirs, grid.directions, grid.azimuth, grid.elevation, per)]
+    return dirs, meta
+
+
 def _studies(p: PrintedParams):
     """The :class:`~metasheet.studies.printed_studies.PrintStudies` of the stage's keys: the
     workspace stage's grid and paper rotation test, the maze stage's path."""
@@ -186,7 +212,7 @@ def run(ctx: StageContext) -> dict:
     from ...sheet.grips import grip_references
     from ...studies.printed_adapter import printed_spec
     from ...studies.printed_claims import roll_claim, rotation_claim
-    from ...studies.printed_limits import WallUnit, combine, directions, wall_unit
+    from ...studies.printed_limits import WallUnit, combine, directions, plane_directions, validity_map, wall_unit
     from ...studies.printed_studies import print_studies
     from ...studies.resume import UnitCache
     from .sheet import scene_robot, sheet_prints
@@ -199,18 +225,22 @@ def run(ctx: StageContext) -> dict:
     robot = scene_robot(ctx, orient.sheets(), read_material(ctx.inputs["material"]))
     refs = grip_references(orient.sheet_params)
     motor_range = (float(np.degrees(np.min(robot.angle_min))), float(np.degrees(np.max(robot.angle_max))))
-    limits = [None] * len(rows)
+    limits = maps = [None] * len(rows)
     if p.contact:
         prints = sheet_prints(ctx, [r["seed"] for r in rows], dns["gauge"], dns["voxel_mm"], 1e-6, 200_000_000)
-        dirs = tuple(directions(p.motor_directions).items())
-        units = []
+        plane = plane_directions(p.map_plane)
+        units, ray_meta = [], []
         for i, (Ka, Kb) in enumerate(Ks):
-            Ga, Gb, _ = grip_motions_per_motor(Ka, Kb, robot, refs)
+            Ga, Gb, J = grip_motions_per_motor(Ka, Kb, robot, refs)
+            rays, meta = _rays(p, J) if p.map_rays else ({}, [])
+            dirs = tuple({**directions(p.motor_directions), **plane, **rays}.items())
+            ray_meta.append(meta)
             units += [WallUnit(prints[2 * i], tuple(map(tuple, Ga)), dirs, p.search_deg, p.strain_limit),
                       WallUnit(prints[2 * i + 1], tuple(map(tuple, Gb)), dirs, p.search_deg, p.strain_limit)]
         cache = UnitCache(ctx.workdir.parent / ".printed.units" if p.resume else None)
         found = cache.map(ctx.executor, wall_unit, units, progress=lambda d, n: ctx.progress("printed walls", d, n))
         limits = [combine(found[2 * i], found[2 * i + 1]) for i in range(len(rows))]
+        maps = [validity_map(lim, plane, meta) for lim, meta in zip(limits, ray_meta)]
     out_rows = []
     for i, (r, (Ka, Kb)) in enumerate(zip(rows, Ks)):
         ctx.progress("claims", i, len(rows))
@@ -218,7 +248,7 @@ def run(ctx: StageContext) -> dict:
         spec = printed_spec(robot, Ka, Kb, refs, label=f"seed {r['seed']}", motor_range=motor_range,
                             valid_deg=lim.get("valid_deg"), max_step_deg=p.max_step_deg, rot_weight=p.rot_weight,
                             wall_strain_per_deg=lim.get("strain_per_deg"))
-        row = {"seed": r["seed"], "limits": limits[i], "roll": roll_claim(spec, p.pull_deg, p.push_deg, lim),
+        row = {"seed": r["seed"], "limits": limits[i], "map": maps[i], "roll": roll_claim(spec, p.pull_deg, p.push_deg, lim),
                "rotations": rotation_claim(spec, p.rot_deg, p.tol_mm, p.tol_deg)}
         if p.studies:
             row["studies"] = print_studies(spec, _studies(p), executor=ctx.executor,
