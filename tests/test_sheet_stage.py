@@ -90,6 +90,7 @@ voxel_mm = 0.5
 realisations = 2
 
 [printed]
+map_rays = true
 n_azimuth = 4
 n_elevation = 1
 n_steps = 4

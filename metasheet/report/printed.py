@@ -69,7 +69,8 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
         if not lim:
             continue
         at = r["roll"]["rod_rotation_within_limits_deg"]
-        lines.append(f"- Seed {r['seed']}: walls touch first along \"{lim['binding']}\" at {_f(lim['valid_deg'])} deg; "
+        lines.append(f"- Seed {r['seed']}: walls touch first along {_direction(r, lim['binding'])} at "
+                     f"{_f(lim['valid_deg'])} deg; "
                      f"the rod turns {_f(at['pull'])} deg pulled and {_f(at['push'])} deg pushed up to the walls' "
                      "limit.")
     lines.append("")
@@ -81,6 +82,15 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
     return lines, diffs
 
 
+def _direction(row: Mapping, name: str | None) -> str:
+    """A searched direction in words: a ray of Fig. 5 by its direction, the others by name."""
+    for ray in (row.get("map") or {}).get("rays", []):
+        if ray["name"] == name:
+            x, y, z = ray["direction"]
+            return f"\"{name}\" (the rod moved along ({x:+.2f}, {y:+.2f}, {z:+.2f}), orientation held)"
+    return f"\"{name}\""
+
+
 def _map_lines(d: Mapping) -> list[str]:
     """The validity map from the walls, over the prints: the plane of the sheets' common modes and
     the rays of Fig. 5 (:func:`metasheet.studies.printed_limits.validity_map`)."""
@@ -88,21 +98,23 @@ def _map_lines(d: Mapping) -> list[str]:
     if not maps:
         return []
     out = ["Where the walls stop the printed robot (the validity map; picture, middle and right):"]
-    plane = [(s, [x for x in m["plane"]]) for s, m in maps if m["plane"]]
+    plane = [(s, m["plane"]) for s, m in maps if m["plane"]]
     if plane:
-        per = "; ".join(f"seed {s}: {_f(_min(x['contact_deg'] for x in xs))} to {_f(_max(x['contact_deg'] for x in xs))} "
-                        f"deg" for s, xs in plane)
+        per = "; ".join(f"seed {s}: {_f(_min(x['contact_deg'] for x in xs))} to "
+                        f"{_f(_max(x['contact_deg'] for x in xs))} deg" for s, xs in plane)
         out.append(f"- Around the plane of the two sheets' common modes ({len(plane[0][1])} directions), the walls "
                    f"first touch after {per} of the largest motor's travel.")
     rays = [(s, m["rays"]) for s, m in maps if m["rays"]]
     if rays:
-        per = "; ".join(f"seed {s}: {_f(_min(x['contact_mm'] for x in xs))} to {_f(_max(x['contact_mm'] for x in xs))} "
-                        f"mm (median {_f(_median(x['contact_mm'] for x in xs))})" for s, xs in rays)
-        strain = sum(x["binds"] == "strain" for _, xs in rays for x in xs)
-        free = sum(x["binds"] is None for _, xs in rays for x in xs)
+        per = "; ".join(f"seed {s}: {_f(_min(x['contact_mm'] for x in xs))} to "
+                        f"{_f(_max(x['contact_mm'] for x in xs))} mm (median {_f(_median(x['contact_mm'] for x in xs))})"
+                        for s, xs in rays)
+        every = [x for _, xs in rays for x in xs]
+        strain = sum(x["binds"] == "strain" for x in every)
+        free = sum(x["binds"] is None for x in every)
         out.append(f"- Along the {len(rays[0][1])} rays of Fig. 5, orientation held, the rod moves {per} before two "
-                   f"walls touch; the walls' strain limit binds first on {strain} of the {sum(len(xs) for _, xs in rays)} "
-                   f"rays over the prints, neither within the search on {free}.")
+                   f"walls touch; the walls' strain limit binds first on {strain} of the {len(every)} rays over the "
+                   f"prints, neither within the search on {free}.")
     return out + [""]
 
 

@@ -105,7 +105,8 @@ def _ray_panel(fig, ax, rows) -> None:
     fig.colorbar(im, ax=ax, label="rod travel before the walls touch [mm]")
     ax.set_xlabel("ray azimuth about the rod [deg]")
     # the grid's rod axis is x (metasheet.studies.grid.star_grid's default, the stage's)
-    el = {x["elevation"]: np.degrees(np.arcsin(np.clip(x["direction"][0], -1, 1))) for x in rays[0] if x["azimuth"] >= 0}
+    el = {x["elevation"]: np.degrees(np.arcsin(np.clip(x["direction"][0], -1, 1)))
+          for x in rays[0] if x["azimuth"] >= 0}
     ax.set_yticks(range(n_el), [f"{el[e]:.0f}" for e in range(n_el)])
     ax.set_ylabel("ray elevation towards the rod axis [deg]")
     rod = [f"{w:.2g}" if np.isfinite(w) else "none" for x, w in zip(rays[0], worst) if x["azimuth"] < 0]
