@@ -109,6 +109,6 @@ def _ray_panel(fig, ax, rows) -> None:
           for x in rays[0] if x["azimuth"] >= 0}
     ax.set_yticks(range(n_el), [f"{el[e]:.0f}" for e in range(n_el)])
     ax.set_ylabel("ray elevation towards the rod axis [deg]")
-    rod = [f"{w:.2g}" if np.isfinite(w) else "none" for x, w in zip(rays[0], worst) if x["azimuth"] < 0]
+    rod = [f"{w:.2g} mm" if np.isfinite(w) else "no contact" for x, w in zip(rays[0], worst) if x["azimuth"] < 0]
     ax.set_title(f"On the rays of Fig. 5, orientation held (smallest over the prints);\nalong the rod: "
-                 f"{' and '.join(rod)} mm", fontsize=9)
+                 f"{' and '.join(rod)}", fontsize=9)
