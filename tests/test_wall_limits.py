@@ -144,3 +144,39 @@ def test_first_contact_steps_to_the_same_travel_as_the_all_pairs_search():
         assert t == pytest.approx(want, rel=1e-12)
     assert first_contact(solid, h, u, 0.9 * want)[0] == np.inf  # not within the travel asked
     assert first_contact(solid, h, -u, 3.0)[0] == np.inf
+    # head-on at twice a node's speed, the reach's worst case: the faces (6 voxels apart) touch at
+    # (1.5 - touch) / 2 = 0.71875, in the last 5 % of the first of three steps of 0.75, where
+    # only the full reach (touch plus a node's largest motion in a step) holds them at the middle
+    u2 = u.copy()
+    u2[_nodes(solid.shape, h)[..., 0] <= 2 * h[0] + 1e-12, 0] = 1.0
+    t, _ = first_contact(solid, h, u2, 2.25, steps=3)
+    assert t == pytest.approx((6 * 0.25 - 0.25 * 0.25) / 2, rel=1e-12)
+
+
+def test_first_contact_on_a_rough_field_is_the_all_pairs_first_contact():
+    """A random porous block, its halves moving head-on with every node wobbling besides (pairs far
+    apart at rest close, neighbours pass each other): the stepped search finds the exact first contact
+    of all the pairs that can close within the travel, found by :func:`wall_pairs` with a radius no
+    pair beyond can cover (touch plus twice the fastest node's travel)."""
+    from metasheet.sheet.wall_limits import first_contact
+
+    rng = np.random.default_rng(7)
+    h = np.array([0.25, 0.25, 0.25])
+    for trial in range(3):
+        solid = rng.random((9, 8, 5)) < 0.45
+        X = _nodes(solid.shape, h)
+        # the two halves head-on (pairs close at twice a node's speed, the reach's worst case), every
+        # node with its own wobble besides
+        u = 0.2 * rng.normal(size=X.shape)
+        u[..., 0] += np.where(X[..., 0] < 0.5 * X[..., 0].max(), 1.0, -1.0)
+        t_max = 0.4
+        speed = np.sqrt((u.reshape(-1, 3) ** 2).sum(1)).max()
+        pairs = wall_pairs(solid, h, radius=0.25 * 0.25 + 2 * speed * t_max + 1e-9)
+        want, k = contact_travel(pairs, u)
+        assert want < t_max  # the search has something to find
+        for steps in (None, 1, 5, 23):
+            t, (a, b) = first_contact(solid, h, u, t_max, steps=steps)
+            assert t == pytest.approx(want, rel=1e-9), (trial, steps)
+            Xn, un = _nodes(solid.shape, h).reshape(-1, 3), u.reshape(-1, 3)
+            assert np.linalg.norm(Xn[a] - Xn[b]) >= 2 * 0.25 - 1e-12  # a gap was open at rest
+            assert np.linalg.norm(Xn[a] - Xn[b] + t * (un[a] - un[b])) == pytest.approx(0.25 * 0.25, rel=1e-9)
