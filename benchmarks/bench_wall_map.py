@@ -9,6 +9,10 @@ the motor direction moving the rod along it, orientation held). Per family and s
 directions searched, the median and largest time of a search, how many found a contact and
 the earliest. The map's cost per sheet is the families' sums (the table's last column).
 
+The peer, in the same process on the first `--peer` directions of each family: the search as it was
+before 9a944eb, the pairs found at each step's start (twice the reach beyond the touch distance);
+the two must find the same pair at the same travel (to rounding), the ratio is their median times'.
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_wall_map.py --outputs OUT/paper --cache OUT/walls --save
 """
 
@@ -39,6 +43,7 @@ def main() -> None:
     ap.add_argument("--search-deg", type=float, default=10.0)
     ap.add_argument("--plane", type=int, default=16)
     ap.add_argument("--ray-stride", type=int, default=6, help="time every n-th ray of the grid's 62")
+    ap.add_argument("--peer", type=int, default=3, help="time the step-start search on this many per family")
     add_save_option(ap)
     args = ap.parse_args()
     robot, refs, sheets, seed = solved_walls(args.outputs, args.voxel, "seed", None, args.cache)
@@ -54,17 +59,24 @@ def main() -> None:
         F = walls.per_motor(G)
         n_surface = len(surface_nodes(walls.solid))
         for fam, dirs in families.items():
-            times, found = [], []
-            for d in dirs.values():
+            times, found, peer = [], [], []
+            for i, d in enumerate(dirs.values()):
                 field = np.einsum("...im,m->...i", F, np.asarray(d, float))
                 t0 = time.perf_counter()
-                t, _ = first_contact(walls.solid, walls.h, field, np.radians(args.search_deg))
+                t, pair = first_contact(walls.solid, walls.h, field, np.radians(args.search_deg))
                 times.append(time.perf_counter() - t0)
                 if np.isfinite(t):
                     found.append(float(np.degrees(t)))
+                if i < args.peer:
+                    t0 = time.perf_counter()
+                    t_peer, pair_peer = _from_step_start(walls.solid, walls.h, field, np.radians(args.search_deg))
+                    peer.append((time.perf_counter() - t0, times[-1]))
+                    if pair_peer != pair or not np.isclose(t_peer, t, rtol=1e-9, atol=0.0):
+                        raise SystemExit(f"the searches disagree: {t_peer!r} {pair_peer} against {t!r} {pair}")
             per_family = len(dirs) if fam != "rays" else n_rays
+            ratio = float(np.median([a for a, _ in peer]) / np.median([b for _, b in peer])) if peer else np.nan
             rows.append((label, n_surface, fam, len(dirs), float(np.median(times)), max(times), len(found),
-                         min(found) if found else None, float(np.mean(times)) * per_family))
+                         min(found) if found else None, float(np.mean(times)) * per_family, len(peer), ratio))
             print(f"  {label} {fam}: {len(dirs)} searches, median {np.median(times):.1f} s", file=sys.stderr,
                   flush=True)
     with saved_output(__file__, args.save):
@@ -72,13 +84,48 @@ def main() -> None:
               f"{args.search_deg:g} deg along each family of motor directions (rays: every {args.ray_stride}-th of "
               f"the grid's {n_rays}); one thread.\n")
         print("| sheet | surface nodes | family | searched | median [s] | largest [s] | contact found | earliest "
-              "[deg] | the family's cost per sheet [s] |")
-        print("|---|---|---|---|---|---|---|---|---|")
+              "[deg] | the family's cost per sheet [s] | step-start peer: searched, times slower |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             print(f"| {r[0]} | {r[1]:,} | {r[2]} | {r[3]} | {r[4]:.1f} | {r[5]:.1f} | {r[6]} | "
-                  f"{'-' if r[7] is None else format(r[7], '.2f')} | {r[8]:.0f} |")
-        print(f"\nThe last column is the mean search times the family's size ({args.plane} plane directions less "
-              f"the base ones, all {n_rays} rays).")
+                  f"{'-' if r[7] is None else format(r[7], '.2f')} | {r[8]:.0f} | {r[9]}, {r[10]:.1f} |")
+        print(f"\nThe cost column is the mean search times the family's size ({args.plane} plane directions less "
+              f"the base ones, all {n_rays} rays). The peer, the search from each step's start (before 9a944eb), "
+              f"ran on the first {args.peer} of each family and found the same pair at the same travel; its "
+              f"column is its median time over the search's on those.")
+
+
+
+def _from_step_start(solid, h, u_unit, t_max: float):
+    """The peer: first_contact as it was before 9a944eb, each step's pairs found at its start within
+    ``touch`` plus twice a node's largest motion in a step (the same exact travel, more pairs)."""
+    from scipy.spatial import cKDTree
+
+    from metasheet.sheet.wall_limits import WallPairs, contact_travel, surface_nodes
+
+    h = np.asarray(h, float).reshape(3)
+    hmin = float(h.min())
+    separation, touch = 2.0 * hmin, 0.25 * hmin
+    N = tuple(n + 1 for n in solid.shape)
+    nodes = surface_nodes(solid)
+    X = np.stack(np.unravel_index(nodes, N), 1) * h
+    u = np.asarray(u_unit, float).reshape(-1, 3)[nodes]
+    speed = float(np.sqrt(np.einsum("pi,pi->p", u, u).max()))
+    n = max(1, int(np.ceil(t_max * speed / hmin)))
+    dt = t_max / n
+    reach = touch + 2.0 * speed * dt
+    for i in range(n):
+        Y = X + i * dt * u
+        pairs = cKDTree(Y).query_pairs(reach, output_type="ndarray")
+        rest = X[pairs[:, 0]] - X[pairs[:, 1]]
+        pairs = pairs[np.einsum("pi,pi->p", rest, rest) >= separation**2]
+        if not len(pairs):
+            continue
+        here = WallPairs(pairs[:, 0], pairs[:, 1], Y[pairs[:, 0]] - Y[pairs[:, 1]], separation, reach, touch)
+        t, k = contact_travel(here, u)
+        if t <= dt:
+            return i * dt + t, (int(nodes[pairs[k, 0]]), int(nodes[pairs[k, 1]]))
+    return np.inf, ()
 
 
 if __name__ == "__main__":

@@ -163,7 +163,8 @@ def test_executor_keeps_order(workers):
     seen = []
     out = Executor(workers=workers).map(square, range(7), progress=lambda d, n: seen.append((d, n)))
     assert out == [x * x for x in range(7)]
-    assert seen[-1] == (7, 7)
+    assert seen[0] == (0, 7) and seen[-1] == (7, 7)  # told at the start, so a line's clock starts there
+    assert sorted(d for d, _ in seen) == list(range(8))
 
 
 def test_executor_rejects_bad_settings():

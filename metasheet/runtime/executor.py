@@ -117,13 +117,14 @@ class Executor:
     ) -> list[Any]:
         """``[fn(x) for x in items]``, possibly in parallel, results in input order.
 
-        As each result arrives (in any order): ``on_result(index, value)`` (a resumable map
-        stores it there), then ``progress(done, total)``.
+        ``progress(0, total)`` first, then as each result arrives (in any order):
+        ``on_result(index, value)`` (a resumable map stores it there), then ``progress(done, total)``.
         """
         items = list(items)
         total = len(items)
         if total == 0:
             return []
+        progress(0, total)  # the work's start: a progress line's clock and its estimate run from here
         if self.kind == "serial":
             out = []
             with own_threads(self.threads):
