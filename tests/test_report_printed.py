@@ -43,10 +43,11 @@ def test_the_validity_map_is_stated_from_its_numbers():
     # ray 0 binds the box (0.4 deg), named by its direction; along it the rod moves 0.4 * 0.5 mm
     assert d["realisations"][0]["limits"]["binding"] == "ray 0"
     assert '"ray 0" (the rod moved along (+0.00, +1.00, +0.00), orientation held) at 0.4 deg' in text
-    assert "(4 directions), the walls first touch after seed 1: 2 to 4 deg" in text
-    assert "the rod moves seed 1: 0.2 to 0.2 mm (median 0.2)" in text
+    assert "(4 directions), the walls first touch after 2 to 4 deg (seed 1) of the largest motor's" in text
+    assert "the rod moves 0.2 to 0.2 mm (seed 1, median 0.2) before two walls touch" in text
     # ray 1: no contact, strain at 1.5 deg: the strain binds on one ray of two
-    assert "the walls' strain limit binds first on 1 of the 2 rays" in text
+    assert "the walls' strain limit binds first on 1 of the 2 rays over the prints, and neither limit within the " \
+        "search on 0" in text
     assert any("not predicted" in x for x in diffs)
 
 

@@ -100,21 +100,20 @@ def _map_lines(d: Mapping) -> list[str]:
     out = ["Where the walls stop the printed robot (the validity map; picture, middle and right):"]
     plane = [(s, m["plane"]) for s, m in maps if m["plane"]]
     if plane:
-        per = "; ".join(f"seed {s}: {_f(_min(x['contact_deg'] for x in xs))} to "
-                        f"{_f(_max(x['contact_deg'] for x in xs))} deg" for s, xs in plane)
+        per = ", ".join(f"{_f(_min(x['contact_deg'] for x in xs))} to {_f(_max(x['contact_deg'] for x in xs))} deg "
+                        f"(seed {s})" for s, xs in plane)
         out.append(f"- Around the plane of the two sheets' common modes ({len(plane[0][1])} directions), the walls "
-                   f"first touch after {per} of the largest motor's travel.")
+                   f"first touch after {per} of the largest motor's travel, depending on the direction.")
     rays = [(s, m["rays"]) for s, m in maps if m["rays"]]
     if rays:
-        per = "; ".join(f"seed {s}: {_f(_min(x['contact_mm'] for x in xs))} to "
-                        f"{_f(_max(x['contact_mm'] for x in xs))} mm (median {_f(_median(x['contact_mm'] for x in xs))})"
-                        for s, xs in rays)
+        per = ", ".join(f"{_f(_min(x['contact_mm'] for x in xs))} to {_f(_max(x['contact_mm'] for x in xs))} mm "
+                        f"(seed {s}, median {_f(_median(x['contact_mm'] for x in xs))})" for s, xs in rays)
         every = [x for _, xs in rays for x in xs]
         strain = sum(x["binds"] == "strain" for x in every)
         free = sum(x["binds"] is None for x in every)
         out.append(f"- Along the {len(rays[0][1])} rays of Fig. 5, orientation held, the rod moves {per} before two "
                    f"walls touch; the walls' strain limit binds first on {strain} of the {len(every)} rays over the "
-                   f"prints, neither within the search on {free}.")
+                   f"prints, and neither limit within the search on {free}.")
     return out + [""]
 
 
