@@ -172,7 +172,7 @@ def test_first_contact_on_a_rough_field_is_the_all_pairs_first_contact():
         t_max = 0.4
         speed = np.sqrt((u.reshape(-1, 3) ** 2).sum(1)).max()
         pairs = wall_pairs(solid, h, radius=0.25 * 0.25 + 2 * speed * t_max + 1e-9)
-        want, k = contact_travel(pairs, u)
+        want, _ = contact_travel(pairs, u)
         assert want < t_max  # the search has something to find
         for steps in (None, 1, 5, 23):
             t, (a, b) = first_contact(solid, h, u, t_max, steps=steps)

@@ -157,11 +157,11 @@ def first_contact(solid, h, u_unit, t_max: float, *, steps: int | None = None, s
     middle, the pairs within ``touch`` plus the largest node motion of a step are found among the
     moved surface nodes (a KD-tree), and :func:`contact_travel`'s quadratic, solved from the step's
     start, gives the first contact within the step. A pair out of that reach at the middle cannot
-    close in the step: in half a step on either side its offset changes by at most one node's
-    largest motion in a step, twice half of it. (Measured from the middle rather than the start,
-    the reach is half as far beyond ``touch``: it holds the voxel's neighbours at one edge but not
-    the same wall's nodes two edges apart: a seventh of the pairs, and a quarter to a half of the
-    time, ``benchmarks/bench_wall_map.py``.)
+    close in the step: in half a step either way its offset changes by at most twice a node's
+    largest motion in half a step, the reach beyond ``touch``. (Measured from the middle rather
+    than the start, the reach is half as far beyond ``touch``: it holds the voxel's neighbours at
+    one edge but not the same wall's nodes two edges apart: a seventh of the pairs, and a quarter
+    to a half of the time, ``benchmarks/bench_wall_map.py``.)
     """
     s = np.asarray(solid, bool)
     h = np.asarray(h, float).reshape(3)
