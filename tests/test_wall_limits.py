@@ -180,3 +180,54 @@ def test_first_contact_on_a_rough_field_is_the_all_pairs_first_contact():
             Xn, un = _nodes(solid.shape, h).reshape(-1, 3), u.reshape(-1, 3)
             assert np.linalg.norm(Xn[a] - Xn[b]) >= 2 * 0.25 - 1e-12  # a gap was open at rest
             assert np.linalg.norm(Xn[a] - Xn[b] + t * (un[a] - un[b])) == pytest.approx(0.25 * 0.25, rel=1e-9)
+
+
+def test_principal_extremes_are_those_of_every_matrix():
+    """The Gershgorin pre-selection gives exactly eigvalsh's extremes over all the matrices: random
+    scales, zeros, ties, a single matrix."""
+    from metasheet.sheet.wall_limits import principal_extremes
+
+    rng = np.random.default_rng(3)
+    for trial in range(12):
+        n = int(rng.integers(1, 3000))
+        A = rng.normal(size=(n, 3, 3)) * 10.0 ** rng.uniform(-8, 2)
+        E = 0.5 * (A + np.swapaxes(A, 1, 2))
+        if trial % 3 == 0:
+            E[:, 0, 1] = E[:, 1, 0] = 0.0
+        if trial % 4 == 0:
+            E[: n // 2] = E[0]  # ties
+        ev = np.linalg.eigvalsh(E)
+        assert principal_extremes(E) == (ev[:, -1].max(), ev[:, 0].min())
+    with pytest.raises(ConfigError, match="solid"):
+        principal_extremes(np.zeros((0, 3, 3)))
+
+
+def test_motor_walls_search_as_the_grid_fields_do():
+    """:class:`MotorWalls` (the six motor fields at the surface nodes and solid voxels, each
+    direction their sum) finds the contact, the strain travel and the rates of the grid's field
+    along each direction (:func:`first_contact`, :func:`travel_to_strain`, :func:`principal_range`)
+    on a porous block with random unit grip fields."""
+    from metasheet.sheet.wall_limits import MotorWalls, first_contact
+
+    rng = np.random.default_rng(11)
+    h = np.array([0.25, 0.25, 0.25])
+    solid = rng.random((10, 9, 5)) < 0.45
+    U = 0.05 * rng.normal(size=tuple(n + 1 for n in solid.shape) + (3, 24))
+    G = rng.normal(size=(24, 6))
+    walls = SheetWalls(solid, h, U)
+    motors = MotorWalls.from_fields(walls, G)
+    F = walls.per_motor(G)
+    for k in range(6):
+        hi, lo = principal_range(F[..., k], h, solid)
+        assert motors.rates()[k] == [max(hi, 0.0), max(-lo, 0.0)]
+    found = 0
+    for d in ([1, 0, 0, 0, 0, 0], [1, 1, 1, -1, -1, -1], rng.uniform(-1, 1, 6)):
+        field = np.einsum("...im,m->...i", F, np.asarray(d, float))
+        t, pair = motors.contact(d, 2.0)
+        want_t, want_pair = first_contact(solid, h, field, 2.0)
+        assert t == pytest.approx(want_t, rel=1e-12) and pair == want_pair
+        found += np.isfinite(t)
+        assert motors.strain_travel(d, 0.3) == pytest.approx(travel_to_strain(field, h, solid, 0.3)[0], rel=1e-12)
+    assert found  # a contact to compare
+    with pytest.raises(ConfigError, match="limit"):
+        motors.strain_travel(np.ones(6), 0.0)

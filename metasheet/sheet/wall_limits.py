@@ -85,10 +85,23 @@ def voxel_strains(u, h) -> np.ndarray:
 
 def principal_range(u, h, solid) -> tuple[float, float]:
     """(largest, smallest) principal strain over the ``solid`` (nx, ny, nz) bool voxels of ``u``."""
-    E = voxel_strains(u, h)[np.asarray(solid, bool)]
+    return principal_extremes(voxel_strains(u, h)[np.asarray(solid, bool)])
+
+
+def principal_extremes(E) -> tuple[float, float]:
+    """(largest, smallest) eigenvalue over the symmetric ``E`` (n, 3, 3), the same numbers as
+    ``eigvalsh`` of every one: only those whose Gershgorin interval reaches past the extremes'
+    bounds from the diagonals (a diagonal lies within the eigenvalues) are solved, with a margin
+    for the solver's rounding (1e-10 of the largest entry), a few hundred of 725,000 on a print."""
+    E = np.asarray(E, float)
     if not len(E):
         raise ConfigError("solid: no solid voxel")
-    ev = np.linalg.eigvalsh(E)
+    diag = np.diagonal(E, axis1=-2, axis2=-1)  # (n, 3)
+    radius = np.abs(E).sum(axis=-1) - np.abs(diag)  # Gershgorin: off-diagonal row sums
+    margin = 1e-10 * float(np.abs(E).max())
+    high = (diag + radius).max(axis=1) >= diag.max() - margin
+    low = (diag - radius).min(axis=1) <= diag.min() + margin
+    ev = np.linalg.eigvalsh(E[high | low])
     return float(ev[:, -1].max()), float(ev[:, 0].min())
 
 
@@ -165,17 +178,32 @@ def first_contact(solid, h, u_unit, t_max: float, *, steps: int | None = None, s
     """
     s = np.asarray(solid, bool)
     h = np.asarray(h, float).reshape(3)
-    hmin = float(h.min())
+    nodes, X = surface_points(s, h)
+    return contact_along(nodes, X, np.asarray(u_unit, float).reshape(-1, 3)[nodes], float(h.min()), t_max,
+                         steps=steps, separation=separation, touch=touch)
+
+
+def surface_points(solid, h) -> tuple[np.ndarray, np.ndarray]:
+    """(nodes (s,) flat grid indices, X (s, 3) [mm] their rest positions): the surface nodes of
+    ``solid`` (nx, ny, nz) bool with voxel edges ``h`` (3,) [mm], those :func:`first_contact` searches."""
+    s = np.asarray(solid, bool)
+    nodes = surface_nodes(s)
+    N = tuple(n + 1 for n in s.shape)
+    return nodes, np.stack(np.unravel_index(nodes, N), 1) * np.asarray(h, float).reshape(3)
+
+
+def contact_along(nodes, X, u, hmin: float, t_max: float, *, steps: int | None = None,
+                  separation: float | None = None, touch: float | None = None) -> tuple[float, tuple[int, int]]:
+    """:func:`first_contact` on the surface nodes ``nodes`` (s,) at rest positions ``X`` (s, 3) [mm]
+    (:func:`surface_points`) moving by ``u`` (s, 3) [mm per unit]; ``hmin`` [mm] the smallest voxel
+    edge (the step's length and the default ``separation`` and ``touch``)."""
     separation = 2.0 * hmin if separation is None else float(separation)
     touch = 0.25 * hmin if touch is None else float(touch)
     if not 0 < touch < separation:
         raise ConfigError(f"touch, separation: {touch:g}, {separation:g} mm: need 0 < touch < separation")
     if not t_max > 0:
         raise ConfigError(f"t_max: {t_max!r}: allowed range (0, inf)")
-    N = tuple(n + 1 for n in s.shape)
-    nodes = surface_nodes(s)
-    X = np.stack(np.unravel_index(nodes, N), 1) * h
-    u = np.asarray(u_unit, float).reshape(-1, 3)[nodes]
+    u = np.asarray(u, float)
     speed = float(np.sqrt(np.einsum("pi,pi->p", u, u).max())) if len(u) else 0.0
     if speed == 0.0:
         return np.inf, ()
@@ -202,3 +230,55 @@ def first_contact(solid, h, u_unit, t_max: float, *, steps: int | None = None, s
         if t <= dt:
             return t0 + t, (int(nodes[pairs[k, 0]]), int(nodes[pairs[k, 1]]))
     return np.inf, ()
+
+
+@dataclass(frozen=True)
+class MotorWalls:
+    """A sheet's walls per unit motor change, ready to search along many motor directions: the
+    surface nodes ``nodes`` (s,) at rest ``X`` (s, 3) [mm] with their motion ``u`` (6, s, 3)
+    [mm per rad of each motor], the solid voxels' small strain ``E`` (6, v, 3, 3) [per rad],
+    ``hmin`` [mm] the smallest voxel edge. A direction's fields are sums of these six (the
+    fields are linear in the motors), so each search skips the grid: :meth:`from_fields`."""
+
+    nodes: np.ndarray
+    X: np.ndarray
+    u: np.ndarray
+    E: np.ndarray
+    hmin: float
+
+    @classmethod
+    def from_fields(cls, walls: SheetWalls, G) -> MotorWalls:
+        """From a sheet's :class:`SheetWalls` and ``G`` (24, 6), its grips' motions per motor."""
+        F = walls.per_motor(G)  # (nx + 1, ny + 1, nz + 1, 3, 6)
+        nodes, X = surface_points(walls.solid, walls.h)
+        solid = np.asarray(walls.solid, bool)
+        u = np.stack([F[..., m].reshape(-1, 3)[nodes] for m in range(6)])
+        E = np.stack([voxel_strains(F[..., m], walls.h)[solid] for m in range(6)])
+        return cls(nodes, X, u, E, float(np.min(walls.h)))
+
+    def _along(self, a, d) -> np.ndarray:
+        d = np.asarray(d, float).reshape(6)
+        out = d[0] * a[0]
+        for m in range(1, 6):  # a fixed order of sums: the same bits on any BLAS and thread count
+            out = out + d[m] * a[m]
+        return out
+
+    def rates(self) -> list[list[float]]:
+        """Per motor, the walls' largest principal strain per rad turned up and down alone."""
+        out = []
+        for m in range(6):
+            hi, lo = principal_extremes(self.E[m])
+            out.append([max(hi, 0.0), max(-lo, 0.0)])
+        return out
+
+    def contact(self, d, t_max: float) -> tuple[float, tuple[int, int]]:
+        """:func:`first_contact` along the motor direction ``d`` (6,) to ``t_max`` [rad of ``d``]."""
+        return contact_along(self.nodes, self.X, self._along(self.u, d), self.hmin, t_max)
+
+    def strain_travel(self, d, limit: float) -> float:
+        """The travel along ``d`` (6,) [rad of ``d``] at which the walls' largest principal
+        strain reaches ``limit``, :func:`travel_to_strain`'s forward one (inf: none stretches)."""
+        if not limit > 0:
+            raise ConfigError(f"limit: {limit!r}: allowed range (0, inf) [-]")
+        hi = principal_extremes(self._along(self.E, d))[0]
+        return limit / hi if hi > 0 else np.inf

@@ -121,20 +121,17 @@ def wall_unit(u: WallUnit) -> dict:
     """The sheet's strain rates and, per direction, its first contact and strain travel [deg]
     (None: not within the search, or the strain never reaches the limit); the kept solid share."""
     from ..sheet.dns import dns_sheet_walls
-    from ..sheet.wall_limits import first_contact, principal_range, travel_to_strain
+    from ..sheet.wall_limits import MotorWalls
 
     sheet, walls = dns_sheet_walls(u.sheet)
-    F = walls.per_motor(np.asarray(u.G, float))  # (..., 3, 6) [mm per rad of each motor]
+    motors = MotorWalls.from_fields(walls, np.asarray(u.G, float))
+    del walls  # the grid's 24 fields (2.8 GB on a print at 0.25 mm): the searches need the six
     deg = np.pi / 180.0
-    rates = []
-    for k in range(6):
-        hi, lo = principal_range(F[..., k], walls.h, walls.solid)
-        rates.append([max(hi, 0.0) * deg, max(-lo, 0.0) * deg])  # per degree, up and down
+    rates = [[up * deg, down * deg] for up, down in motors.rates()]  # per degree, up and down
     out = {}
     for name, d in u.dirs:
-        field = np.einsum("...im,m->...i", F, np.asarray(d, float))
-        t, pair = first_contact(walls.solid, walls.h, field, np.radians(u.search_deg))
-        s = travel_to_strain(field, walls.h, walls.solid, u.strain_limit)[0]
+        t, pair = motors.contact(d, np.radians(u.search_deg))
+        s = motors.strain_travel(d, u.strain_limit)
         out[name] = {"contact_deg": None if not np.isfinite(t) else float(np.degrees(t)),
                      "contact_nodes": [int(v) for v in pair],
                      "strain_deg": None if not np.isfinite(s) else float(np.degrees(s))}

@@ -41,11 +41,11 @@ class PrintedParams(Params):
     motor_directions: bool = Field(False, description="search each motor alone too (12 more directions), not only "
                                    "all six and each sheet's three, up and down")
     map_plane: int = Field(16, ge=0, le=360, description="the validity map: this many directions around the plane "
-                           "of the two sheets' common modes (holding the six base directions; about 20 s each per "
-                           "sheet at 0.25 mm: 4 minutes a sheet)")
+                           "of the two sheets' common modes (holding the six base directions; 1 to 8 s each per "
+                           "sheet at 0.25 mm: about a minute a sheet)")
     map_rays: bool = Field(False, description="the validity map on the rays of Fig. 5: the walls searched along the "
-                           "motor direction of each ray of the workspace grid (first order; 62 rays by default, about "
-                           "25 s each per sheet at 0.25 mm: half an hour a sheet)")
+                           "motor direction of each ray of the workspace grid (first order; 62 rays by default, 3 to "
+                           "9 s each per sheet at 0.25 mm: about 5 minutes a sheet)")
     search_deg: float = Field(10.0, gt=0, le=90, description="the contact search's motor travel [deg]")
     strain_limit: float = Field(0.3, gt=0, le=5, description="the walls' strain limit [-] (the neo-Hookean law's "
                                 "range, not NinjaFlex's failure: docs/printed-sheet.md)")
