@@ -210,6 +210,26 @@ def test_two_workers_give_the_same_bytes(run):
     assert (out / "printed" / "printed.json").read_bytes() == printed  # the walls' units on the pool
 
 
+@pytest.mark.slow
+def test_the_printed_stage_takes_the_walls_the_sheet_stage_kept(run, tmp_path):
+    """``sheet.walls``: the sheet stage keeps each print's walls' fields and the printed stage's walls'
+    units take them instead of solving each sheet again: the same sheet_dns.json and printed.json,
+    byte for byte (the units solve the same relative columns and round them alike).
+    Default-selection sibling: tests/test_wall_fields.py (the fields against all 24 solved)."""
+    import shutil
+
+    tmp, out = run
+    shutil.copytree(tmp / "out", tmp_path / "out")
+    f = tmp_path / "p.toml"
+    f.write_text((tmp / "p.toml").read_text().replace("[sheet]\n", "[sheet]\nwalls = true\n"))
+    run_pipeline(load_pipeline(f), out_root=tmp_path / "out", only="printed")
+    kept = tmp_path / "out" / "s"
+    assert sorted(p.name for p in (kept / "sheet" / "walls").iterdir()) == sorted(
+        f"{lab}-seed{k}.npz" for k in (1, 2) for lab in ("mirrored", "normal"))
+    for name in ("sheet/sheet_dns.json", "printed/printed.json"):
+        assert (kept / name).read_bytes() == (out / name).read_bytes(), name
+
+
 def test_stage_compares_the_prints_with_the_plate_continuum(run):
     _, out = run
     d = json.loads((out / "sheet" / "sheet_dns.json").read_text())

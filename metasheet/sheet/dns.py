@@ -117,7 +117,14 @@ def dns_sheet_walls(spec: SheetPrint, progress=None):
     return _solve(spec, progress, True)
 
 
-def _solve(spec: SheetPrint, progress, displacements: bool):
+def dns_sheet_fields(spec: SheetPrint, progress=None):
+    """(:class:`DnsSheet`, :class:`~.wall_fields.WallFields`): :func:`dns_sheet`, the same K (the
+    same 18 columns solved), with the walls' fields kept compactly for the searches of the
+    walls' limits."""
+    return _solve(spec, progress, "relative")
+
+
+def _solve(spec: SheetPrint, progress, displacements: bool | str):
     check_range("voxel_mm", spec.voxel_mm, 0.0, None, lo_open=True)
     C = np.asarray(spec.solid, float)
     if C.shape != (6, 6):
@@ -142,9 +149,16 @@ def _solve(spec: SheetPrint, progress, displacements: bool):
                      tuple(int(i) for i in r.iterations), r.coarsening, float(r.asymmetry), built, float(r.seconds))
     if not displacements:
         return sheet, None
+    solid = held_solid(foam.phases > 0, labels > 0)
+    if displacements == "relative":
+        from .wall_fields import WallFields
+
+        meta = {"label": spec.label, "seed": int(spec.seed), "gauge": spec.gauge, "voxel_mm": float(spec.voxel_mm),
+                "kept_share": float(r.kept_share)}
+        return sheet, WallFields.from_solve(solid, h, r.U, refs, meta)
     from .wall_limits import SheetWalls
 
-    return sheet, SheetWalls(held_solid(foam.phases > 0, labels > 0), h, r.U)
+    return sheet, SheetWalls(solid, h, r.U)
 
 
 def compare(K_dns, K_fem, params: SheetParams) -> dict:

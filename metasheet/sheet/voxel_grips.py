@@ -141,6 +141,26 @@ def relative_motions(references) -> np.ndarray:
     return T
 
 
+def relative_fields(U_rel, x, references, Q) -> np.ndarray:
+    """(n, 3, m) [mm] the displacement of the bodies' motions ``Q`` (6 B, m) at points ``x`` (n, 3)
+    [mm, grid coordinates], from ``U_rel`` (n, 3, 6 (B - 1)) there, the fields of bodies 1..B-1's
+    unit motions with body 0 held (``displacements="relative"``).
+
+    A global rigid motion strains nothing, so its field is itself: the field of ``Q`` is body 0's
+    rigid motion ``q_0`` carried by every point plus the relative fields of ``T Q``
+    (:func:`relative_motions`), exactly what solving all 6 B columns gives (to the solver's
+    tolerance)."""
+    r = np.asarray(references, float)
+    Q = np.asarray(Q, float)
+    Q = Q.reshape(6 * len(r), -1)
+    x = np.asarray(x, float).reshape(-1, 3)
+    U_rel = np.asarray(U_rel, float)
+    if U_rel.shape != (len(x), 3, 6 * (len(r) - 1)):
+        raise ConfigError(f"U_rel: shape {U_rel.shape}: expected {(len(x), 3, 6 * (len(r) - 1))}")
+    rigid = np.einsum("nic,cm->nim", point_modes(x - r[0]), Q[:6])
+    return rigid + np.einsum("nic,cm->nim", U_rel, relative_motions(r) @ Q)
+
+
 def held_solid(solid: np.ndarray, prescribed: np.ndarray) -> np.ndarray:
     """(nx, ny, nz) bool: the voxels of ``solid`` (nx, ny, nz) bool in face-connected pieces held by
     at least three non-collinear ``prescribed`` (nx + 1, ny + 1, nz + 1) bool nodes.
@@ -174,7 +194,7 @@ def held_solid(solid: np.ndarray, prescribed: np.ndarray) -> np.ndarray:
 
 def rigid_bodies_stiffness(phases, size, stiffnesses: dict, *, bodies, references, clamped=None, scale=None,
                            rtol: float = 1e-8, maxiter: int = 1000, coarsening: str = "auto",
-                           relative: bool = True, displacements: bool = False,
+                           relative: bool = True, displacements: bool | str = False,
                            progress: Callable[[str, int, int], None] | None = None) -> GripStiffness:
     """Condensed (6 B, 6 B) stiffness of B rigid bodies tied to nodes of a voxel body.
 
@@ -191,8 +211,10 @@ def rigid_bodies_stiffness(phases, size, stiffnesses: dict, *, bodies, reference
     rtol : CG tolerance per column, in (0, 1e-3); maxiter : CG iteration cap.
     coarsening : "auto" (= "split"), "split" or "trilinear" (:func:`~.multigrid.build_hierarchy`).
     relative : with nothing clamped, solve 6 (B - 1) columns with body 0 held (module doc);
-        False: all 6 B columns. ``displacements`` solves all 6 B.
-    displacements : also return U on the full grid (small grids: 6 B full-grid vectors).
+        False: all 6 B columns. ``displacements=True`` solves all 6 B.
+    displacements : also return U on the full grid: True, all 6 B columns (small grids: 6 B
+        full-grid vectors); "relative", the 6 (B - 1) columns the relative solve has (body 0
+        held, :func:`relative_fields` gives any motion's field from them), a quarter fewer.
     progress : called as ``progress(stage, done, total)`` before each of the 4 stages.
 
     Solid pieces not held by prescribed nodes are dropped (:func:`held_solid`). Raises ConfigError
@@ -238,7 +260,11 @@ def _stiffness(phases, size, stiffnesses, bodies, references, clamped, scale, rt
     H = build_hierarchy(op, fixed, coarsening="split" if coarsening == "auto" else coarsening) if op.n_free else None
     used = "split" if H is not None and H.sparse is not None else "trilinear"  # a small grid: one dense level
     # relative: body 0 held, its columns left out (with nothing clamped K = T^T K_rel T exactly)
-    shortcut = bool(relative and floating and not displacements)
+    if displacements not in (False, True, "relative"):
+        raise ConfigError(f"displacements: {displacements!r}: allowed values are False, True, 'relative'")
+    if displacements == "relative" and not (relative and floating):
+        raise ConfigError("displacements: 'relative' needs relative=True and nothing clamped")
+    shortcut = bool(relative and floating and displacements is not True)
     cols = np.arange(6 if shortcut else 0, 6 * B)
     tflat = np.flatnonzero(tied.ravel())
     modes = body_modes(np.stack(np.unravel_index(tflat, N), 1) * h, body.ravel()[tflat] - 1, refs)
@@ -282,7 +308,7 @@ def _stiffness(phases, size, stiffnesses, bodies, references, clamped, scale, rt
     Ks = 0.5 * (Ks + Ks.T)
     T = relative_motions(refs) if shortcut else None
     K = T.T @ Ks @ T if shortcut else Ks
-    U = _displacements(N, tflat, modes, cop, x) if displacements else None
+    U = _displacements(N, tflat, modes[..., cols], cop, x) if displacements else None
     return GripStiffness(0.5 * (K + K.T), iters, res, "relative" if shortcut else "all", asym, op.n_free,
                          H.shapes if H is not None else (), H.unknowns if H is not None else (), used, float(kept.sum() / solid.sum()),
                          t1 - t0, time.perf_counter() - t0, U)

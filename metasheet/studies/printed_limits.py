@@ -1,6 +1,7 @@
 """The printed robot's validity from its own walls, print by print (issue 62, item 4): one work
-unit per printed sheet solves the linear voxel DNS with its displacement fields
-(:func:`metasheet.sheet.dns.dns_sheet_walls`), carries them to the robot's motors with the rod
+unit per printed sheet takes the linear voxel DNS's displacement fields the sheet stage kept
+(its ``walls``; :mod:`metasheet.sheet.wall_fields`), or solves them
+(:func:`metasheet.sheet.dns.dns_sheet_fields`), carries them to the robot's motors with the rod
 in equilibrium (:func:`metasheet.robot.condensed.grip_motions_per_motor`) and reads off
 
 * each motor's walls' strain rate: the largest principal strain per degree of that motor
@@ -102,13 +103,16 @@ class WallUnit:
     """One printed sheet's walls to search: ``sheet`` its :class:`~metasheet.sheet.dns.SheetPrint`;
     ``G`` (24, 6) its grips' motion per motor [mm/rad, rad/rad] with the rod in equilibrium;
     ``dirs`` the named directions; ``search_deg`` [deg] the contact search's travel;
-    ``strain_limit`` [-] the walls' strain limit."""
+    ``strain_limit`` [-] the walls' strain limit; ``fields`` the sheet's
+    :class:`~metasheet.sheet.wall_fields.WallFields` when the sheet stage kept them (None: the
+    unit solves the DNS)."""
 
     sheet: object
     G: tuple
     dirs: tuple
     search_deg: float
     strain_limit: float
+    fields: object = None
 
     def __post_init__(self):
         check_range("search_deg", self.search_deg, 0.0, 90.0, lo_open=True)
@@ -120,12 +124,11 @@ class WallUnit:
 def wall_unit(u: WallUnit) -> dict:
     """The sheet's strain rates and, per direction, its first contact and strain travel [deg]
     (None: not within the search, or the strain never reaches the limit); the kept solid share."""
-    from ..sheet.dns import dns_sheet_walls
+    from ..sheet.dns import dns_sheet_fields
     from ..sheet.wall_limits import MotorWalls
 
-    sheet, walls = dns_sheet_walls(u.sheet)
+    walls = u.fields if u.fields is not None else dns_sheet_fields(u.sheet)[1]
     motors = MotorWalls.from_fields(walls, np.asarray(u.G, float))
-    del walls  # the grid's 24 fields (2.8 GB on a print at 0.25 mm): the searches need the six
     deg = np.pi / 180.0
     rates = [[up * deg, down * deg] for up, down in motors.rates()]  # per degree, up and down
     out = {}
@@ -135,7 +138,7 @@ def wall_unit(u: WallUnit) -> dict:
         out[name] = {"contact_deg": None if not np.isfinite(t) else float(np.degrees(t)),
                      "contact_nodes": [int(v) for v in pair],
                      "strain_deg": None if not np.isfinite(s) else float(np.degrees(s))}
-    return {"label": sheet.label, "seed": sheet.seed, "kept_share": sheet.kept_share,
+    return {"label": walls.meta["label"], "seed": walls.meta["seed"], "kept_share": walls.meta["kept_share"],
             "strain_per_deg": rates, "directions": out}
 
 

@@ -35,9 +35,10 @@ STATUSES = ("predicted", "predicted up to the walls' limit", "not predicted")
 
 class PrintedParams(Params):
     realisations: int | None = Field(None, ge=1, le=20, description="the sheet stage's first n prints (None: all)")
-    contact: bool = Field(True, description="search each printed sheet's walls for their first self-contact (one "
-                          "voxel DNS with its fields per sheet: 5 to 10 minutes and 7 GB each at 0.25 mm on the "
-                          "paper's sheet); false: no walls' limit (the claims then hold the model alone)")
+    contact: bool = Field(True, description="search each printed sheet's walls for their first self-contact (on "
+                          "the fields the sheet stage kept, sheet.walls, or else one voxel DNS with its fields per "
+                          "sheet: 3 to 7 minutes and about 6 GB each at 0.25 mm on the paper's sheet); false: no "
+                          "walls' limit (the claims then hold the model alone)")
     motor_directions: bool = Field(False, description="search each motor alone too (12 more directions), not only "
                                    "all six and each sheet's three, up and down")
     map_plane: int = Field(16, ge=0, le=360, description="the validity map: this many directions around the plane "
@@ -190,6 +191,18 @@ def _rays(p: PrintedParams, J) -> tuple[dict, list[dict]]:
     return dirs, meta
 
 
+def _kept_walls(ctx: StageContext, spec):
+    """The sheet stage's walls' fields of the print ``spec`` (its ``walls``), or None."""
+    from ...sheet.wall_fields import WallFields
+    from .sheet import walls_file
+
+    path = ctx.inputs["sheet"] / walls_file(spec.label, spec.seed)
+    if not path.is_file():
+        return None
+    return WallFields.load(path, {"label": spec.label, "seed": int(spec.seed), "gauge": spec.gauge,
+                                  "voxel_mm": float(spec.voxel_mm)})
+
+
 def _studies(p: PrintedParams):
     """The :class:`~metasheet.studies.printed_studies.PrintStudies` of the stage's keys: the
     workspace stage's grid and paper rotation test, the maze stage's path."""
@@ -235,8 +248,8 @@ def run(ctx: StageContext) -> dict:
             rays, meta = _rays(p, J) if p.map_rays else ({}, [])
             dirs = tuple({**directions(p.motor_directions), **plane, **rays}.items())
             ray_meta.append(meta)
-            units += [WallUnit(prints[2 * i], tuple(map(tuple, Ga)), dirs, p.search_deg, p.strain_limit),
-                      WallUnit(prints[2 * i + 1], tuple(map(tuple, Gb)), dirs, p.search_deg, p.strain_limit)]
+            units += [WallUnit(prints[2 * i + j], tuple(map(tuple, G)), dirs, p.search_deg, p.strain_limit,
+                               _kept_walls(ctx, prints[2 * i + j])) for j, G in enumerate((Ga, Gb))]
         cache = UnitCache(ctx.workdir.parent / ".printed.units" if p.resume else None)
         found = cache.map(ctx.executor, wall_unit, units, progress=lambda d, n: ctx.progress("printed walls", d, n))
         limits = [combine(found[2 * i], found[2 * i + 1]) for i in range(len(rows))]

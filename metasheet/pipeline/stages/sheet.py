@@ -47,6 +47,8 @@ class SheetDnsParams(Params):
     max_voxels: int = Field(20_000_000, ge=1000, le=200_000_000, description="refuse larger voxel grids")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     picture: bool = Field(True, description="write sheet_dns.png and printed_sheet.png")
+    walls: bool = Field(False, description="keep each print's displacement fields on its walls (walls/, about 75 MB "
+                        "a sheet at 0.25 mm) for the printed stage's walls' limits, which then skip their own DNS")
 
     def check_files(self, table: str, params: dict, root: Path) -> None:
         """What the stage checks against the cell's design and the sheet, when the pipeline is
@@ -119,8 +121,13 @@ def sheet_prints(ctx: StageContext, seeds, gauge: str, voxel_mm: float, rtol: fl
             for seed in seeds for label in LABELS]
 
 
+def walls_file(label: str, seed: int) -> str:
+    """The stage's file of a print's walls' fields (``walls``), relative to its folder."""
+    return f"walls/{label}-seed{int(seed)}.npz"
+
+
 def run(ctx: StageContext) -> dict:
-    from ...sheet.dns import dns_sheet
+    from ...sheet.dns import dns_sheet, dns_sheet_fields
     from ...studies.sheet_dns import dns_study, homogenised_grips
 
     p: SheetDnsParams = ctx.params
@@ -136,7 +143,12 @@ def run(ctx: StageContext) -> dict:
     ctx.progress("homogenised sheets", 0, 3)
     with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bytes on any thread count
         hom = homogenised_grips(pair, material.model)
-    sheets = ctx.executor.map(dns_sheet, specs, progress=lambda d, n: ctx.progress("printed sheets (DNS)", d, n))
+    unit = dns_sheet_fields if p.walls else dns_sheet
+    sheets = ctx.executor.map(unit, specs, progress=lambda d, n: ctx.progress("printed sheets (DNS)", d, n))
+    if p.walls:
+        for s, fields in sheets:
+            fields.save(ctx.path(walls_file(s.label, s.seed)))
+        sheets = [s for s, _ in sheets]
     for s in sheets:  # manifest only: wall times differ run to run
         ctx.timings[f"dns_s.{s.label}.{s.seed}"] = round(s.build_s + s.solve_s, 3)
     fits = None
