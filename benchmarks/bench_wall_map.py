@@ -12,6 +12,9 @@ the earliest. The map's cost per sheet is the families' sums (the table's last c
 The peer, in the same process on the first `--peer` directions of each family: the search as it was
 before 9a944eb, the pairs found at each step's start (twice the reach beyond the touch distance);
 the two must find the same pair at the same travel (to rounding), the ratio is their median times'.
+With `--unit`, a second table: the walls' unit's whole work per direction (contact and strain travel)
+from the grid's fields as before 2026-12-01 against `MotorWalls` (the six motor fields kept where the
+searches read them), in the same process, the same answers required.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_wall_map.py --outputs OUT/paper --cache OUT/walls --save
 """
@@ -29,6 +32,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import add_save_option, saved_output  # noqa: E402
 from wall_limits import solved_walls  # noqa: E402
 
+#: the printed stage's default walls' strain limit [-]
+STRAIN_LIMIT = 0.3
+
 
 def main() -> None:
     from metasheet.robot.condensed import grip_motions_per_motor
@@ -44,6 +50,8 @@ def main() -> None:
     ap.add_argument("--plane", type=int, default=16)
     ap.add_argument("--ray-stride", type=int, default=6, help="time every n-th ray of the grid's 62")
     ap.add_argument("--peer", type=int, default=3, help="time the step-start search on this many per family")
+    ap.add_argument("--unit", type=int, default=3, help="time the walls' unit's whole work per direction (contact "
+                    "and strain) on this many per family, from the grid's fields and from MotorWalls")
     add_save_option(ap)
     args = ap.parse_args()
     robot, refs, sheets, seed = solved_walls(args.outputs, args.voxel, "seed", None, args.cache)
@@ -54,9 +62,11 @@ def main() -> None:
     families = {"base": dict(BASE_DIRECTIONS),
                 "plane": {k: v for k, v in plane_directions(args.plane).items() if k not in BASE_DIRECTIONS},
                 "rays": dict(list(rays.items())[::args.ray_stride])}
-    rows = []
+    rows, unit_rows = [], []
     for label, walls, G in (("normal", wa, Ga), ("mirrored", wb, Gb)):
         F = walls.per_motor(G)
+        if args.unit:
+            unit_rows.append((label, *_unit(walls, G, F, families, args.unit, np.radians(args.search_deg))))
         n_surface = len(surface_nodes(walls.solid))
         for fam, dirs in families.items():
             times, found, peer = [], [], []
@@ -93,7 +103,44 @@ def main() -> None:
               f"the base ones, all {n_rays} rays). The peer, the search from each step's start (before 9a944eb), "
               f"ran on the first {args.peer} of each family and found the same pair at the same travel; its "
               f"column is its median time over the search's on those.")
+        if unit_rows:
+            print(f"\nThe walls' unit's work per direction (the contact search and the strain travel, limit "
+                  f"{STRAIN_LIMIT:g}) on the first {args.unit} directions of each family: from the grid's fields "
+                  "(each direction's field summed on the whole grid, its surface nodes found again, its voxel strains "
+                  "computed on the whole grid; before 2026-12-01) and from `MotorWalls` (the six motor fields kept at "
+                  "the surface nodes and solid voxels, built once per sheet); the same contact pair, travel and "
+                  "strain travel on every direction.\n")
+            print("| sheet | directions | MotorWalls built [s] | grid fields, median [s] | MotorWalls, median [s] "
+                  "| times faster (median ratio) |")
+            print("|---|---|---|---|---|---|")
+            for r in unit_rows:
+                print(f"| {r[0]} | {r[1]} | {r[2]:.1f} | {r[3]:.2f} | {r[4]:.2f} | {r[5]:.2f} |")
 
+
+
+def _unit(walls, G, F, families, n: int, t_max: float):
+    """(directions, build [s], grid median [s], MotorWalls median [s], median ratio) of the walls'
+    unit's per-direction work both ways; exits non-zero if they disagree."""
+    from metasheet.sheet.wall_limits import MotorWalls, first_contact, travel_to_strain
+
+    t0 = time.perf_counter()
+    motors = MotorWalls.from_fields(walls, G)
+    build = time.perf_counter() - t0
+    grid, kept = [], []
+    dirs = [d for fam in families.values() for d in list(fam.values())[:n]]
+    for d in dirs:
+        t0 = time.perf_counter()
+        field = np.einsum("...im,m->...i", F, np.asarray(d, float))
+        want = first_contact(walls.solid, walls.h, field, t_max), travel_to_strain(field, walls.h, walls.solid,
+                                                                                   STRAIN_LIMIT)[0]
+        t1 = time.perf_counter()
+        got = motors.contact(d, t_max), motors.strain_travel(d, STRAIN_LIMIT)
+        t2 = time.perf_counter()
+        grid.append(t1 - t0)
+        kept.append(t2 - t1)
+        if got[0][1] != want[0][1] or not np.allclose([got[0][0], got[1]], [want[0][0], want[1]], rtol=1e-9, atol=0):
+            raise SystemExit(f"the unit's two ways disagree along {d}: {got} against {want}")
+    return len(dirs), build, float(np.median(grid)), float(np.median(kept)), float(np.median(np.divide(grid, kept)))
 
 
 def _from_step_start(solid, h, u_unit, t_max: float):

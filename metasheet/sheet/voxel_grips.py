@@ -157,8 +157,8 @@ def relative_fields(U_rel, x, references, Q) -> np.ndarray:
     U_rel = np.asarray(U_rel, float)
     if U_rel.shape != (len(x), 3, 6 * (len(r) - 1)):
         raise ConfigError(f"U_rel: shape {U_rel.shape}: expected {(len(x), 3, 6 * (len(r) - 1))}")
-    rigid = np.einsum("nic,cm->nim", point_modes(x - r[0]), Q[:6])
-    return rigid + np.einsum("nic,cm->nim", U_rel, relative_motions(r) @ Q)
+    rigid = np.einsum("nic,cm->nim", point_modes(x - r[0]), Q[:6])  # einsum, not BLAS: fixed-order sums
+    return rigid + np.einsum("nic,cm->nim", U_rel, np.einsum("rc,cm->rm", relative_motions(r), Q))
 
 
 def held_solid(solid: np.ndarray, prescribed: np.ndarray) -> np.ndarray:
