@@ -38,7 +38,7 @@ def solved():
     rel = rigid_bodies_stiffness(phases, ext, C, displacements="relative", **kw)
     full = rigid_bodies_stiffness(phases, ext, C, displacements=True, **kw)
     solid = held_solid(phases > 0, bodies > 0)
-    fields = WallFields.from_solve(solid, h, rel.U, refs, {"label": "normal", "seed": 1})
+    fields = WallFields.from_solve(solid, h, rel.U, refs, bodies, {"label": "normal", "seed": 1})
     return plain, rel, full, SheetWalls(solid, h, full.U), fields
 
 
@@ -57,6 +57,10 @@ def test_every_grip_motions_field_from_the_relative_ones(solved):
     on = np.zeros(want.shape[:3], bool)
     on.ravel()[fields.nodes] = True
     assert not got[~on].any()
+    tied = np.zeros_like(on)
+    tied.ravel()[fields.nodes[fields.body > 0]] = True
+    assert tied.any() and (on & ~tied).any()
+    assert np.allclose(got[tied], want[tied], rtol=0, atol=1e-12 * np.abs(want).max())  # with its grip, exactly
     # the CG tolerance (1e-10) and float32's rounding of the kept fields
     assert np.abs(got[on] - want[on]).max() <= 1e-6 * np.abs(want[on]).max()
     assert np.array_equal(fields.solid, walls.solid)
@@ -84,7 +88,7 @@ def test_the_file_round_trip_and_its_checks(solved, tmp_path):
     fields.save(path)
     assert [p.name for p in path.parent.iterdir()] == ["normal-seed1.npz"]  # no temporary left
     back = WallFields.load(path, {"label": "normal", "seed": 1})
-    for k in ("h", "solid_bits", "nodes", "U", "references"):
+    for k in ("h", "solid_bits", "nodes", "body", "U", "references"):
         assert np.array_equal(getattr(back, k), getattr(fields, k)), k
     assert back.shape == fields.shape and back.meta == fields.meta
     with pytest.raises(ConfigError, match="seed is 1, the print asked has 2"):

@@ -155,7 +155,7 @@ def _solve(spec: SheetPrint, progress, displacements: bool | str):
 
         meta = {"label": spec.label, "seed": int(spec.seed), "gauge": spec.gauge, "voxel_mm": float(spec.voxel_mm),
                 "kept_share": float(r.kept_share)}
-        return sheet, WallFields.from_solve(solid, h, r.U, refs, meta)
+        return sheet, WallFields.from_solve(solid, h, r.U, refs, labels, meta)
     from .wall_limits import SheetWalls
 
     return sheet, SheetWalls(solid, h, r.U)

@@ -47,7 +47,7 @@ class SheetDnsParams(Params):
     max_voxels: int = Field(20_000_000, ge=1000, le=200_000_000, description="refuse larger voxel grids")
     length_scale: float = Field(50.0, gt=0, le=1e4, description="rotation -> length for singular values [mm/rad]")
     picture: bool = Field(True, description="write sheet_dns.png and printed_sheet.png")
-    walls: bool = Field(False, description="keep each print's displacement fields on its walls (walls/, about 75 MB "
+    walls: bool = Field(False, description="keep each print's displacement fields on its walls (walls/, about 80 MB "
                         "a sheet at 0.25 mm) for the printed stage's walls' limits, which then skip their own DNS")
 
     def check_files(self, table: str, params: dict, root: Path) -> None:
