@@ -15,6 +15,9 @@ sizes take minutes to tens of minutes and GBs per sheet (docs/printed-sheet.md).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/dns_convergence.py --outputs outputs/paper \
         --voxels 0.3 0.25 0.2 0.175 --gauge seed --cache outputs/dns_ladder --json out.json --save
+
+``--with-printed OUT/printed/printed.json`` takes the sizes the printed stage's ladder already solved
+(the same seed and gauge) from its figures, so that only the finer sizes are solved here.
 """
 
 from __future__ import annotations
@@ -75,9 +78,10 @@ def _solved(cache: Path, spec):
 
 
 def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, length_scale: float = 50.0,
-           labels=LABELS) -> dict | None:
-    """Per voxel size the print's numbers, and each quantity's Richardson fit over the sizes;
-    None when ``labels`` is one sheet only (its solves are kept in ``cache`` for a later run)."""
+           labels=LABELS, extra_rows=()) -> dict | None:
+    """Per voxel size the print's numbers, and each quantity's Richardson fit over the sizes (and
+    ``extra_rows``' sizes: rows already computed, the printed stage's ladder); None when
+    ``labels`` is one sheet only (its solves are kept in ``cache`` for a later run)."""
     from threadpoolctl import threadpool_limits
 
     from metasheet.sheet.dns import SheetPrint
@@ -101,11 +105,27 @@ def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, len
         rows.append({**row, "seconds": [s.build_s + s.solve_s for s in sheets]})
     if tuple(labels) != LABELS:
         return None
+    rows = sorted(rows + [r for r in extra_rows if r["voxel_mm"] not in voxels], key=lambda r: -r["voxel_mm"])
     out = {"outputs": str(outputs), "gauge": gauge, "seed": seed, "rows": rows, "homogenised": rows[-1]["homogenised"]}
     fits = ladder_fits(rows)
     if fits:
         out["richardson"] = fits
     return out
+
+
+def _seconds(row: dict) -> str:
+    return ", ".join(f"{t:.0f}" for t in row["seconds"]) if "seconds" in row else "(the pipeline's)"
+
+
+def _printed_rows(path: Path, gauge: str, seed: int | None) -> list[dict]:
+    """The ladder rows of a printed stage's ``printed.json`` (its ``ladder``), checked for the gauge
+    and the seed asked."""
+    d = json.loads(path.read_text()).get("ladder")
+    if not d:
+        raise SystemExit(f"{path}: no ladder (the printed stage's ladder key was empty)")
+    if d["gauge"] != gauge or (seed is not None and d["seed"] != seed):
+        raise SystemExit(f"{path}: its ladder is seed {d['seed']}, gauge {d['gauge']!r}; asked seed {seed}, {gauge!r}")
+    return d["rows"]
 
 
 def table(res: dict) -> str:
@@ -117,7 +137,7 @@ def table(res: dict) -> str:
     for r in res["rows"]:
         lines.append(f"| {r['voxel_mm']:g} | {r['unknowns'][0]:,}, {r['unknowns'][1]:,} "
                      f"| {r['kept_share'][0]:.4f}, {r['kept_share'][1]:.4f} | {r['iterations'][0]}, {r['iterations'][1]} "
-                     f"| {r['seconds'][0]:.0f}, {r['seconds'][1]:.0f} "
+                     f"| {_seconds(r)} "
                      f"| {r['geometric_mean_ratio'][0]:.3f}, {r['geometric_mean_ratio'][1]:.3f} "
                      f"| {r['softest_ratio'][0]:.4f}, {r['softest_ratio'][1]:.4f} | {r['rod_roll']:+.4f} "
                      f"| {' '.join(f'{s:.3g}' for s in r['singular_values'])} |")
@@ -148,9 +168,13 @@ def main() -> None:
     ap.add_argument("--labels", nargs="+", choices=LABELS, default=list(LABELS),
                     help="solve these sheets only and keep them in --cache (two processes, one sheet each; "
                          "a run with both then reads them)")
+    ap.add_argument("--with-printed", type=Path, default=None, help="a printed stage's printed.json: its ladder's "
+                    "rows join the ones solved here (same seed and gauge), for the fits over both")
     add_save_option(ap)
     args = ap.parse_args()
-    res = ladder(args.outputs, args.voxels, args.gauge, args.seed, args.cache, labels=tuple(args.labels))
+    extra = _printed_rows(args.with_printed, args.gauge, args.seed) if args.with_printed else ()
+    res = ladder(args.outputs, args.voxels, args.gauge, args.seed, args.cache, labels=tuple(args.labels),
+                 extra_rows=extra)
     if res is None:
         return
     if args.json is not None:
