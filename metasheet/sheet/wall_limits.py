@@ -92,7 +92,7 @@ def principal_extremes(E) -> tuple[float, float]:
     """(largest, smallest) eigenvalue over the symmetric ``E`` (n, 3, 3), the same numbers as
     ``eigvalsh`` of every one: only those whose Gershgorin interval reaches past the extremes'
     bounds from the diagonals (a diagonal lies within the eigenvalues) are solved, with a margin
-    for the solver's rounding (1e-10 of the largest entry), a few hundred of 725,000 on a print."""
+    for the solver's rounding (1e-10 of the largest entry)."""
     E = np.asarray(E, float)
     if not len(E):
         raise ConfigError("solid: no solid voxel")
@@ -127,9 +127,7 @@ def wall_pairs(solid, h, radius: float, *, separation: float | None = None, touc
     if not 0 < touch < separation <= radius:
         raise ConfigError(f"touch, separation, radius: {touch:g}, {separation:g}, {radius:g} mm: need "
                           "0 < touch < separation <= radius")
-    N = tuple(n + 1 for n in s.shape)
-    nodes = surface_nodes(s)
-    X = np.stack(np.unravel_index(nodes, N), 1) * h
+    nodes, X = surface_points(s, h)
     pairs = cKDTree(X).query_pairs(radius, output_type="ndarray")
     off = X[pairs[:, 0]] - X[pairs[:, 1]]
     keep = np.einsum("pi,pi->p", off, off) >= separation**2
