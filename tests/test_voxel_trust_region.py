@@ -101,3 +101,17 @@ def test_without_a_region_the_direction_is_reported_not_followed():
     d = s.direction.ravel()
     assert d @ K @ d < 0
     np.testing.assert_allclose(s.p.ravel()[:2], -(5.0 / 3.0) * np.array([1.0, 2.0]), rtol=1e-12)
+
+
+def test_a_preconditioner_that_is_not_positive_definite_is_reported():
+    K = np.diag([3.0, 2.0, 1.0, 0.5, 4.0, 1.5])
+    g = np.ones((2, 3))
+
+    def apply(v):
+        return (K @ v.ravel()).reshape(v.shape)
+
+    s = steihaug(apply, g, lambda r: -r, 1e3, rtol=1e-12, maxiter=50)
+    assert s.ended == "indefinite" and s.iterations == 0 and not s.p.any()
+    flip = np.array([1.0, 1.0, 1.0, 1.0, 1.0, -1.0]).reshape(2, 3)  # positive on g, not on every residual
+    s = steihaug(apply, g, lambda r: flip * r, 1e3, rtol=1e-12, maxiter=50)
+    assert s.ended == "indefinite" and s.iterations >= 1

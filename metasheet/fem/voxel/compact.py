@@ -136,7 +136,7 @@ def _slab_gemm(v0, v1, u, free, nodes, mats_t, scale, y):
     (m, 24) blocks, one BLAS product with K_e^T, scatter. About twice the speed of _slab;
     the bits depend on the BLAS kernel but not on the thread count (chunks are fixed)."""
     m = u.shape[2]
-    K = mats_t[0]
+    K = mats_t[0].astype(np.float64)  # a float32 table (a preconditioner's) meets float64 vectors
     for c0 in range(v0, v1, CHUNK):
         c1 = min(v1, c0 + CHUNK)
         ue = np.empty(((c1 - c0) * m, 24))

@@ -263,3 +263,44 @@ def max_principal_strain(Fs, out):
             if lam[2] > best:
                 best = lam[2]
         out[e] = best
+
+
+@njit(cache=True, parallel=True)
+def tangent_matrices(dN, w, mu, lam, Finv_s, c_s, out):
+    """``out`` (m, 24, 24) [N/mm]: each voxel's tangent stiffness at its Gauss points' ``F^-1``
+    (m, 8, 3, 3) and ``mu - lam ln J`` (m, 8) (from :func:`internal_forces`), dof ``3 a + i`` of
+    local node ``a``: the matrix whose product :func:`tangent_apply` forms without it,
+
+        K[3a + i, 3b + k] = sum_g w_g sum_jl dN[g, a, j] A_g[i, j, k, l] dN[g, b, l],
+        A_ijkl = mu d_ik d_jl + lam F^-1_lk F^-1_ji + (mu - lam ln J) F^-1_li F^-1_jk.
+
+    Each voxel's matrix is its own sum in float64 (no reduction across voxels), stored in
+    ``out``'s dtype (float32 for a preconditioner's table): the same bits on any thread count."""
+    for e in prange(out.shape[0]):
+        K = np.zeros((24, 24))
+        B = np.empty((3, 3, 3, 8))  # B[i, j, k, b] = sum_l A_ijkl dN[g, b, l]
+        for g in range(8):
+            Fi = Finv_s[e, g]
+            c = c_s[e, g]
+            for i in range(3):
+                for j in range(3):
+                    for k in range(3):
+                        for b in range(8):
+                            s = 0.0
+                            for l in range(3):
+                                a_ijkl = lam * Fi[l, k] * Fi[j, i] + c * Fi[l, i] * Fi[j, k]
+                                if i == k and j == l:
+                                    a_ijkl += mu
+                                s += a_ijkl * dN[g, b, l]
+                            B[i, j, k, b] = s
+            for a in range(8):
+                for i in range(3):
+                    for b in range(8):
+                        for k in range(3):
+                            s = 0.0
+                            for j in range(3):
+                                s += dN[g, a, j] * B[i, j, k, b]
+                            K[3 * a + i, 3 * b + k] += w[g] * s
+        for r in range(24):
+            for q in range(24):
+                out[e, r, q] = K[r, q]

@@ -17,8 +17,10 @@ vanish, which for a hyperelastic body is where the strain energy is stationary o
    poorly, and CG iterations are what a step costs), preconditioned
    by the split multigrid of the *linear* elastic body (:func:`~.multigrid.build_hierarchy`,
    built once): at rest the tangent is that operator, away from it a fixed, well-conditioned
-   approximation of it. The step is kept where the energy falls by at least a tenth of the
-   model's prediction, and the radius follows that ratio. Thin walls that buckle make the
+   approximation of it. Once a step's CG takes more than :data:`REBUILD_ITERATIONS`, the next
+   step's multigrid is rebuilt on the current tangent (:mod:`.tangent_multigrid`; back to the
+   rest one where that is not positive definite). The step is kept where the energy falls by at
+   least a tenth of the model's prediction, and the radius follows that ratio. Thin walls that buckle make the
    tangent indefinite; the trust region then follows the falling directions instead of
    solving an indefinite system (a line search did not: it stalled on the printed sheet).
 3. **Stable, not only balanced.** A Newton method converges to saddles too: a perfect column
@@ -49,9 +51,10 @@ from .contact import Contact, SurfacePairs, surface_areas
 from .element import validate_grid
 from .hyperelastic import (NeoHookean, colour_order, gauss_gradients, internal_forces, max_principal_strain,
                            tangent_apply)
-from .multigrid import build_hierarchy
+from .multigrid import Hierarchy, build_hierarchy
 from .operator import VoxelOperator, node_shape, touched_nodes
 from .pcg import pcg
+from .tangent_multigrid import tangent_hierarchy, tangent_table
 from .trust_region import steihaug, update_radius
 
 
@@ -167,13 +170,15 @@ class HyperelasticBody:
         fixed = _dofs(prescribed, "prescribed", self.N, bool) & touched[..., None]
         if not fixed.any():
             raise ConfigError("prescribed: no prescribed dof on the solid: the body would float")
-        op = VoxelOperator(index, law_table(self.law, h), np.ones(index.shape), False,
-                           (touched[..., None] & ~fixed).astype(float), h)
+        self.free_grid, self.fixed = (touched[..., None] & ~fixed).astype(float), fixed
+        op = VoxelOperator(index, law_table(self.law, h), np.ones(index.shape), False, self.free_grid, h)
         with threadpool_limits(limits=1, user_api="blas"):
             self.H = build_hierarchy(op, fixed, coarsening="split")
         self.at = self.body.node_map[self.H.fine.active]  # the hierarchy's compact nodes, body numbering
         self.free_c = self.H.fine.free  # (a, 3) their free dofs
         self.fixed_b = fixed.reshape(-1, 3)[self.body.nodes]
+        self.mg = self.H  # the multigrid of the solve under way (:func:`_newton`), the rest one between solves
+        self._table = None  # its tangent's element table, rewritten at each rebuild within a solve
         # the round-off of the forces: eps times the stress of the displacement gradient (|H| at
         # most max|u| / h) over a voxel face, summed over the dofs; under a large rigid motion the
         # forces are differences of O(|H|) stresses, so no residual falls below it (1e3: the sums' depth)
@@ -183,6 +188,17 @@ class HyperelasticBody:
     def floor(self, u: np.ndarray) -> float:
         """The forces' round-off [N] at displacements ``u`` (n, 3) [mm]."""
         return self._roundoff * (1.0 + float(np.abs(u).max()) / float(self.h.min()))
+
+    def tangent_hierarchy(self) -> Hierarchy | None:
+        """The split multigrid of the tangent at the last :meth:`_Body.forces` call's state
+        (:mod:`.tangent_multigrid`), or None where it is not positive definite. With walls'
+        contact the penalty's tangent is not in it (the rest hierarchy's role then)."""
+        if self.body.contact is not None:
+            return None
+        b = self.body
+        # the last table's memory again: the caller dropped the hierarchy that held it
+        self._table = tangent_table(b.dN, b.w, b.mu, b.lam, b.Finv, b.c, self._table)
+        return tangent_hierarchy(self.index, self._table, self.free_grid, self.fixed, self.h)
 
     def on_free(self, v_b: np.ndarray) -> np.ndarray:
         """Body numbering (n, 3) -> the hierarchy's compact free dofs (a, 3)."""
@@ -270,6 +286,7 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
     done, frac = 0.0, 1.0  # the share of the prescribed increment reached, the next step's share
     u0p = u[fixed_b].copy()
     radius = None  # the trust region's radius [mm], carried over the load steps
+    hb.mg = hb.H  # the Newton steps' multigrid: the rest one, or one rebuilt on a tangent, carried on
     while done < 1.0:
         tries += 1
         if steps >= max_substeps or tries > 4 * max_substeps:
@@ -305,6 +322,7 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
         newton += its
     else:
         stable = False if probe else None
+    hb.mg, hb._table = hb.H, None  # a rebuilt multigrid's memory back
     ref = float(np.linalg.norm(f[fixed_b]))
     # over the reactions, or over the round-off's scale where they vanish (a rigid motion)
     resid = float(np.linalg.norm(hb.on_free(f))) / max(ref, hb.floor(u) / rtol)
@@ -319,6 +337,10 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
 
 #: the stability probe: CG iterations at most, and saddles left at most, per solve
 PROBE_ITERATIONS, ESCAPES = 100, 3
+#: a Newton step whose CG took more iterations rebuilds the multigrid on the tangent for the next
+#: (:mod:`.tangent_multigrid`: ~30 iterations' time on the paper's sheet, and 5 to 10 iterations a
+#: step after it where the rest multigrid took 50 to 180)
+REBUILD_ITERATIONS = 30
 
 
 def _escape(hb, u, energy, maxiter, radius, cgs):
@@ -326,7 +348,9 @@ def _escape(hb, u, energy, maxiter, radius, cgs):
     pseudo-random right-hand side meets a direction of negative curvature if the tangent has
     one it can see (CG is Lanczos: the extreme eigenvalues appear first). Returns (u, f,
     energy) moved along it to a lower energy, or None when none is found (the tangent then
-    holds the state's)."""
+    holds the state's). Preconditioned by the rest multigrid, which is positive definite
+    whatever the state (a tangent's multigrid, :mod:`.tangent_multigrid`, took all 100 iterations
+    too, at 1.8 times the cost of each, on the paper's sheet)."""
     body, to_body = hb.body, hb.to_body
     v = hb.on_free(np.random.default_rng(0).standard_normal((len(body.nodes), 3)))
     step = steihaug(lambda w: hb.on_free(body.tangent(to_body(w))), v,
@@ -364,8 +388,10 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
     def apply(v):  # (a, 3) -> (a, 3): the tangent on the free dofs
         return on_free(body.tangent(to_body(v)))
 
+    last = 0  # the last step's CG iterations
+
     def precondition(r):
-        return hb.H.precondition(r[..., None])[..., 0]
+        return hb.mg.precondition(r[..., None])[..., 0]
 
     smallest = 1e-9 * float(hb.h.min())
     for it in range(max_newton + 1):
@@ -380,9 +406,17 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
             return u, f, energy, it, radius
         if it == max_newton:
             break
-        step = steihaug(apply, g, precondition, radius, rtol=max(min(0.1, np.sqrt(gn / ref)), rtol / 10),
-                        maxiter=cg_maxiter, flexible=hb.H.flexible)
+        if last > REBUILD_ITERATIONS:  # the rest multigrid no longer fits this tangent (a count: deterministic)
+            hb.mg = None  # the old one's memory first
+            hb.mg = hb.tangent_hierarchy() or hb.H
+        tol = max(min(0.1, np.sqrt(gn / ref)), rtol / 10)
+        step = steihaug(apply, g, precondition, radius, rtol=tol, maxiter=cg_maxiter, flexible=hb.mg.flexible)
+        if step.ended == "indefinite":  # the tangent's multigrid of a state that buckles: the rest one
+            cgs.append(step.iterations)
+            hb.mg = hb.H
+            step = steihaug(apply, g, precondition, radius, rtol=tol, maxiter=cg_maxiter, flexible=hb.mg.flexible)
         cgs.append(step.iterations)
+        last = step.iterations
         trial = u + to_body(step.p)
         kept = _save_pairs(body)
         f_t, e_t, bad = body.forces(trial)

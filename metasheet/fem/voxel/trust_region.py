@@ -36,7 +36,9 @@ class TrustStep:
     p : (a, 3) [mm] the step; model : m(p) [N mm] (< 0 unless g = 0); iterations : CG
     iterations; ended : why CG stopped: "converged" (the model's gradient reached the
     tolerance inside the region), "boundary" (an iterate left the region), "curvature"
-    (a direction of non-positive curvature, followed to the boundary) or "maxiter";
+    (a direction of non-positive curvature, followed to the boundary), "maxiter" or
+    "indefinite" (the preconditioner gave ``r . z <= 0``: it is not positive definite, and the
+    step so far is not a descent the caller should trust);
     direction : (a, 3) that direction d (d . K d <= 0) when ended == "curvature", else None.
     """
 
@@ -80,6 +82,8 @@ def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray,
     z = precondition(r)
     d = -z
     rz = _dot(r, z)
+    if not rz > 0.0:
+        return TrustStep(p, 0.0, 0, "indefinite")
 
     def model(p, r):  # m(p) = g.p + 1/2 p.(r - g) = 1/2 (g.p + r.p)
         return 0.5 * (_dot(g, p) + _dot(r, p))
@@ -105,6 +109,8 @@ def steihaug(apply: Callable[[np.ndarray], np.ndarray], g: np.ndarray,
             return TrustStep(p, model(p, r), it, "converged")
         z = precondition(r)
         rz_new = _dot(r, z)
+        if not rz_new > 0.0:
+            return TrustStep(p, model(p, r), it, "indefinite")
         beta = _dot(z, q) / dq if flexible else rz_new / rz  # K-conjugate to d either way
         d = -z + beta * d
         rz = rz_new
