@@ -26,17 +26,21 @@ from dns_convergence import LABELS  # noqa: E402
 GRIPS = ("centre", "arm 0", "arm 1", "arm 2")
 
 
-def solve(gb, robot, sheet, sheet_index: int, deg: float, rtol: float, history: list | None):
-    """The grips' wrenches (4, 6) and the solve's wall time [s] with the horns turned ``deg``."""
+def horns_turned(robot, sheet, sheet_index: int, deg: float):
+    """(rotations, translations) (4, 3) of the sheet's grips: the centre held, the horns turned ``deg``."""
     from metasheet.robot.robots import Q_A, Q_B
     from metasheet.robot.voxel_robot import sheet_grip_poses
 
     c = robot.coupling
     centres = np.asarray(robot.info["sheet_centres_mm"], float)
     servos = list(c.servos[3 * sheet_index:3 * sheet_index + 3])
-    rot, trans = sheet_grip_poses((Q_A, Q_B)[sheet_index], centres[sheet_index], sheet.references,
-                                  np.asarray(c.origin, float), servos,
-                                  np.zeros(3), np.zeros(3), np.radians([deg] * 3))
+    return sheet_grip_poses((Q_A, Q_B)[sheet_index], centres[sheet_index], sheet.references,
+                            np.asarray(c.origin, float), servos, np.zeros(3), np.zeros(3), np.radians([deg] * 3))
+
+
+def solve(gb, robot, sheet, sheet_index: int, deg: float, rtol: float, history: list | None):
+    """The grips' wrenches (4, 6) and the solve's wall time [s] with the horns turned ``deg``."""
+    rot, trans = horns_turned(robot, sheet, sheet_index, deg)
     t0 = time.perf_counter()
 
     def say(msg, k, n):

@@ -73,3 +73,20 @@ def test_the_printed_robots_motor_derivatives_at_rest_are_the_linear_models():
 def test_the_printed_robots_jacobian_at_rest_on_finer_voxels():
     got, want = _motor_columns(0.5, range(6))
     assert np.abs(got - want).max() <= 1e-6 * np.abs(want).max()
+
+
+def test_the_sheets_in_processes_of_their_own_give_the_same_bits():
+    robot, sheet, S = _printed(1.0)
+    rest = np.degrees([s.rest_angle for s in robot.coupling.servos])
+    motors = rest + np.array([3.0, -2.0, 0.0, 1.0, 0.0, -1.5])
+    here = PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8).equilibrium(motors)
+    apart = PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8, processes=True)
+    try:
+        there = apart.equilibrium(motors)
+    finally:
+        apart.close()
+    assert there.iterations == here.iterations and there.newton == here.newton
+    for a, b in ((there.dp, here.dp), (there.theta, here.theta), (there.wrenches, here.wrenches)):
+        np.testing.assert_array_equal(a, b)
+    assert there.stable == here.stable and there.wall_strain == here.wall_strain
+    assert not apart.bodies[0]._proc.is_alive() and not apart.bodies[1]._proc.is_alive()

@@ -111,9 +111,13 @@ class PrintedRobot:
     ``progress``: called as ``progress(desc, done, total)`` by each sheet's solve (long on a print).
     ``contact``: the walls' penalty contact in each sheet (None: they pass through each other,
     True: :meth:`metasheet.fem.voxel.contact.Contact.default`, or a Contact).
+    ``processes``: each sheet in a process of its own (:mod:`.sheet_process`), the two solved at once
+    on two cores (the same bits; ``progress`` then reports the rod's iterations only); False: both in
+    this process, one after the other. :meth:`close` stops them (so does the object's collection).
     """
 
-    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8, progress=None, contact=None):
+    def __init__(self, robot, sheets, S_rest=None, rtol: float = 1e-8, progress=None, contact=None,
+                 processes: bool = False):
         c, centres = _check_robot(robot)
         if len(sheets) != 2 or not all(isinstance(s, VoxelSheet) for s in sheets):
             raise ConfigError("sheets: expected (sheet A, sheet B), two VoxelSheet")
@@ -122,8 +126,13 @@ class PrintedRobot:
         self.origin = np.asarray(c.origin, float)
         self.rest_angles = np.asarray([s.rest_angle for s in c.servos], float)
         self.J0 = None if S_rest is None else np.asarray(S_rest, float)[:6, :6].copy()
-        self.bodies = tuple(GripBody(s.phases, s.size, s.law, bodies=s.bodies, references=s.references - s.origin,
-                                     contact=contact) for s in self.sheets)  # each sheet's multigrid built once
+        if processes:
+            from .sheet_process import SheetProcess
+
+            self.bodies = tuple(SheetProcess(s, contact) for s in self.sheets)
+        else:  # each sheet's multigrid built once
+            self.bodies = tuple(GripBody(s.phases, s.size, s.law, bodies=s.bodies,
+                                         references=s.references - s.origin, contact=contact) for s in self.sheets)
         self.states = [None, None]
         self.last = [None, None]
         self.newton = 0
@@ -136,12 +145,17 @@ class PrintedRobot:
         dp, theta = q[:3], q[3:]
         o = self.origin + dp
         total, per, scale = np.zeros(6), np.zeros((2, 4, 6)), 0.0
+        poses = []
         for s, (sheet, (Q, centre, servos)) in enumerate(zip(self.sheets, self.frames)):
             rot, trans = sheet_grip_poses(Q, centre, sheet.references, self.origin, servos, dp, theta,
                                           dphi[3 * s:3 * s + 3])
             say = None if self.progress is None else \
                 (lambda d, k, n, s=s: self.progress(f"sheet {'AB'[s]}: {d}", k, n))
-            g = self.bodies[s].wrenches(rot, trans, self.states[s], self.rtol, progress=say, probe=probe)
+            self.bodies[s].submit(rot, trans, self.states[s], self.rtol, probe=probe, progress=say)
+            poses.append(trans)
+        for s, (sheet, (Q, centre, servos)) in enumerate(zip(self.sheets, self.frames)):
+            trans = poses[s]
+            g = self.bodies[s].result()  # in this process: solved now; in a sheet's process: waited for
             self.states[s] = g.solution.full(g.solution.u)
             self.last[s] = g
             self.newton += g.solution.newton
@@ -170,7 +184,7 @@ class PrintedRobot:
             rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
             hist.append(rel)
             # the sheets' force round-off bounds what the rod can balance (a pose at rest: no force at all)
-            floor = sum(b.hyper.floor(self.states[k].reshape(-1, 3)) for k, b in enumerate(self.bodies))
+            floor = sum(b.floor(self.states[k].reshape(-1, 3)) for k, b in enumerate(self.bodies))
             balanced = rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor
             if balanced and probes < 2:
                 # the sheets' stability checked once the rod balances (a probe per rod iteration would
@@ -199,6 +213,12 @@ class PrintedRobot:
             q, r = q_new, r_new
         raise ConvergenceError(f"printed robot: the rod's equilibrium at motors {np.degrees(motors).round(3).tolist()} "
                                f"deg reached {hist[-1]:.2e} after {max_iterations} iterations", history=hist)
+
+    def close(self) -> None:
+        """Stop the sheets' processes (``processes=True``; nothing otherwise)."""
+        for b in self.bodies:
+            if hasattr(b, "close"):
+                b.close()
 
     def _walls(self) -> tuple[tuple, tuple]:
         """Each sheet's largest wall strain and closest approach at the last solved pose."""

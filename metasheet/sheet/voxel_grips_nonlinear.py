@@ -104,6 +104,24 @@ class GripBody:
         return GripWrenches(w, sol, self.kept_share)
 
 
+    def submit(self, rotations, translations, initial=None, rtol: float = 1e-8, probe: bool = True,
+               progress=None) -> None:
+        """Keep a solve's arguments for :meth:`result` (a :class:`~metasheet.robot.sheet_process.SheetProcess`
+        runs it at once in its child; here it runs when the result is asked for)."""
+        self._asked = (rotations, translations, initial, rtol, progress, probe)
+
+    def result(self) -> GripWrenches:
+        """The :meth:`submit`-ted solve's wrenches."""
+        asked, self._asked = getattr(self, "_asked", None), None
+        if asked is None:
+            raise ConfigError("result: no solve was submitted")
+        return self.wrenches(*asked)
+
+    def floor(self, u: np.ndarray) -> float:
+        """The forces' round-off [N] at displacements ``u`` (:meth:`HyperelasticBody.floor`)."""
+        return self.hyper.floor(u)
+
+
 def grip_wrenches(phases, size, law: NeoHookean, *, bodies, references, rotations, translations,
                   initial=None, rtol: float = 1e-8, progress=None) -> GripWrenches:
     """The grips' wrenches with every grip at its pose, once (:class:`GripBody` prepared and solved)."""

@@ -17,11 +17,12 @@ vanish, which for a hyperelastic body is where the strain energy is stationary o
    poorly, and CG iterations are what a step costs), preconditioned
    by the split multigrid of the *linear* elastic body (:func:`~.multigrid.build_hierarchy`,
    built once): at rest the tangent is that operator, away from it a fixed, well-conditioned
-   approximation of it. Once a step's CG takes more than :data:`REBUILD_ITERATIONS`, the next
-   step's multigrid is rebuilt on the current tangent (:mod:`.tangent_multigrid`; back to the
-   rest one where that is not positive definite). The step is kept where the energy falls by at
-   least a tenth of the model's prediction, and the radius follows that ratio. Thin walls that buckle make the
-   tangent indefinite; the trust region then follows the falling directions instead of
+   approximation of it. Once the steps' CG has taken more than :data:`REBUILD_ITERATIONS` on the
+   multigrid in use, the next step's is rebuilt on the current tangent (:mod:`.tangent_multigrid`;
+   back to the rest one where that is not positive definite, and the count doubled before the
+   next try). The step is kept where the energy falls by at least a tenth of the model's
+   prediction, and the radius follows that ratio. Thin walls that buckle make the tangent
+   indefinite; the trust region then follows the falling directions instead of
    solving an indefinite system (a line search did not: it stalled on the printed sheet).
 3. **Stable, not only balanced.** A Newton method converges to saddles too: a perfect column
    pressed past its buckling load balances straight. At the end the tangent is probed once
@@ -337,10 +338,11 @@ def _solve(hb: HyperelasticBody, target, start, rtol, max_newton, max_substeps, 
 
 #: the stability probe: CG iterations at most, and saddles left at most, per solve
 PROBE_ITERATIONS, ESCAPES = 100, 3
-#: a Newton step whose CG took more iterations rebuilds the multigrid on the tangent for the next
-#: (:mod:`.tangent_multigrid`: ~30 iterations' time on the paper's sheet, and 5 to 10 iterations a
-#: step after it where the rest multigrid took 50 to 180)
-REBUILD_ITERATIONS = 30
+#: once the Newton steps' CG has taken more iterations on the multigrid in use, the next step's is
+#: rebuilt on the tangent (:mod:`.tangent_multigrid`): a rebuild costs about 20 iterations' time on
+#: the paper's sheet, and the steps after it took 5 to 10 iterations where the rest multigrid took
+#: 50 to 180 (so a rebuild comes once about twice its cost has gone into the multigrid in use)
+REBUILD_ITERATIONS = 40
 
 
 def _escape(hb, u, energy, maxiter, radius, cgs):
@@ -388,7 +390,7 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
     def apply(v):  # (a, 3) -> (a, 3): the tangent on the free dofs
         return on_free(body.tangent(to_body(v)))
 
-    last = 0  # the last step's CG iterations
+    spent, threshold = 0, REBUILD_ITERATIONS  # CG iterations on the multigrid in use, and when to rebuild
 
     def precondition(r):
         return hb.mg.precondition(r[..., None])[..., 0]
@@ -406,17 +408,19 @@ def _newton(hb, u, f, energy, rtol, max_newton, cg_maxiter, say, cgs, radius):
             return u, f, energy, it, radius
         if it == max_newton:
             break
-        if last > REBUILD_ITERATIONS:  # the rest multigrid no longer fits this tangent (a count: deterministic)
+        if spent > threshold:  # the multigrid in use has cost a rebuild's time twice (a count: deterministic)
             hb.mg = None  # the old one's memory first
-            hb.mg = hb.tangent_hierarchy() or hb.H
+            hb.mg, spent = hb.tangent_hierarchy() or hb.H, 0
+            if hb.mg is hb.H:  # refused (not positive definite): try again only after twice as many
+                threshold *= 2
         tol = max(min(0.1, np.sqrt(gn / ref)), rtol / 10)
         step = steihaug(apply, g, precondition, radius, rtol=tol, maxiter=cg_maxiter, flexible=hb.mg.flexible)
         if step.ended == "indefinite":  # the tangent's multigrid of a state that buckles: the rest one
             cgs.append(step.iterations)
-            hb.mg = hb.H
+            hb.mg, threshold = hb.H, 2 * threshold
             step = steihaug(apply, g, precondition, radius, rtol=tol, maxiter=cg_maxiter, flexible=hb.mg.flexible)
         cgs.append(step.iterations)
-        last = step.iterations
+        spent += step.iterations
         trial = u + to_body(step.p)
         kept = _save_pairs(body)
         f_t, e_t, bad = body.forces(trial)
