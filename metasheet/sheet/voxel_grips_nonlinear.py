@@ -103,7 +103,6 @@ class GripBody:
         np.add.at(w, b, np.concatenate([f, np.cross(arm, f)], axis=1))
         return GripWrenches(w, sol, self.kept_share)
 
-
     def submit(self, rotations, translations, initial=None, rtol: float = 1e-8, probe: bool = True,
                progress=None) -> None:
         """Keep a solve's arguments for :meth:`result` (a :class:`~metasheet.robot.sheet_process.SheetProcess`

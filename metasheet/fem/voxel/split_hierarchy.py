@@ -97,9 +97,7 @@ class SplitHierarchy:
 
     ``keep`` (k,) the bottom level's unpinned flat dofs; ``solve`` (k, m) -> (k, m) its factor;
     ``degree``, ``ratio``: the Chebyshev smoother of the levels above the bottom; ``cycle``: "k"
-    (K-cycle, a nonlinear preconditioner: flexible CG) or "v" (V-cycle); ``positive``: every
-    pivot of the bottom factor is positive (its symmetric diagonal pivots are the inertia of an
-    LDL^T: False on the Galerkin level of an indefinite operator).
+    (K-cycle, a nonlinear preconditioner: flexible CG) or "v" (V-cycle).
     """
 
     levels: tuple[SparseLevel, ...]
@@ -108,7 +106,11 @@ class SplitHierarchy:
     degree: int
     ratio: float
     cycle: str = "k"
-    positive: bool = True
+
+    @property
+    def positive(self) -> bool:
+        """Every pivot of the bottom factor is positive (:func:`positive_pivots`; asked for, not kept)."""
+        return positive_pivots(self.solve)
 
     @property
     def shapes(self) -> tuple[tuple[int, int, int], ...]:
@@ -213,8 +215,8 @@ def build_split_hierarchy(cop: CompactOperator, *, degree: int = 2, ratio: float
         lmax = _lambda_max(indptr, indices, data, dinv) if smoothed else 0.0
         levels.append(SparseLevel(indptr, indices, data, P, P.T.tocsr(), dinv, lmax, tuple(int(n) for n in nodes)))
     pin = op.periodic if pin_parts is None else bool(pin_parts)
-    keep, solve, positive = factor_pinned(to_bsr(*raw[-1][0]).tocsr(), pin_parts=pin)
-    return SplitHierarchy(tuple(levels), keep, solve, int(degree), float(ratio), cycle, positive)
+    keep, solve = factor_pinned(to_bsr(*raw[-1][0]).tocsr(), pin_parts=pin)
+    return SplitHierarchy(tuple(levels), keep, solve, int(degree), float(ratio), cycle)
 
 
 def drop_empty_blocks(indptr, indices, data):
@@ -227,18 +229,27 @@ def drop_empty_blocks(indptr, indices, data):
     return ptr, np.ascontiguousarray(indices[keep]), np.ascontiguousarray(data[keep])
 
 
-def factor_pinned(A: sp.csr_matrix, *, pin_parts: bool = True) -> tuple[np.ndarray, Callable, bool]:
+def factor_pinned(A: sp.csr_matrix, *, pin_parts: bool = True) -> tuple[np.ndarray, Callable]:
     """SuperLU factor of ``A`` with one copy per connected part of its graph pinned (the periodic
     translations; ``pin_parts`` False: none, the prescribed dofs hold every part) and a relative
     diagonal shift (copies can be linearly dependent: fragments that reach a few shared fine nodes;
     the amplified null vector is annihilated by P on the way up). Dofs with a zero diagonal are left
-    out either way. Returns (keep (k,) the unpinned dofs, solve (k, m) -> (k, m), every pivot > 0)."""
+    out either way. Returns (keep (k,) the unpinned dofs, solve (k, m) -> (k, m))."""
     keep = _unpinned(A) if pin_parts else np.flatnonzero(A.diagonal() > 0)
     Ak = A[keep][:, keep]
     Ak = (Ak + sp.diags(REGULARIZE * Ak.diagonal())).tocsc()
     # SPD: diagonal pivots keep the symmetric ordering (fem.solvers.superlu's symmetric mode)
     lu = spla.splu(Ak, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    return keep, lu.solve, bool(np.all(lu.U.diagonal() > 0))
+    return keep, lu.solve
+
+
+def positive_pivots(solve: Callable) -> bool:
+    """Whether every pivot of :func:`factor_pinned`'s factor (``solve``, its SuperLU's method) is
+    positive: its symmetric diagonal pivots are the D of an LDL^T, whose signs are the matrix's
+    inertia (Sylvester), so False means an indefinite level (the Galerkin level of an indefinite
+    operator). Extracting U costs a copy of it: asked for by the tangent's multigrid only."""
+    lu = getattr(solve, "__self__", None)
+    return lu is None or bool(np.all(lu.U.diagonal() > 0))
 
 
 def chebyshev_steps(lmax: float, ratio: float, degree: int) -> tuple[float, list[tuple[float, float]]]:
