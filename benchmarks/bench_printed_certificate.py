@@ -93,6 +93,8 @@ def main() -> None:
     ap.add_argument("--random", type=int, default=1, help="seeded random directions besides")
     ap.add_argument("--random-seed", type=int, default=62)
     ap.add_argument("--rtol", type=float, default=1e-6, help="the voxel robot's sheets' relative residual")
+    ap.add_argument("--processes", action="store_true",
+                    help="the voxel robot's two sheets side by side, each in a process of its own (the same bits)")
     ap.add_argument("--cache", type=Path, required=True, help="dns_convergence.py's cache of linear solves")
     add_save_option(ap)
     args = ap.parse_args()
@@ -118,7 +120,8 @@ def main() -> None:
                                 file=sys.stderr, flush=True)
     rows = []
     for name, d in dirs.items():
-        reference = PrintedRobot(robot, sheets, S_rest=S, rtol=args.rtol, progress=say)  # outwards from rest
+        reference = PrintedRobot(robot, sheets, S_rest=S, rtol=args.rtol, progress=say,  # outwards from rest
+                                 processes=args.processes)
         for t in sorted(args.travel):
             m = rest + t * d
             t0 = time.perf_counter()
@@ -135,6 +138,7 @@ def main() -> None:
                          t_ref, 1e3 * t_model, any(a.closed for a in ref.approach)))
             print(f"  {name} {t:g} deg: error {e_mm:.4f} mm {e_deg:.4f} deg (linear {l_mm:.4f} mm {l_deg:.4f} deg), "
                   f"{t_ref:.0f} s", file=sys.stderr, flush=True)
+        reference.close()  # its sheets' processes stopped before the next direction's start
     with saved_output(__file__, args.save):
         print(f"One print (seed {seed}, gauge {args.gauge!r}) of `{args.outputs}` at {args.voxel:g} mm voxels: the "
               "superelement robot (each sheet's linear DNS stiffness on its grips) against the finite-strain voxel "

@@ -73,6 +73,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--offsets", type=float, nargs="+", default=[2.0, 5.0], help="every motor moved by [deg]")
     ap.add_argument("--cache", type=Path, required=True, help="dns_convergence.py's cache of linear solves")
+    ap.add_argument("--processes", action="store_true",
+                    help="the two sheets side by side, each in a process of its own (the same bits)")
     add_save_option(ap)
     args = ap.parse_args()
     args.cache.mkdir(parents=True, exist_ok=True)
@@ -81,7 +83,8 @@ def main() -> None:
     ax = np.asarray(robot.axis, float) / np.linalg.norm(robot.axis)
     t_start = time.perf_counter()
     printed = PrintedRobot(robot, sheets, S_rest=S, rtol=1e-6, progress=lambda d, k, n: print(
-        f"  {time.perf_counter() - t_start:7.0f} s  {d} ({k}/{n})", file=sys.stderr, flush=True))
+        f"  {time.perf_counter() - t_start:7.0f} s  {d} ({k}/{n})", file=sys.stderr, flush=True),
+        processes=args.processes)
     rest = np.degrees([s.rest_angle for s in robot.coupling.servos])
     rows = []
     for off in args.offsets:
