@@ -51,7 +51,7 @@ def _serve(conn, sheet, contact, parent: int) -> None:
         threadpool_limits(limits=1)
         body = GripBody(sheet.phases, sheet.size, sheet.law, bodies=sheet.bodies,
                         references=sheet.references - sheet.origin, contact=contact)
-        conn.send(("ready", body.hyper._roundoff, float(body.hyper.h.min())))
+        conn.send(("ready", body.hyper.roundoff, float(body.hyper.h.min())))
     except BaseException as exc:  # noqa: BLE001 - sent back whole, raised in the parent
         conn.send(("error", exc))
         return
@@ -116,8 +116,10 @@ class SheetProcess:
 
     def floor(self, u: np.ndarray) -> float:
         """The forces' round-off [N] at displacements ``u`` (as :meth:`HyperelasticBody.floor`)."""
+        from ..fem.voxel.nonlinear import forces_floor
+
         self._ready()
-        return self._roundoff * (1.0 + float(np.abs(u).max()) / self._hmin)
+        return forces_floor(self._roundoff, self._hmin, u)
 
     def close(self) -> None:
         """Stop the child (also at exit and when this object is collected)."""

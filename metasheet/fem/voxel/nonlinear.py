@@ -183,12 +183,12 @@ class HyperelasticBody:
         # the round-off of the forces: eps times the stress of the displacement gradient (|H| at
         # most max|u| / h) over a voxel face, summed over the dofs; under a large rigid motion the
         # forces are differences of O(|H|) stresses, so no residual falls below it (1e3: the sums' depth)
-        self._roundoff = 1e3 * np.finfo(float).eps * self.law.E * float(np.prod(h)) ** (2 / 3) * \
+        self.roundoff = 1e3 * np.finfo(float).eps * self.law.E * float(np.prod(h)) ** (2 / 3) * \
             np.sqrt(3.0 * len(self.body.nodes))
 
     def floor(self, u: np.ndarray) -> float:
-        """The forces' round-off [N] at displacements ``u`` (n, 3) [mm]."""
-        return self._roundoff * (1.0 + float(np.abs(u).max()) / float(self.h.min()))
+        """The forces' round-off [N] at displacements ``u`` (n, 3) [mm] (:func:`forces_floor`)."""
+        return forces_floor(self.roundoff, float(self.h.min()), u)
 
     def tangent_hierarchy(self) -> Hierarchy | None:
         """The split multigrid of the tangent at the last :meth:`_Body.forces` call's state
@@ -225,6 +225,13 @@ class HyperelasticBody:
         with threadpool_limits(limits=1, user_api="blas"):  # fixed-order sums: the same bits on any load
             return _solve(self, target, start, float(rtol), int(max_newton), int(max_substeps), int(cg_maxiter),
                           bool(probe), progress or (lambda *_: None))
+
+
+def forces_floor(roundoff: float, h_min: float, u: np.ndarray) -> float:
+    """The forces' round-off [N] of a body whose rest round-off is ``roundoff`` [N]
+    (:attr:`HyperelasticBody.roundoff`) at displacements ``u`` [mm]: it grows with the
+    displacement gradient, at most max|u| / ``h_min`` [mm]."""
+    return roundoff * (1.0 + float(np.abs(u).max()) / h_min)
 
 
 def solve_hyperelastic(phases, size, law: NeoHookean, *, prescribed, values, initial=None, rtol: float = 1e-8,
