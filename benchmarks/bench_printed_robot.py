@@ -29,22 +29,14 @@ from dns_convergence import LABELS, _inputs, _solved  # noqa: E402
 def voxel_sheet(outputs: Path, voxel: float, gauge: str, seed: int | None, label: str):
     """(robot, VoxelSheet, the print's seed): one sheet (``label`` in LABELS) of a pipeline's
     outputs, printed at ``voxel`` [mm], its walls neo-Hookean with the cell design's material."""
-    from metasheet.fem.voxel.hyperelastic import NeoHookean
     from metasheet.robot.voxel_robot import VoxelSheet
-    from metasheet.sheet.dns import grip_labels
-    from metasheet.sheet.grips import grip_references
-    from metasheet.sheet.printed_foam import printed_foam, tripod_region
+    from metasheet.sheet.dns import SheetPrint
 
     design, orient, material, robot, fields = _inputs(outputs)
     seed = design.seeds.seed if seed is None else seed
-    solid = design.material
-    foam = printed_foam(tripod_region(orient.sheet_params), fields[label], design, voxel_mm=voxel, gauge=gauge,
-                        seed=seed)
-    h = np.asarray(foam.voxel_mm, float)
-    bodies = grip_labels(foam.phases.shape, foam.origin, h, orient.sheet_params)
-    return robot, VoxelSheet(foam.phases.astype(np.int64), np.asarray(foam.size, float),
-                             np.asarray(foam.origin, float), bodies, grip_references(orient.sheet_params),
-                             NeoHookean(float(solid.E), float(solid.nu))), seed
+    spec = SheetPrint(label, seed, gauge, voxel, design, orient.sheet_params, fields[label],
+                      design.material.material().stiffness())
+    return robot, VoxelSheet.from_print(spec), seed
 
 
 def voxel_sheets(outputs: Path, voxel: float, gauge: str, seed: int | None, cache: Path):

@@ -24,17 +24,17 @@ SMALL = SheetParams(arm_width=10.0, reach=20.0, thickness=2.0, hole_radius=1.0, 
                     tip_box=(5.0, 15.0, 10.0), centre_radius=3.0, mesh_size=5.0)
 
 
-def _printed(h: float):
-    """The small tripod, solid TPU voxels of edge ``h`` (both sheets: the region is symmetric),
-    its robot, and the linear condensed model's rest Schur complement."""
-    reg = tripod_region(SMALL)
+def _printed(h: float, params: SheetParams = SMALL):
+    """The small tripod (``params``), solid TPU voxels of edge ``h`` (both sheets: the region is
+    symmetric), its robot, and the linear condensed model's rest Schur complement."""
+    reg = tripod_region(params)
     ext = reg.hi - reg.lo
     shape = tuple(int(v) for v in np.maximum(1, np.round(ext / h)))
     phases = reg.inside(reg.lo + voxel_centres(ext, np.array(shape))).reshape(shape).astype(np.int64)
-    bodies = grip_labels(shape, reg.lo, ext / np.array(shape), SMALL)
-    refs = grip_references(SMALL)
+    bodies = grip_labels(shape, reg.lo, ext / np.array(shape), params)
+    refs = grip_references(params)
     sheet = VoxelSheet(phases, ext, reg.lo, bodies, refs, TPU)
-    robot = six_dof_robot(SheetPair.spiral(SMALL), paper.PAPER_FOAM, density=paper.FOAM_DENSITY,
+    robot = six_dof_robot(SheetPair.spiral(params), paper.PAPER_FOAM, density=paper.FOAM_DENSITY,
                           gravity=(0.0, 0.0, 0.0))
     K = rigid_bodies_stiffness(phases, ext, {1: Isotropic(TPU.E, TPU.nu).stiffness()}, bodies=bodies,
                                references=refs - reg.lo, rtol=1e-11).K

@@ -317,3 +317,37 @@ def test_the_printed_robot_stage_states_each_claim_from_its_prints(run):
     assert "The printed robot against the paper's robot" in report and d["claims"]["roll"] in report
     assert "Under the other gauge (`point`" in report and "| 0.7 |" in report
     assert "rays of Fig. 5, orientation held" in report
+
+
+@pytest.mark.slow
+def test_the_printed_stage_searches_the_first_prints_box_again_on_the_finite_strain_robot(run, tmp_path):
+    """``printed.touch = 1``: the first print's binding direction searched on the finite-strain
+    voxel robot; its first touch replaces the first-order one there, the box is the first contact
+    over the directions again, the other print keeps its first-order limits, and the report says
+    both. Default-selection sibling: tests/test_nonlinear_touch.py (the search on a notched arm)."""
+    import shutil
+
+    tmp, out = run
+    shutil.copytree(tmp / "out", tmp_path / "out")
+    f = tmp_path / "p.toml"
+    f.write_text((tmp / "p.toml").read_text().replace("[printed]\n", "[printed]\ntouch = 1\ntouch_tol_deg = 0.05\n"))
+    run_pipeline(load_pipeline(f), out_root=tmp_path / "out", only="report")
+    before = json.loads((out / "printed" / "printed.json").read_text())["realisations"]
+    after = json.loads((tmp_path / "out" / "s" / "printed" / "printed.json").read_text())["realisations"]
+    lim, first = after[0]["limits"], before[0]["limits"]
+    t = lim["touch"]
+    assert t["direction"] == first["binding"] and t["first_order_deg"] == first["valid_deg"]
+    assert lim["first_order_valid_deg"] == first["valid_deg"]
+    row = lim["directions"][t["direction"]]
+    assert row["first_order_contact_deg"] == first["valid_deg"] and row["contact_deg"] == t["touch_deg"]
+    found = [v["contact_deg"] for v in lim["directions"].values() if v["contact_deg"] is not None]
+    assert lim["valid_deg"] == min(found)
+    poses = lim["touch_poses"]
+    assert poses and t["converged"]
+    if t["touch_deg"] is not None:  # the bracket's ends on their sides of the touch
+        lo, hi = t["bracket_deg"]
+        d = {p["travel"]: min(p["approach_mm"]) for p in poses}
+        assert d[hi] <= t["touch_mm"] < (d[lo] if lo > 0 else np.inf) and hi - lo <= 0.05
+    assert after[1]["limits"] == before[1]["limits"]
+    report = (tmp_path / "out" / "s" / "report" / "report.md").read_text()
+    assert "the finite-strain voxel robot found" in report

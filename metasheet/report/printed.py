@@ -70,7 +70,7 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
             continue
         at = r["roll"]["rod_rotation_within_limits_deg"]
         lines.append(f"- Seed {r['seed']}: walls touch first along {_direction(r, lim['binding'])} at "
-                     f"{_f(lim['valid_deg'])} deg; "
+                     f"{_f(lim['valid_deg'])} deg{_touch_words(lim)}; "
                      f"the rod turns {_f(at['pull'])} deg pulled and {_f(at['push'])} deg pushed up to the walls' "
                      "limit.")
     lines.append("")
@@ -80,6 +80,17 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
     text.update({k: STATEMENTS[k] for k in ("workspace", "ranges", "maze")})
     diffs = [f"Printed robot: {text[k]}: {d['claims'][k]}." for k in keys if d["claims"][k] != "predicted"]
     return lines, diffs
+
+
+def _touch_words(lim: Mapping) -> str:
+    """Where the finite-strain robot searched the first-order box's direction again (the stage's
+    ``touch``): what it found there, beside the first-order value."""
+    t = lim.get("touch")
+    if not t:
+        return ""
+    found = "no touch" if t["touch_deg"] is None else f"a touch at {_f(t['touch_deg'])} deg"
+    return (f" (the finite-strain voxel robot found {found} along \"{t['direction']}\", where first order "
+            f"said {_f(t['first_order_deg'])} deg; the box was {_f(lim['first_order_valid_deg'])} deg)")
 
 
 def _direction(row: Mapping, name: str | None) -> str:

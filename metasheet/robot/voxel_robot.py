@@ -48,6 +48,22 @@ class VoxelSheet:
     references: np.ndarray
     law: NeoHookean
 
+    @classmethod
+    def from_print(cls, spec) -> "VoxelSheet":
+        """The printed sheet of a :class:`~metasheet.sheet.dns.SheetPrint` (its foam built as the
+        linear DNS builds it), its walls neo-Hookean with the cell design's material (E, nu)."""
+        from ..sheet.dns import grip_labels
+        from ..sheet.grips import grip_references
+        from ..sheet.printed_foam import printed_foam, tripod_region
+
+        foam = printed_foam(tripod_region(spec.params), spec.fields, spec.design, voxel_mm=spec.voxel_mm,
+                            gauge=spec.gauge, seed=spec.seed, max_voxels=spec.max_voxels)
+        h = np.asarray(foam.voxel_mm, float)
+        solid = spec.design.material
+        return cls(foam.phases.astype(np.int64), np.asarray(foam.size, float), np.asarray(foam.origin, float),
+                   grip_labels(foam.phases.shape, foam.origin, h, spec.params), grip_references(spec.params),
+                   NeoHookean(float(solid.E), float(solid.nu)))
+
 
 @dataclass(frozen=True)
 class PrintedPose:
@@ -61,7 +77,9 @@ class PrintedPose:
     ``states`` each sheet's displacement field (warm starts); ``stable`` each sheet's stability
     probe at the balance (:attr:`~metasheet.fem.voxel.nonlinear.NonlinearSolution.stable`);
     ``contact`` each sheet's wall pairs in contact (:attr:`~metasheet.fem.voxel.nonlinear.
-    NonlinearSolution.contact`; empty without contact)."""
+    NonlinearSolution.contact`; empty without contact); ``rod_step`` (6,) a held rod's step to its
+    balance to first order (dp [mm], rotation vector [rad]: the rest model's Jacobian on the
+    unbalanced wrench; None for a balanced pose)."""
 
     motors_deg: np.ndarray
     dp: np.ndarray
@@ -75,6 +93,7 @@ class PrintedPose:
     states: tuple = field(repr=False, default=())
     stable: tuple = ()
     contact: tuple = ()
+    rod_step: np.ndarray | None = None
 
 
 def sheet_grip_poses(Q, centre, references, origin, servos, dp, theta, dphi) -> tuple[np.ndarray, np.ndarray]:
@@ -177,8 +196,8 @@ class PrintedRobot:
         r, per, scale = self.rod_wrench(q, motors)
         J = self.J0 if self.J0 is not None else self._fd_jacobian(q, motors, r)
         hist = []
-        length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)  # moments over an arm's reach
-        w = np.array([1, 1, 1, 1 / length, 1 / length, 1 / length])
+        length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)
+        w = self._weights()
         probes = 0
         for it in range(max_iterations + 1):
             rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
@@ -213,6 +232,31 @@ class PrintedRobot:
             q, r = q_new, r_new
         raise ConvergenceError(f"printed robot: the rod's equilibrium at motors {np.degrees(motors).round(3).tolist()} "
                                f"deg reached {hist[-1]:.2e} after {max_iterations} iterations", history=hist)
+
+    def held(self, motors_deg, q) -> PrintedPose:
+        """Both sheets at ``motors_deg`` (6,) [deg] with the rod held at the effector motion ``q``
+        (6,) (dp [mm], rotation vector [rad]: a faster model's balance, say) instead of balanced:
+        one solve per sheet, each one's stability probed. ``residual`` is the rod's unbalanced
+        wrench over the grips' scale there, ``rod_step`` the step to the balance to first order
+        (how far ``q`` is from it), ``iterations`` 0."""
+        motors = np.radians(np.asarray(motors_deg, float))
+        q = np.asarray(q, float)
+        if motors.shape != (6,) or q.shape != (6,) or not (np.all(np.isfinite(motors)) and np.all(np.isfinite(q))):
+            raise ConfigError(f"motors_deg, q: shapes {motors.shape}, {q.shape}: six finite angles [deg] and a "
+                              "finite effector motion (dp [mm], rotation vector [rad])")
+        r, per, scale = self.rod_wrench(q, motors, probe=True)
+        strain, approach = self._walls()
+        # a stiffly held rod leaves a large wrench for a small miss: the step says the miss
+        step = None if self.J0 is None else -np.linalg.solve(self.J0, r)
+        return PrintedPose(np.degrees(motors), q[:3].copy(), q[3:].copy(),
+                           float(np.linalg.norm(self._weights() * r)) / max(scale, 1e-300), 0, per, self.newton,
+                           strain, approach, tuple(self.states), tuple(g.solution.stable for g in self.last),
+                           tuple(g.solution.contact for g in self.last if g.solution.contact is not None), step)
+
+    def _weights(self) -> np.ndarray:
+        """The rod's wrench components' weights: forces as they are, moments over an arm's reach."""
+        length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)
+        return np.array([1, 1, 1, 1 / length, 1 / length, 1 / length])
 
     def close(self) -> None:
         """Stop the sheets' processes (``processes=True``; nothing otherwise)."""

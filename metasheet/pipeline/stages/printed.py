@@ -47,6 +47,11 @@ class PrintedParams(Params):
     map_rays: bool = Field(False, description="the validity map on the rays of Fig. 5: the walls searched along the "
                            "motor direction of each ray of the workspace grid (first order; 62 rays by default, 3 to "
                            "9 s each per sheet at 0.25 mm: about 5 minutes a sheet)")
+    touch: int = Field(0, ge=0, le=20, description="the first n prints' binding direction searched again on the "
+                       "finite-strain voxel robot (both sheets neo-Hookean, the rod in equilibrium): its first touch "
+                       "replaces the first-order one there and the box is the first contact over the directions "
+                       "again (a robot pose is minutes at 0.25 mm: about an hour a print); 0: first order only")
+    touch_tol_deg: float = Field(0.02, gt=0, le=5, description="the finite-strain touch's bracket [deg]")
     search_deg: float = Field(10.0, gt=0, le=90, description="the contact search's motor travel [deg]")
     strain_limit: float = Field(0.3, gt=0, le=5, description="the walls' strain limit [-] (the neo-Hookean law's "
                                 "range, not NinjaFlex's failure: docs/printed-sheet.md)")
@@ -191,6 +196,25 @@ def _rays(p: PrintedParams, J) -> tuple[dict, list[dict]]:
     return dirs, meta
 
 
+def _touched(ctx: StageContext, p: PrintedParams, limits, searched, prints, Ks, robot, refs, cache) -> list:
+    """The first ``p.touch`` prints' limits with their binding direction (among each print's
+    ``searched`` directions, name -> offsets) searched again on the finite-strain voxel robot
+    (:mod:`metasheet.studies.nonlinear_touch`), one unit per print."""
+    from ...robot.condensed import condensed_robot_S
+    from ...studies.nonlinear_touch import TouchUnit, refine, touch_unit
+
+    todo = [i for i, lim in enumerate(limits[:p.touch]) if lim["valid_deg"] is not None]
+    units = [TouchUnit((prints[2 * i], prints[2 * i + 1]), robot,
+                       tuple(map(tuple, condensed_robot_S(*Ks[i], robot, refs))), limits[i]["binding"],
+                       tuple(searched[i][limits[i]["binding"]]), limits[i]["valid_deg"], p.touch_tol_deg)
+             for i in todo]
+    found = cache.map(ctx.executor, touch_unit, units, progress=lambda d, n: ctx.progress("printed touch", d, n))
+    out = list(limits)
+    for i, t in zip(todo, found):
+        out[i] = refine(limits[i], t)
+    return out
+
+
 def _kept_walls(ctx: StageContext, spec):
     """The sheet stage's walls' fields of the print ``spec`` (its ``walls``), or None."""
     from ...sheet.wall_fields import WallFields
@@ -242,17 +266,20 @@ def run(ctx: StageContext) -> dict:
     if p.contact:
         prints = sheet_prints(ctx, [r["seed"] for r in rows], dns["gauge"], dns["voxel_mm"], 1e-6, 200_000_000)
         plane = plane_directions(p.map_plane)
-        units, ray_meta = [], []
+        units, ray_meta, searched = [], [], []
         for i, (Ka, Kb) in enumerate(Ks):
             Ga, Gb, J = grip_motions_per_motor(Ka, Kb, robot, refs)
             rays, meta = _rays(p, J) if p.map_rays else ({}, [])
             dirs = tuple({**directions(p.motor_directions), **plane, **rays}.items())
             ray_meta.append(meta)
+            searched.append(dict(dirs))
             units += [WallUnit(prints[2 * i + j], tuple(map(tuple, G)), dirs, p.search_deg, p.strain_limit,
                                _kept_walls(ctx, prints[2 * i + j])) for j, G in enumerate((Ga, Gb))]
         cache = UnitCache(ctx.workdir.parent / ".printed.units" if p.resume else None)
         found = cache.map(ctx.executor, wall_unit, units, progress=lambda d, n: ctx.progress("printed walls", d, n))
         limits = [combine(found[2 * i], found[2 * i + 1]) for i in range(len(rows))]
+        if p.touch:
+            limits = _touched(ctx, p, limits, searched, prints, Ks, robot, refs, cache)
         maps = [validity_map(lim, plane, meta) for lim, meta in zip(limits, ray_meta)]
     out_rows = []
     for i, (r, (Ka, Kb)) in enumerate(zip(rows, Ks)):
