@@ -124,8 +124,9 @@ def test_the_rod_held_at_a_balanced_pose_is_that_pose_and_held_elsewhere_it_says
     (the rod's residual at the balance's tolerance, the walls as close); the touch searched with
     the rod held where the linear rest model puts it records the rod's unbalanced wrench: on this
     sheet (its linear model the un-notched sheet's) it is far from zero and the touch is
-    another (measured: residual 0.07 to 0.31, first touch 5.6 deg against 3.7 balanced), which is
-    why the held search reports it."""
+    another (measured: residual 1.2 to 1.3, the rod 0.12 to 0.44 mm and 0.6 to 1.6 deg from its
+    balance to first order; first touch 4.4 deg against 3.7 balanced), which is why the held
+    search reports it."""
     robot, sheet, S, rest = notched
     m = rest + 3.0 * A_DOWN
     balanced = PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8).equilibrium(m)
@@ -136,8 +137,8 @@ def test_the_rod_held_at_a_balanced_pose_is_that_pose_and_held_elsewhere_it_says
     J = -np.linalg.solve(S[:6, :6], S[:6, 6:])
     found, records = robot_touch(PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8), rest, A_DOWN, 2.0,
                                  max_deg=8.0, tol_deg=0.05, touch_mm=TOUCH, rod_per_motor=J, balance=False)
-    assert min(r["rod_residual"] for r in records) > 0.05 and found.travel > 4.0
-    assert min(r["rod_miss"][0] for r in records) > 0.01  # the linear rod off the balance by tens of um
+    assert min(r["rod_residual"] for r in records) > 1.0 and found.travel > 4.0
+    assert min(r["rod_miss"][0] for r in records) > 0.1  # the linear rod a tenth of a millimetre off
     for r in records:  # the rod where the linear model puts it
         assert np.allclose(r["dp_mm"] + r["theta_rad"], J @ np.radians(r["travel"] * A_DOWN), atol=1e-12)
     with pytest.raises(ConfigError, match="rod_per_motor"):
