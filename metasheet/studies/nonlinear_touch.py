@@ -6,14 +6,15 @@ fields carried to the motors. The printed walls turn as they bend and close thei
 than that (docs/printed-sheet.md: a gap of the mirrored sheet 80 % closed a degree from rest,
 where its linear field closes 64 %). Here the travel along one motor direction at which two
 walls first touch is found on :class:`metasheet.robot.voxel_robot.PrintedRobot` itself: both
-sheets neo-Hookean voxel bodies, the rod in equilibrium, each pose's closest approach of two
-wall surfaces that were apart at rest (:func:`metasheet.fem.voxel.gaps.closest_approach`; a
-touch is within a quarter voxel, the rule the first-order search uses).
+sheets neo-Hookean voxel bodies, the rod balanced or held where the linear rest model puts it
+(:class:`RobotDistance`), each pose's closest approach of two wall surfaces that were apart at
+rest (:func:`metasheet.fem.voxel.gaps.closest_approach`; a touch is within a quarter voxel, the
+rule the first-order search uses).
 
 The search (:func:`first_touch`) needs only the closest approach as a function of the travel:
 it walks out from the first-order guess until a pose is closed, then narrows the bracket, by
 regula falsi (Illinois) on the distance where the open end's pair is within the gap search's
-reach, by halving where it is not. Each pose is a robot equilibrium (minutes on a print), so
+reach, by halving where it is not. Each pose is minutes of solves on a print, so
 the search counts its solves and stops at ``max_solves``, reporting the bracket it reached.
 """
 

@@ -26,7 +26,7 @@ to the walls' first contact and to their strain limit, and which binds first.
 
 Both limits are first order in the motion, as :mod:`metasheet.sheet.wall_limits` says: the
 nonlinear DNS closes the mirrored print's gaps faster than this, so the contact travels are
-late estimates.
+late estimates; :mod:`.nonlinear_touch` searches a direction again on the finite-strain robot.
 """
 
 from __future__ import annotations

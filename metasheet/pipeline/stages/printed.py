@@ -6,8 +6,10 @@ sheets are corotational superelements of their grips with the print's linear DNS
 (:mod:`metasheet.studies.printed_adapter`). Their validity comes from the print's own walls
 (:mod:`metasheet.studies.printed_limits`, one work unit per printed sheet): the walls' first
 self-contact along the searched motor directions, the walls' strain rate per motor, and where
-each binds. Within them, :mod:`metasheet.studies.printed_claims` computes the paper's claims
-(the rod rolled both ways, pulling 15 deg and pushing 35 deg; 10 deg about each axis at rest),
+each binds; with ``touch`` the first prints' binding direction is searched again on the
+finite-strain voxel robot (:mod:`metasheet.studies.nonlinear_touch`). Within them,
+:mod:`metasheet.studies.printed_claims` computes the paper's claims (the rod rolled both ways,
+pulling 15 deg and pushing 35 deg; 10 deg about each axis at rest),
 and the stage states each claim's status over the prints and the print-to-print spread.
 
 Outputs: ``printed.json`` (per print: the walls' limits, the claims; the spread and the
@@ -48,9 +50,10 @@ class PrintedParams(Params):
                            "motor direction of each ray of the workspace grid (first order; 62 rays by default, 3 to "
                            "9 s each per sheet at 0.25 mm: about 5 minutes a sheet)")
     touch: int = Field(0, ge=0, le=20, description="the first n prints' binding direction searched again on the "
-                       "finite-strain voxel robot (both sheets neo-Hookean, the rod in equilibrium): its first touch "
-                       "replaces the first-order one there and the box is the first contact over the directions "
-                       "again (a robot pose is minutes at 0.25 mm: about an hour a print); 0: first order only")
+                       "finite-strain voxel robot (both sheets neo-Hookean, the rod held where the print's linear "
+                       "rest model puts it, its miss recorded): its first touch replaces the first-order one there "
+                       "and the box is the first contact over the directions again (a pose is 7 to 12 minutes at "
+                       "0.25 mm, up to 8 poses a print); 0: first order only")
     touch_tol_deg: float = Field(0.02, gt=0, le=5, description="the finite-strain touch's bracket [deg]")
     search_deg: float = Field(10.0, gt=0, le=90, description="the contact search's motor travel [deg]")
     strain_limit: float = Field(0.3, gt=0, le=5, description="the walls' strain limit [-] (the neo-Hookean law's "
