@@ -52,8 +52,8 @@ class PrintedParams(Params):
     touch: int = Field(0, ge=0, le=20, description="the first n prints' binding direction searched again on the "
                        "finite-strain voxel robot (both sheets neo-Hookean, the rod held where the print's linear "
                        "rest model puts it, its miss recorded): its first touch replaces the first-order one there "
-                       "and the box is the first contact over the directions again (a pose is 7 to 12 minutes at "
-                       "0.25 mm, up to 8 poses a print); 0: first order only")
+                       "and the box is the first contact over the directions again (a pose is 7 to 15 minutes at "
+                       "0.25 mm, up to 8 poses: one to two hours a print); 0: first order only")
     touch_tol_deg: float = Field(0.02, gt=0, le=5, description="the finite-strain touch's bracket [deg]")
     search_deg: float = Field(10.0, gt=0, le=90, description="the contact search's motor travel [deg]")
     strain_limit: float = Field(0.3, gt=0, le=5, description="the walls' strain limit [-] (the neo-Hookean law's "
