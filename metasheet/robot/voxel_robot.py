@@ -196,7 +196,7 @@ class PrintedRobot:
         r, per, scale = self.rod_wrench(q, motors)
         J = self.J0 if self.J0 is not None else self._fd_jacobian(q, motors, r)
         hist = []
-        length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)
+        length = self._reach()
         w = self._weights()
         probes = 0
         for it in range(max_iterations + 1):
@@ -253,9 +253,13 @@ class PrintedRobot:
                            strain, approach, tuple(self.states), tuple(g.solution.stable for g in self.last),
                            tuple(g.solution.contact for g in self.last if g.solution.contact is not None), step)
 
+    def _reach(self) -> float:
+        """An arm's reach [mm] (at least 1): the rod's moments' and moves' length scale."""
+        return max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)
+
     def _weights(self) -> np.ndarray:
         """The rod's wrench components' weights: forces as they are, moments over an arm's reach."""
-        length = max(float(np.linalg.norm(self.sheets[0].references[1])), 1.0)
+        length = self._reach()
         return np.array([1, 1, 1, 1 / length, 1 / length, 1 / length])
 
     def close(self) -> None:
