@@ -9,6 +9,8 @@ both sheets neo-Hookean, each pose's stability probed; started at the first-orde
 the rod held where the linear rest model puts it (its miss to the balance recorded) or, with
 --balance, balanced at each pose (then the superelement robot's and the rest model's errors at
 those poses are reported beside them). Every pose the search solved is listed, with its time.
+Each pose is journalled in --cache as it is solved (touch-*.jsonl): a rerun replays those and
+goes on where a killed one stopped.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_nonlinear_touch.py --outputs OUT/printed-robot \
         --voxel 0.25 --directions 'roll up' --cache OUT/dns_ladder --processes --save
@@ -51,6 +53,7 @@ def main() -> None:
     from metasheet.robot.condensed import grip_motions_per_motor
     from metasheet.robot.superelement import SuperelementRobot
     from metasheet.robot.voxel_robot import PrintedRobot
+    from metasheet.runtime.journal import Journal
     from metasheet.sheet.dns import SheetPrint
     from metasheet.studies.nonlinear_touch import robot_touch
     from metasheet.studies.printed_limits import directions, plane_directions
@@ -104,14 +107,20 @@ def main() -> None:
             print(f"{name}: no first-order contact within {args.search_deg:g} deg: skipped", file=sys.stderr)
             continue
         printed = PrintedRobot(robot, sheets, S_rest=S, rtol=args.rtol, progress=say, processes=args.processes)
+        mode = "balanced" if args.balance else "held"
+        journal = Journal(args.cache / f"touch-{args.gauge}-{args.voxel:g}mm-seed{seed}-{name.replace(' ', '_')}-"
+                          f"{mode}.jsonl", {"seed": seed, "gauge": args.gauge, "voxel": args.voxel, "rod": mode,
+                                            "direction": d.tolist(), "first_order_deg": guess, "rtol": args.rtol})
         t1 = time.perf_counter()
         try:
             found, records = robot_touch(printed, rest, d, guess, max_deg=2.0 * guess, tol_deg=args.tol,
                                          max_solves=args.max_solves, rod_per_motor=J, balance=args.balance,
                                          progress=lambda r: print(f"  pose at {r['travel']:.4f} deg: closest walls "
                                                                   f"{r['approach_mm']} mm, rod residual "
-                                                                  f"{r['rod_residual']:.2e}, {r['seconds']:.0f} s",
-                                                                  file=sys.stderr, flush=True))
+                                                                  f"{r['rod_residual']:.2e}, {r['seconds']:.0f} s"
+                                                                  + (" (journal)" if r.get("replayed") else ""),
+                                                                  file=sys.stderr, flush=True),
+                                         journal=journal)
         finally:
             printed.close()
         rows.append((name, first[name], found, records, time.perf_counter() - t1))
@@ -155,7 +164,7 @@ def main() -> None:
                       f"{r['rod_residual']:.1e} | " + ", ".join(f"{v:.3f}" for v in r["approach_mm"]) + " | "
                       + ", ".join(f"{v:.3f}" for v in r["strain"]) + f" | {all(r['stable'])} | "
                       f"{pair(r['rod_miss'])} | {pair(r.get('superelement'))} | {pair(r.get('linear'))} | "
-                      f"{r['seconds']:.0f} |")
+                      f"{r['seconds']:.0f}{' (journal)' if r.get('replayed') else ''} |")
 
 if __name__ == "__main__":
     main()

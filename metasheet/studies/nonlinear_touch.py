@@ -122,10 +122,13 @@ class RobotDistance:
     turn [deg] and residual (held: ``rod_miss``, its first-order step to the balance, [mm, deg]),
     each sheet's closest approach [mm] and largest wall strain [-],
     whether each sheet's balance is stable, and the seconds; ``progress(record)`` is called with
-    each."""
+    each. ``journal`` (a :class:`metasheet.runtime.journal.Journal`, keyed by everything the poses
+    depend on): each pose is recorded there as it is solved, and one found there is replayed
+    (``"replayed": True`` in its record), so a search killed part way resumes where it stopped."""
 
-    def __init__(self, printed, rest_deg, direction, rod_per_motor=None, balance: bool = True, progress=None):
-        self.printed, self.balance, self.progress = printed, bool(balance), progress
+    def __init__(self, printed, rest_deg, direction, rod_per_motor=None, balance: bool = True, progress=None,
+                 journal=None):
+        self.printed, self.balance, self.progress, self.journal = printed, bool(balance), progress, journal
         self.rod_per_motor = None if rod_per_motor is None else np.asarray(rod_per_motor, float)
         self.rest = np.asarray(rest_deg, float).reshape(-1)
         self.direction = np.asarray(direction, float).reshape(-1)
@@ -140,6 +143,20 @@ class RobotDistance:
         self.records, self._q = [], {}
 
     def __call__(self, t: float) -> tuple[float, dict]:
+        kept = None if self.journal is None else self.journal.get(t)
+        if kept is not None:
+            rec, info = {**kept["record"], "replayed": True}, kept["info"]
+            self._q[float(t)] = np.concatenate([rec["dp_mm"], rec["theta_rad"]])
+        else:
+            rec, info = self._solve(t)
+            if self.journal is not None:
+                self.journal.add(t, {"record": rec, "info": info})
+        self.records.append(rec)
+        if self.progress is not None:
+            self.progress(rec)
+        return float(rec["approach_mm"][info["sheet"]]), info
+
+    def _solve(self, t: float) -> tuple[dict, dict]:
         t0 = time.perf_counter()
         motors = self.rest + t * self.direction
         if self.balance:
@@ -161,25 +178,22 @@ class RobotDistance:
                [float(np.linalg.norm(pose.rod_step[:3])), float(np.degrees(np.linalg.norm(pose.rod_step[3:])))],
                "strain": [float(v) for v in pose.wall_strain], "stable": [bool(v) for v in pose.stable],
                "seconds": time.perf_counter() - t0}
-        self.records.append(rec)
-        if self.progress is not None:
-            self.progress(rec)
-        return float(a.distance), {"sheet": s, "nodes": [int(v) for v in a.nodes],
-                                   "rest_distance_mm": float(a.rest_distance),
-                                   "position_mm": [float(v) for v in a.position]}
+        return rec, {"sheet": s, "nodes": [int(v) for v in a.nodes], "rest_distance_mm": float(a.rest_distance),
+                     "position_mm": [float(v) for v in a.position]}
 
 
 def robot_touch(printed, rest_deg, direction, guess_deg: float, *, max_deg: float, tol_deg: float = 0.02,
                 max_solves: int = 10, touch_mm: float | None = None, rod_per_motor=None, balance: bool = True,
-                progress=None) -> tuple[Touch, list]:
+                progress=None, journal=None) -> tuple[Touch, list]:
     """(the :class:`Touch` along ``direction`` (6,) [deg per deg of the largest motor's travel] of
     the finite-strain ``printed`` robot, in degrees of the largest motor; the poses' records).
     ``guess_deg``: the first-order first contact (:mod:`.printed_limits`); ``touch_mm``: the
     distance counted as touching (None: the first-order search's rule, a quarter of the smallest
-    voxel edge); ``rod_per_motor``, ``balance``, ``progress``: as :class:`RobotDistance`'s."""
+    voxel edge); ``rod_per_motor``, ``balance``, ``progress``, ``journal``: as
+    :class:`RobotDistance`'s."""
     d = np.asarray(direction, float)
     f = RobotDistance(printed, rest_deg, d / max(float(np.abs(d).max(initial=0.0)), 1e-300), rod_per_motor,
-                      balance, progress)
+                      balance, progress, journal)
     h = min(float(np.min(np.asarray(s.size, float) / np.asarray(s.phases.shape))) for s in printed.sheets)
     touch = 0.25 * h if touch_mm is None else touch_mm
     found = first_touch(f, guess_deg, touch, max_travel=max_deg, tol=tol_deg, max_solves=max_solves)
