@@ -78,3 +78,42 @@ def test_a_search_killed_part_way_resumes_from_its_journal_and_ends_as_an_uninte
     strip = lambda r: {k: v for k, v in r.items() if k not in ("seconds", "replayed")}  # noqa: E731
     assert [strip(r) for r in records] == [strip(r) for r in whole_records]
     assert resumed.travel == pytest.approx(np.sqrt(2.0 * (1.0 - 0.0625)), abs=1e-3)
+
+
+class _Killed(Exception):
+    pass
+
+
+def _steps(n, journal=None, kill_at=None, done=None):
+    """A unit of ``n`` expensive steps (each the square of its index), journalled; raises at step
+    ``kill_at`` as a killed run would stop; ``done`` collects the steps computed."""
+    out = []
+    for i in range(n):
+        kept = None if journal is None else journal.get(i)
+        if kept is None:
+            if i == kill_at:
+                raise _Killed
+            kept = {"v": i * i}
+            done.append(i)
+            if journal is not None:
+                journal.add(i, kept)
+        out.append(kept["v"])
+    return out
+
+
+def test_a_cached_unit_killed_inside_resumes_within_it_and_its_journal_goes_once_it_is_stored(tmp_path):
+    from functools import partial
+
+    from metasheet.runtime.executor import Executor
+    from metasheet.studies.resume import UnitCache, keep_only_used, unit_key
+
+    d, done = tmp_path / "units", []
+    with pytest.raises(_Killed):
+        UnitCache(d).map(Executor(), partial(_steps, kill_at=3, done=done), [5], journal=True)
+    assert done == [0, 1, 2] and (d / f"{unit_key(5)}.jsonl").is_file()
+    assert UnitCache(d).map(Executor(), partial(_steps, done=done), [5], journal=True) == [[0, 1, 4, 9, 16]]
+    assert done == [0, 1, 2, 3, 4]  # the rerun computed only the steps the killed one had not reached
+    assert sorted(f.name for f in d.iterdir()) == [f"{unit_key(5)}.pkl"]
+    (d / f"{unit_key(6)}.jsonl").write_text("")  # a journal of a unit no run asks for any more
+    assert keep_only_used(d) == 1 and sorted(f.name for f in d.iterdir()) == [f"{unit_key(5)}.pkl"]
+    assert UnitCache(None).map(Executor(), partial(_steps, done=[]), [2], journal=True) == [[0, 1]]

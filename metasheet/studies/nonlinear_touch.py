@@ -228,21 +228,25 @@ class TouchUnit:
             raise ConfigError(f"S_rest: shape {np.shape(self.S_rest)}: expected the (12, 12) rest Schur complement")
 
 
-def touch_unit(u: TouchUnit) -> dict:
+def touch_unit(u: TouchUnit, journal=None) -> dict:
     """The :class:`TouchUnit`'s first touch, searched to twice the first-order travel: the travel
     [deg] (None: open there), its bracket, whether it converged, the sheet that touches and every
-    pose solved (:class:`RobotDistance`'s records)."""
+    pose solved (:class:`RobotDistance`'s records). ``journal``: as :class:`RobotDistance`'s (the
+    stage's unit cache gives one, so a killed search resumes at its last pose)."""
     from ..robot.voxel_robot import PrintedRobot, VoxelSheet
 
     sheets = tuple(VoxelSheet.from_print(s) for s in u.sheets)
     S = np.asarray(u.S_rest, float)
     printed = PrintedRobot(u.robot, sheets, S_rest=S, rtol=u.rtol)
     rest = np.degrees([s.rest_angle for s in u.robot.coupling.servos])
-    found, records = robot_touch(printed, rest, u.direction, u.guess_deg, max_deg=2.0 * u.guess_deg,
-                                 tol_deg=u.tol_deg, max_solves=u.max_solves,
-                                 rod_per_motor=-np.linalg.solve(S[:6, :6], S[:6, 6:]), balance=u.balance)
-    printed.close()
-    records = [{k: v for k, v in r.items() if k != "seconds"} for r in records]  # the same bytes each run
+    try:
+        found, records = robot_touch(printed, rest, u.direction, u.guess_deg, max_deg=2.0 * u.guess_deg,
+                                     tol_deg=u.tol_deg, max_solves=u.max_solves,
+                                     rod_per_motor=-np.linalg.solve(S[:6, :6], S[:6, 6:]), balance=u.balance,
+                                     journal=journal)
+    finally:
+        printed.close()
+    records = [{k: v for k, v in r.items() if k not in ("seconds", "replayed")} for r in records]  # same bytes
     return {"direction": u.name, "first_order_deg": float(u.guess_deg), "touch_deg": found.travel,
             "bracket_deg": [float(v) if np.isfinite(v) else None for v in found.bracket],
             "converged": found.converged, "touch_mm": found.touch,

@@ -6,7 +6,10 @@ succeeds it is removed, or pruned to the units the run used, :func:`keep_only_us
 module only stores one pickle per unit, named by a hash of the unit itself and of metasheet's
 code (:func:`code_digest`), so a changed unit (another robot, other tolerances) or changed
 code never reuses a stale result. Files are written to a temporary name and renamed: a killed
-run leaves no half-written unit.
+run leaves no half-written unit. A unit that is itself a long search (an hour of finite-strain
+robot poses) can keep a journal of its own steps beside it (``map(..., journal=True)``: the
+function gets a :class:`metasheet.runtime.journal.Journal` named by the unit's key), so a run
+killed inside that unit resumes within it too.
 """
 
 from __future__ import annotations
@@ -17,10 +20,12 @@ import os
 import pickle
 import threading
 from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from ..runtime.executor import Executor
+from ..runtime.journal import Journal
 from ..runtime.provenance import code_digest
 
 #: The keys each cache directory was asked for in this process (stages run in threads).
@@ -63,7 +68,7 @@ def keep_only_used(directory: Path | str) -> int:
     if not d.is_dir():
         return 0
     for f in d.iterdir():
-        if f.suffix == ".tmp" or (f.suffix == ".pkl" and f.stem not in used):
+        if f.suffix == ".tmp" or (f.suffix in (".pkl", ".jsonl") and f.stem not in used):
             f.unlink(missing_ok=True)
     return sum(1 for f in d.glob("*.pkl"))
 
@@ -101,6 +106,7 @@ class UnitCache:
         tmp = self.directory / f".{key}.{os.getpid()}.tmp"
         tmp.write_bytes(pickle.dumps(value, protocol=4))
         os.replace(tmp, self._file(key))
+        (self.directory / f"{key}.jsonl").unlink(missing_ok=True)  # the unit's journal: done with
 
     def map(
         self,
@@ -109,17 +115,20 @@ class UnitCache:
         items: Sequence[Any],
         *,
         progress: Callable[[int, int], None] = lambda d, n: None,
+        journal: bool = False,
     ) -> list[Any]:
         """``[fn(x) for x in items]`` through ``executor``, skipping units already stored.
 
         The missing units go to the executor at once (no worker idles while another finishes
         a long unit) and each is stored as soon as it arrives: an interrupted map loses only
-        the units under way.
+        the units under way. With ``journal`` the call is ``fn(x, journal=...)``: a
+        :class:`~metasheet.runtime.journal.Journal` (None without a directory) that the
+        function fills with its own steps and replays them from, kept until the unit is stored.
         """
         items = list(items)
         total = len(items)
         if self.directory is None:
-            return executor.map(fn, items, progress=progress)
+            return executor.map(partial(fn, journal=None) if journal else fn, items, progress=progress)
         keys = [unit_key(x) for x in items]
         self._used(keys)
         results: list[Any] = [None] * total
@@ -139,5 +148,15 @@ class UnitCache:
             results[todo[j]] = val
             self.store(keys[todo[j]], val)
 
-        executor.map(fn, [items[i] for i in todo], progress=lambda d, n: progress(done + d, total), on_result=keep)
+        run = [items[i] for i in todo]
+        if journal:
+            fn, run = partial(_journalled, fn), [(x, str(self.directory / f"{keys[i]}.jsonl"), keys[i])
+                                                 for x, i in zip(run, todo)]
+        executor.map(fn, run, progress=lambda d, n: progress(done + d, total), on_result=keep)
         return results
+
+
+def _journalled(fn: Callable, unit: tuple) -> Any:
+    """``fn(x, journal=...)`` for a unit (x, the journal's path, the unit's key)."""
+    x, path, key = unit
+    return fn(x, journal=Journal(path, {"unit": key}))

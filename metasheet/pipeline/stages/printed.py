@@ -211,7 +211,8 @@ def _touched(ctx: StageContext, p: PrintedParams, limits, searched, prints, Ks, 
                        tuple(map(tuple, condensed_robot_S(*Ks[i], robot, refs))), limits[i]["binding"],
                        tuple(searched[i][limits[i]["binding"]]), limits[i]["valid_deg"], p.touch_tol_deg)
              for i in todo]
-    found = cache.map(ctx.executor, touch_unit, units, progress=lambda d, n: ctx.progress("printed touch", d, n))
+    found = cache.map(ctx.executor, touch_unit, units, progress=lambda d, n: ctx.progress("printed touch", d, n),
+                      journal=True)  # an hour's search a print: a killed run resumes at its last pose
     out = list(limits)
     for i, t in zip(todo, found):
         out[i] = refine(limits[i], t)
