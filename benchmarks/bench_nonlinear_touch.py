@@ -74,6 +74,8 @@ def main() -> None:
     ap.add_argument("--processes", action="store_true", help="the voxel robot's two sheets side by side")
     ap.add_argument("--balance", action="store_true", help="the rod balanced at each pose (rod iterations: tens of "
                     "minutes a pose at 0.25 mm) instead of held where the linear rest model puts it")
+    ap.add_argument("--rod-tol", type=float, default=None, help="[mm] with --balance: the rod balanced once its "
+                    "predicted step moves it and an arm's end by under this (default: to the sheets' rtol)")
     ap.add_argument("--cache", type=Path, required=True, help="dns_convergence.py's cache of linear solves")
     add_save_option(ap)
     args = ap.parse_args()
@@ -110,7 +112,8 @@ def main() -> None:
         mode = "balanced" if args.balance else "held"
         journal = Journal(args.cache / f"touch-{args.gauge}-{args.voxel:g}mm-seed{seed}-{name.replace(' ', '_')}-"
                           f"{mode}.jsonl", {"seed": seed, "gauge": args.gauge, "voxel": args.voxel, "rod": mode,
-                                            "direction": d.tolist(), "first_order_deg": guess, "rtol": args.rtol})
+                                            "direction": d.tolist(), "first_order_deg": guess, "rtol": args.rtol,
+                                            **({"rod_tol": args.rod_tol} if args.balance else {})})
         t1 = time.perf_counter()
         try:
             found, records = robot_touch(printed, rest, d, guess, max_deg=2.0 * guess, tol_deg=args.tol,
@@ -120,7 +123,7 @@ def main() -> None:
                                                                   f"{r['rod_residual']:.2e}, {r['seconds']:.0f} s"
                                                                   + (" (journal)" if r.get("replayed") else ""),
                                                                   file=sys.stderr, flush=True),
-                                         journal=journal)
+                                         journal=journal, rod_tol_mm=args.rod_tol)
         finally:
             printed.close()
         rows.append((name, first[name], found, records, time.perf_counter() - t1))

@@ -93,6 +93,12 @@ def main() -> None:
     ap.add_argument("--random", type=int, default=1, help="seeded random directions besides")
     ap.add_argument("--random-seed", type=int, default=62)
     ap.add_argument("--rtol", type=float, default=1e-6, help="the voxel robot's sheets' relative residual")
+    ap.add_argument("--start", choices=("rest", "model"), default="rest",
+                    help="each pose's rod iteration started from the last pose solved (rest first) or from the "
+                         "superelement robot's balance (fewer rod iterations; the same balance to its tolerance)")
+    ap.add_argument("--rod-tol", type=float, default=None,
+                    help="[mm] the rod balanced once its predicted step moves it and an arm's end by under this "
+                         "(default: to the sheets' rtol on its wrench)")
     ap.add_argument("--processes", action="store_true",
                     help="the voxel robot's two sheets side by side, each in a process of its own (the same bits)")
     ap.add_argument("--cache", type=Path, required=True, help="dns_convergence.py's cache of linear solves")
@@ -125,11 +131,12 @@ def main() -> None:
         for t in sorted(args.travel):
             m = rest + t * d
             t0 = time.perf_counter()
-            ref = reference.equilibrium(m)
-            t_ref = time.perf_counter() - t0
-            t0 = time.perf_counter()
             got = model.equilibrium(m)
             t_model = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            q0 = np.concatenate([got.dp, got.theta]) if args.start == "model" else None
+            ref = reference.equilibrium(m, q0=q0, step_tol=args.rod_tol)
+            t_ref = time.perf_counter() - t0
             lin = J @ np.radians(t * d)
             e_mm, e_deg = _error(ref.dp, ref.theta, got.dp, got.theta)
             l_mm, l_deg = _error(ref.dp, ref.theta, lin[:3], lin[3:])

@@ -90,3 +90,19 @@ def test_the_sheets_in_processes_of_their_own_give_the_same_bits():
         np.testing.assert_array_equal(a, b)
     assert there.stable == here.stable and there.wall_strain == here.wall_strain
     assert not apart.bodies[0]._proc.is_alive() and not apart.bodies[1]._proc.is_alive()
+
+
+def test_a_step_tolerance_stops_the_rod_within_it_of_the_balance_in_fewer_iterations():
+    robot, sheet, S = _printed(1.0)
+    rest = np.degrees([s.rest_angle for s in robot.coupling.servos])
+    motors = rest + np.array([3.0, -2.0, 0.0, 1.0, 0.0, -1.5])
+    tight = PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8).equilibrium(motors)
+    reach = float(np.linalg.norm(sheet.references[1]))
+    for tol in (1e-2, 1e-3):
+        loose = PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8).equilibrium(motors, step_tol=tol)
+        predicted = max(np.linalg.norm(loose.rod_step[:3]), reach * np.linalg.norm(loose.rod_step[3:]))
+        off = max(np.linalg.norm(loose.dp - tight.dp), reach * np.linalg.norm(loose.theta - tight.theta))
+        assert predicted <= tol and off <= 2 * tol  # the step to the balance is first order: within 2x
+        assert loose.iterations < tight.iterations and tight.rod_step is None
+    with pytest.raises(Exception, match="step_tol"):
+        PrintedRobot(robot, (sheet, sheet), S_rest=S).equilibrium(motors, step_tol=0.0)

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError, ConvergenceError
+from ..errors import ConfigError, ConvergenceError, check_range
 from ..fem.voxel.hyperelastic import NeoHookean
 from ..mechanics.rotations import axis_rotation, rotation_matrix
 from ..sheet.voxel_grips_nonlinear import GripBody
@@ -79,7 +79,8 @@ class PrintedPose:
     ``contact`` each sheet's wall pairs in contact (:attr:`~metasheet.fem.voxel.nonlinear.
     NonlinearSolution.contact`; empty without contact); ``rod_step`` (6,) a held rod's step to its
     balance to first order (dp [mm], rotation vector [rad]: the rest model's Jacobian on the
-    unbalanced wrench; None for a balanced pose)."""
+    unbalanced wrench), or a pose balanced to a step tolerance's last predicted step (None: balanced
+    to the wrench's)."""
 
     motors_deg: np.ndarray
     dp: np.ndarray
@@ -185,13 +186,20 @@ class PrintedRobot:
             scale = max(scale, float(np.abs(g.wrenches[:, :3]).max()))
         return total, per, scale
 
-    def equilibrium(self, motors_deg, q0=None, max_iterations: int = 40) -> PrintedPose:
+    def equilibrium(self, motors_deg, q0=None, max_iterations: int = 40, step_tol: float | None = None
+                    ) -> PrintedPose:
         """The rod's equilibrium at ``motors_deg`` (6,) [deg], from the effector motion ``q0`` (6,)
         (None: rest); the sheets start from the last pose's solution, the rod's Jacobian is the last
-        pose's Broyden update (the first: the linear rest model's)."""
+        pose's Broyden update (the first: the linear rest model's). Balanced where the rod's
+        wrench is within ten times the sheets' ``rtol`` of the grips' scale, or, with ``step_tol``
+        [mm], where the step to the balance that the Jacobian predicts moves the rod and an arm's
+        end by under it (the stiffly held rod's wrench falls slowly in its last digits: each rod
+        iteration is a solve of both sheets; the pose's ``rod_step`` is that last step)."""
         motors = np.radians(np.asarray(motors_deg, float))
         if motors.shape != (6,) or not np.all(np.isfinite(motors)):
             raise ConfigError(f"motors_deg: {np.asarray(motors_deg).tolist()}: six finite angles [deg]")
+        if step_tol is not None:
+            check_range("step_tol", step_tol, 0.0, None, lo_open=True)
         q = np.zeros(6) if q0 is None else np.asarray(q0, float).copy()
         r, per, scale = self.rod_wrench(q, motors)
         J = self.J0 if self.J0 is not None else self._fd_jacobian(q, motors, r)
@@ -199,27 +207,33 @@ class PrintedRobot:
         length = self._reach()
         w = self._weights()
         probes = 0
-        for it in range(max_iterations + 1):
+
+        def balance(r, scale):  # (relative wrench, the predicted step, balanced?)
             rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
-            hist.append(rel)
             # the sheets' force round-off bounds what the rod can balance (a pose at rest: no force at all)
             floor = sum(b.floor(self.states[k].reshape(-1, 3)) for k, b in enumerate(self.bodies))
-            balanced = rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor
+            step = np.linalg.solve(J, -r)
+            near = step_tol is not None and max(float(np.linalg.norm(step[:3])),
+                                                length * float(np.linalg.norm(step[3:]))) <= step_tol
+            return rel, step, rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor or near
+
+        for it in range(max_iterations + 1):
+            rel, step, balanced = balance(r, scale)
+            hist.append(rel)
             if balanced and probes < 2:
                 # the sheets' stability checked once the rod balances (a probe per rod iteration would
                 # cost a CG solve each); a sheet that leaves a saddle moves the balance on
                 probes += 1
                 r, per, scale = self.rod_wrench(q, motors, probe=True)
-                rel = float(np.linalg.norm(w * r)) / max(scale, 1e-300)
-                balanced = rel <= 10 * self.rtol or float(np.linalg.norm(w * r)) <= floor
+                rel, step, balanced = balance(r, scale)
             if balanced:
                 self.J0 = J
                 strain, approach = self._walls()
                 return PrintedPose(np.degrees(motors), q[:3].copy(), q[3:].copy(), rel, it, per, self.newton,
                                    strain, approach, tuple(self.states),
                                    tuple(g.solution.stable for g in self.last),
-                                   tuple(g.solution.contact for g in self.last if g.solution.contact is not None))
-            step = np.linalg.solve(J, -r)
+                                   tuple(g.solution.contact for g in self.last if g.solution.contact is not None),
+                                   None if step_tol is None else step)
             # a Jacobian carried from another pose can be poor in the directions that pose never
             # explored (all six motors alike move the rod along one axis only): a full step from
             # it turned the rod by more than a half turn; Broyden learns from the shorter step too

@@ -124,11 +124,15 @@ class RobotDistance:
     whether each sheet's balance is stable, and the seconds; ``progress(record)`` is called with
     each. ``journal`` (a :class:`metasheet.runtime.journal.Journal`, keyed by everything the poses
     depend on): each pose is recorded there as it is solved, and one found there is replayed
-    (``"replayed": True`` in its record), so a search killed part way resumes where it stopped."""
+    (``"replayed": True`` in its record), so a search killed part way resumes where it stopped.
+    ``rod_tol_mm``: a balanced rod's step tolerance
+    (:meth:`~metasheet.robot.voxel_robot.PrintedRobot.equilibrium`'s ``step_tol``; its last
+    predicted step is then its ``rod_miss``)."""
 
     def __init__(self, printed, rest_deg, direction, rod_per_motor=None, balance: bool = True, progress=None,
-                 journal=None):
+                 journal=None, rod_tol_mm: float | None = None):
         self.printed, self.balance, self.progress, self.journal = printed, bool(balance), progress, journal
+        self.rod_tol_mm = rod_tol_mm
         self.rod_per_motor = None if rod_per_motor is None else np.asarray(rod_per_motor, float)
         self.rest = np.asarray(rest_deg, float).reshape(-1)
         self.direction = np.asarray(direction, float).reshape(-1)
@@ -164,7 +168,7 @@ class RobotDistance:
             q0 = self._q.get(near, np.zeros(6))
             if self.rod_per_motor is not None:
                 q0 = q0 + self.rod_per_motor @ np.radians((t - near) * self.direction)
-            pose = self.printed.equilibrium(motors, q0=q0)
+            pose = self.printed.equilibrium(motors, q0=q0, step_tol=self.rod_tol_mm)
         else:
             pose = self.printed.held(motors, self.rod_per_motor @ np.radians(t * self.direction))
         self._q[float(t)] = np.concatenate([pose.dp, pose.theta])
@@ -184,16 +188,16 @@ class RobotDistance:
 
 def robot_touch(printed, rest_deg, direction, guess_deg: float, *, max_deg: float, tol_deg: float = 0.02,
                 max_solves: int = 10, touch_mm: float | None = None, rod_per_motor=None, balance: bool = True,
-                progress=None, journal=None) -> tuple[Touch, list]:
+                progress=None, journal=None, rod_tol_mm: float | None = None) -> tuple[Touch, list]:
     """(the :class:`Touch` along ``direction`` (6,) [deg per deg of the largest motor's travel] of
     the finite-strain ``printed`` robot, in degrees of the largest motor; the poses' records).
     ``guess_deg``: the first-order first contact (:mod:`.printed_limits`); ``touch_mm``: the
     distance counted as touching (None: the first-order search's rule, a quarter of the smallest
-    voxel edge); ``rod_per_motor``, ``balance``, ``progress``, ``journal``: as
+    voxel edge); ``rod_per_motor``, ``balance``, ``progress``, ``journal``, ``rod_tol_mm``: as
     :class:`RobotDistance`'s."""
     d = np.asarray(direction, float)
     f = RobotDistance(printed, rest_deg, d / max(float(np.abs(d).max(initial=0.0)), 1e-300), rod_per_motor,
-                      balance, progress, journal)
+                      balance, progress, journal, rod_tol_mm)
     h = min(float(np.min(np.asarray(s.size, float) / np.asarray(s.phases.shape))) for s in printed.sheets)
     touch = 0.25 * h if touch_mm is None else touch_mm
     found = first_touch(f, guess_deg, touch, max_travel=max_deg, tol=tol_deg, max_solves=max_solves)
