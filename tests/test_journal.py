@@ -53,7 +53,7 @@ class _GapRobot:
     def __init__(self):
         self.solved = []
 
-    def held(self, motors_deg, q):
+    def held(self, motors_deg, q, from_rest=False):
         t = float(motors_deg[0])
         self.solved.append(t)
         gap = SimpleNamespace(distance=1.0 - 0.5 * t * t, nodes=(3, 4), rest_distance=1.0, position=(0.0, 1.0, 2.0))

@@ -13,7 +13,7 @@ from metasheet.fem.voxel.gaps import closest_approach
 from metasheet.fem.voxel.hyperelastic import NeoHookean
 from metasheet.fem.voxel.nonlinear import solve_hyperelastic
 from metasheet.robot.voxel_robot import PrintedRobot
-from metasheet.studies.nonlinear_touch import first_touch, robot_touch
+from metasheet.studies.nonlinear_touch import RobotDistance, first_touch, robot_touch
 from test_voxel_gaps import H, _two_walls
 
 
@@ -141,5 +141,10 @@ def test_the_rod_held_at_a_balanced_pose_is_that_pose_and_held_elsewhere_it_says
     assert min(r["rod_miss"][0] for r in records) > 0.1  # the linear rod a tenth of a millimetre off
     for r in records:  # the rod where the linear model puts it
         assert np.allclose(r["dp_mm"] + r["theta_rad"], J @ np.radians(r["travel"] * A_DOWN), atol=1e-12)
+    # each held pose a function of its travel alone: the search's last pose solved by itself is the same bits
+    alone = RobotDistance(PrintedRobot(robot, (sheet, sheet), S_rest=S, rtol=1e-8), rest, A_DOWN, J, balance=False)
+    alone(records[-1]["travel"])
+    assert alone.records[0]["approach_mm"] == records[-1]["approach_mm"] and len(records) > 2
+    assert alone.records[0]["rod_residual"] == records[-1]["rod_residual"]
     with pytest.raises(ConfigError, match="rod_per_motor"):
         robot_touch(PrintedRobot(robot, (sheet, sheet), S_rest=S), rest, A_DOWN, 2.0, max_deg=8.0, balance=False)

@@ -247,17 +247,21 @@ class PrintedRobot:
         raise ConvergenceError(f"printed robot: the rod's equilibrium at motors {np.degrees(motors).round(3).tolist()} "
                                f"deg reached {hist[-1]:.2e} after {max_iterations} iterations", history=hist)
 
-    def held(self, motors_deg, q) -> PrintedPose:
+    def held(self, motors_deg, q, from_rest: bool = False) -> PrintedPose:
         """Both sheets at ``motors_deg`` (6,) [deg] with the rod held at the effector motion ``q``
         (6,) (dp [mm], rotation vector [rad]: a faster model's balance, say) instead of balanced:
         one solve per sheet, each one's stability probed. ``residual`` is the rod's unbalanced
         wrench over the grips' scale there, ``rod_step`` the step to the balance to first order
-        (how far ``q`` is from it), ``iterations`` 0."""
+        (how far ``q`` is from it), ``iterations`` 0. ``from_rest``: the sheets solved from rest,
+        not from the last pose (the pose then a function of ``motors_deg`` and ``q`` alone, to
+        the bit, whatever was solved before)."""
         motors = np.radians(np.asarray(motors_deg, float))
         q = np.asarray(q, float)
         if motors.shape != (6,) or q.shape != (6,) or not (np.all(np.isfinite(motors)) and np.all(np.isfinite(q))):
             raise ConfigError(f"motors_deg, q: shapes {motors.shape}, {q.shape}: six finite angles [deg] and a "
                               "finite effector motion (dp [mm], rotation vector [rad])")
+        if from_rest:
+            self.states = [None, None]
         r, per, scale = self.rod_wrench(q, motors, probe=True)
         strain, approach = self._walls()
         # a stiffly held rod leaves a large wrench for a small miss: the step says the miss

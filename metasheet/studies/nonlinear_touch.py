@@ -117,7 +117,8 @@ class RobotDistance:
     nearest travel solved before (rest at first), moved by ``rod_per_motor``'s prediction when
     given; without, the rod is held where ``rod_per_motor`` puts it
     (:meth:`~metasheet.robot.voxel_robot.PrintedRobot.held`: one solve per sheet, the rod's
-    unbalanced wrench recorded). The sheets start from the last pose solved. ``records`` keeps
+    unbalanced wrench recorded). Balanced, the sheets start from the last pose solved; held, from
+    rest (each pose then a function of its travel alone). ``records`` keeps
     every pose solved: travel, the rod's motion (dp [mm], rotation vector [rad]), its move [mm],
     turn [deg] and residual (held: ``rod_miss``, its first-order step to the balance, [mm, deg]),
     each sheet's closest approach [mm] and largest wall strain [-],
@@ -170,7 +171,8 @@ class RobotDistance:
                 q0 = q0 + self.rod_per_motor @ np.radians((t - near) * self.direction)
             pose = self.printed.equilibrium(motors, q0=q0, step_tol=self.rod_tol_mm)
         else:
-            pose = self.printed.held(motors, self.rod_per_motor @ np.radians(t * self.direction))
+            # from rest: each held pose a function of its travel alone, so a resumed search is the same bits
+            pose = self.printed.held(motors, self.rod_per_motor @ np.radians(t * self.direction), from_rest=True)
         self._q[float(t)] = np.concatenate([pose.dp, pose.theta])
         dist = [a.distance for a in pose.approach]
         s = int(np.argmin(dist))
