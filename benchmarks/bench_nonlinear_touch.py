@@ -19,7 +19,6 @@ goes on where a killed one stopped.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -28,25 +27,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import add_save_option, saved_output  # noqa: E402
-from bench_printed_certificate import _error  # noqa: E402
+from bench_printed_certificate import _error, first_order_contact  # noqa: E402
 from bench_printed_robot import voxel_sheets  # noqa: E402
 from dns_convergence import LABELS, _inputs, _solved  # noqa: E402
-
-
-def _first_order(specs, G, dirs, search_deg: float) -> dict:
-    """Per direction (first contact [deg] or None, the sheet): both sheets' wall units side by side."""
-    from metasheet.runtime.executor import Executor
-    from metasheet.studies.printed_limits import WallUnit, wall_unit
-
-    units = [WallUnit(spec, tuple(map(tuple, g)), tuple((n, tuple(d)) for n, d in dirs.items()), search_deg, 0.3)
-             for spec, g in zip(specs, G)]
-    found = Executor(workers=2).map(wall_unit, units)  # its workers exit with this process
-    out = {}
-    for n in dirs:
-        vals = [(f["directions"][n]["contact_deg"], f["label"]) for f in found
-                if f["directions"][n]["contact_deg"] is not None]
-        out[n] = min(vals) if vals else (None, None)
-    return out
 
 
 def main() -> None:
@@ -86,15 +69,9 @@ def main() -> None:
                         design.material.material().stiffness()) for lab in LABELS]
     Ks = [_solved(args.cache, s).K for s in specs]
     dirs = {n: np.asarray(known[n], float) for n in args.directions}
-    t0 = time.perf_counter()
-    kept = args.cache / f"first-order-{args.gauge}-{args.voxel:g}mm-seed{seed}-{args.search_deg:g}deg.json"
-    first = json.loads(kept.read_text()) if kept.exists() else {}
-    if set(dirs) - set(first):  # each direction's first-order search kept: a rerun starts at the robot
-        first.update(_first_order(specs, grip_motions_per_motor(Ks[0], Ks[1], robot, sheets[0].references)[:2],
-                                  {n: d for n, d in dirs.items() if n not in first}, args.search_deg))
-        tmp = kept.with_suffix(".tmp")
-        tmp.write_text(json.dumps(first))
-        tmp.replace(kept)
+    t0 = time.perf_counter()  # each direction's first-order search kept in the cache: a rerun starts at the robot
+    first = first_order_contact(specs, grip_motions_per_motor(Ks[0], Ks[1], robot, sheets[0].references)[:2], dirs,
+                                args.cache, args.search_deg)
     t_first = time.perf_counter() - t0
     print(f"first order: {first} ({t_first:.0f} s)", file=sys.stderr, flush=True)
     rest = np.degrees([s.rest_angle for s in robot.coupling.servos])

@@ -26,6 +26,8 @@ coarse grid (0.4 mm) keeps a pose to minutes; 0.25 mm (the product's) is an hour
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -60,19 +62,31 @@ def _error(a_dp, a_theta, b_dp, b_theta) -> tuple[float, float]:
     return float(np.linalg.norm(np.asarray(a_dp, float) - b_dp)), float(np.degrees(R.magnitude()))
 
 
-def _first_order_contact(specs, G, dirs, search_deg: float = 10.0) -> dict:
-    """Per direction, the walls' first contact to first order [deg of the largest motor] over
-    both sheets (None: none within ``search_deg``): the `printed` stage's search
-    (metasheet.studies.printed_limits.wall_unit) on the same print and grid."""
+def first_order_contact(specs, G, dirs, cache: Path, search_deg: float = 10.0) -> dict:
+    """Per direction, (the walls' first contact to first order [deg of the largest motor] over
+    both sheets, None: none within ``search_deg``; the sheet's label): the `printed` stage's search
+    (metasheet.studies.printed_limits.wall_unit) on the same print and grid, both sheets side by
+    side (one process each). Each direction's is kept in ``cache``: a rerun searches only new
+    ones."""
+    from metasheet.runtime.executor import Executor
     from metasheet.studies.printed_limits import WallUnit, wall_unit
 
-    found = [wall_unit(WallUnit(spec, tuple(map(tuple, g)), tuple((n, tuple(d)) for n, d in dirs.items()),
-                                search_deg, 0.3)) for spec, g in zip(specs, G)]
-    out = {}
-    for n in dirs:
-        vals = [f["directions"][n]["contact_deg"] for f in found if f["directions"][n]["contact_deg"] is not None]
-        out[n] = min(vals) if vals else None
-    return out
+    s = specs[0]
+    kept = cache / f"first-order-{s.gauge}-{s.voxel_mm:g}mm-seed{s.seed}-{search_deg:g}deg.json"
+    out = json.loads(kept.read_text()) if kept.exists() else {}
+    todo = {n: d for n, d in dirs.items() if n not in out}
+    if todo:
+        units = [WallUnit(spec, tuple(map(tuple, g)), tuple((n, tuple(d)) for n, d in todo.items()), search_deg, 0.3)
+                 for spec, g in zip(specs, G)]
+        found = Executor(workers=2).map(wall_unit, units)  # its workers exit with this process
+        for n in todo:
+            vals = [(f["directions"][n]["contact_deg"], f["label"]) for f in found
+                    if f["directions"][n]["contact_deg"] is not None]
+            out[n] = min(vals) if vals else (None, None)
+        tmp = kept.with_name(f".{kept.name}.tmp-{os.getpid()}")
+        tmp.write_text(json.dumps(out))
+        os.replace(tmp, kept)
+    return {n: tuple(out[n]) for n in dirs}
 
 
 def main() -> None:
@@ -116,7 +130,7 @@ def main() -> None:
         sheets.append(voxel_sheet(args.outputs, args.voxel, args.gauge, seed, lab)[1])
     refs = grip_references(orient.sheet_params)
     dirs = _directions(args.directions, args.random, args.random_seed)
-    first = _first_order_contact(specs, grip_motions_per_motor(Ks[0], Ks[1], robot, refs)[:2], dirs)
+    first = first_order_contact(specs, grip_motions_per_motor(Ks[0], Ks[1], robot, refs)[:2], dirs, args.cache)
     S = condensed_robot_S(Ks[0], Ks[1], robot, refs)
     J = -np.linalg.solve(S[:6, :6], S[:6, 6:])
     model = SuperelementRobot(robot, Ks[0], Ks[1], refs)
@@ -156,7 +170,7 @@ def main() -> None:
               "first-order first contact [deg] | voxel robot [s] | superelement [ms] |")
         print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for r in rows:
-            fc = first[r[0]]
+            fc = first[r[0]][0]
             print(f"| {r[0]} | {r[1]:g} | {r[2]:.3f} | {r[3]:.3f} | {r[4]:.4f} | {r[5]:.4f} | {r[6]:.4f} | "
                   f"{r[7]:.4f} | {r[8]:.3f} | {r[9]:.3f} | {'yes' if r[12] else 'no'} | "
                   f"{'none' if fc is None else format(fc, '.2f')} | {r[10]:.0f} | {r[11]:.1f} |")
