@@ -78,7 +78,7 @@ def _solved(cache: Path, spec):
 
 
 def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, length_scale: float = 50.0,
-           labels=LABELS, extra_rows=()) -> dict | None:
+           labels=LABELS, extra_rows=(), max_voxels: int = 20_000_000) -> dict | None:
     """Per voxel size the print's numbers, and each quantity's Richardson fit over the sizes (and
     ``extra_rows``' sizes: rows already computed, the printed stage's ladder); None when
     ``labels`` is one sheet only (its solves are kept in ``cache`` for a later run)."""
@@ -97,7 +97,7 @@ def ladder(outputs: Path, voxels, gauge: str, seed: int | None, cache: Path, len
     rows = []
     for v in sorted(voxels, reverse=True):  # coarse first: the first numbers come soon
         sheets = [_solved(cache, SheetPrint(lab, seed, gauge, float(v), design, orient.sheet_params, fields[lab],
-                                            solid)) for lab in labels]
+                                            solid, max_voxels=max_voxels)) for lab in labels]
         if tuple(labels) != LABELS:
             continue
         with threadpool_limits(limits=1, user_api="blas"):
@@ -170,11 +170,13 @@ def main() -> None:
                          "a run with both then reads them)")
     ap.add_argument("--with-printed", type=Path, default=None, help="a printed stage's printed.json: its ladder's "
                     "rows join the ones solved here (same seed and gauge), for the fits over both")
+    ap.add_argument("--max-voxels", type=int, default=20_000_000, help="the grid's cap (0.15 mm: 21 million "
+                    "voxels on the paper's sheet)")
     add_save_option(ap)
     args = ap.parse_args()
     extra = _printed_rows(args.with_printed, args.gauge, args.seed) if args.with_printed else ()
     res = ladder(args.outputs, args.voxels, args.gauge, args.seed, args.cache, labels=tuple(args.labels),
-                 extra_rows=extra)
+                 extra_rows=extra, max_voxels=args.max_voxels)
     if res is None:
         return
     if args.json is not None:
