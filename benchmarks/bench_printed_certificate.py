@@ -108,8 +108,8 @@ def main() -> None:
     ap.add_argument("--random-seed", type=int, default=62)
     ap.add_argument("--rtol", type=float, default=1e-6, help="the voxel robot's sheets' relative residual")
     ap.add_argument("--start", choices=("rest", "model"), default="rest",
-                    help="each pose's rod iteration started from the last pose solved (rest first) or from the "
-                         "superelement robot's balance (fewer rod iterations; the same balance to its tolerance)")
+                    help="each pose's rod iteration started at rest (its sheets from the last pose solved) or at "
+                         "the superelement robot's balance (fewer rod iterations; the same balance to its tolerance)")
     ap.add_argument("--rod-tol", type=float, default=None,
                     help="[mm] the rod balanced once its predicted step moves it and an arm's end by under this "
                          "(default: to the sheets' rtol on its wrench)")
