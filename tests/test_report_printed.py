@@ -57,3 +57,34 @@ def test_the_picture_draws_with_and_without_the_walls():
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
     assert printed_robot_section(_study(False))[0]  # a section without the map still states the claims
     assert not np.isnan(_study(True)["realisations"][0]["map"]["rays"][0]["contact_mm"])
+
+
+def test_the_printed_robot_is_the_side_by_side_tables_third_column():
+    """Issue 62 item 5: the paper's table gains a printed-robot column, each cell the claim's
+    status over the prints then each print's figure; without it the table keeps its two columns."""
+    from metasheet.report.columns import columns_section
+    from metasheet.report.printed import printed_column
+
+    d = _study(True)
+    maze = {"foam_impossible_segments": [3], "segments": 8, "silicone_impossible_segments": None, "tilt_deg": 1.5}
+    d["realisations"].append({**d["realisations"][0], "seed": 2,
+                              "roll": {**d["realisations"][0]["roll"],
+                                       "rod_rotation_within_limits_deg": {"pull": -2.5, "push": None}}})
+    for r, status in zip(d["realisations"], ("predicted", "not predicted")):
+        r["studies"] = {"maze": {**maze, "verdict": {"text": f"maze of seed {r['seed']}", "status": status}}}
+    d["claims"]["maze"] = "not predicted"
+    cells = printed_column(d)
+    assert set(cells) == {"anisotropy", "maze"}  # the roll is Fig. 7's claim; no workspace or ranges here
+    assert cells["anisotropy"] == ("**predicted up to the walls' limit** (seed 1: -1 deg pulled, 2 deg pushed; "
+                                   "seed 2: -2.5 deg pulled, - deg pushed)")
+    assert cells["maze"] == "**not predicted** (seed 1: maze of seed 1; seed 2: maze of seed 2)"
+    assert printed_column(None) == {}
+    columns = {"maze": {"reproduction": {**maze, "foam_impossible_segments": []}}}
+    two = columns_section(columns, {})
+    three = columns_section(columns, {}, cells, ["From beside.", ""])
+    head = [line for line in three if line.startswith("| figure |")][0]
+    assert head == "| figure | the paper | reproduction | prediction | printed robot | verdict |"
+    row = [line for line in three if line.startswith("| maze |")][0]
+    assert row.split(" | ")[4] == cells["maze"] and row.endswith("| reproduced |")
+    assert "From beside." in three and "printed robot" not in "\n".join(two)
+    assert [line for line in two if line.startswith("| figure |")][0].count("|") == 6

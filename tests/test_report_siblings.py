@@ -30,7 +30,9 @@ def test_the_paper_pipeline_reads_its_model_studies_from_their_own_pipelines():
         pl = load_pipeline(ROOT / "pipelines" / f"{run}.toml")
         assert pl.name == run and stage in pl.order
         beside[stage] = pl
-    assert set(beside) == {"chart", "homogenize", "robot", "dynamics"}
+    assert set(beside) == {"chart", "homogenize", "robot", "dynamics", "printed"}
+    for stage in ("cell", "homogenize", "material", "orient", "printmap"):  # the printed robot: the paper's prints
+        assert beside["printed"].params[stage] == paper.params[stage], stage
     assert beside["homogenize"].params["homogenize"].sizes
     conv = beside["robot"]
     for stage in ("cell", "homogenize", "material", "orient"):  # the paper's robot, stage by stage
@@ -165,3 +167,38 @@ def test_a_study_of_another_robot_is_named(tmp_path):
     assert "on another robot: its orient outputs are not this pipeline's" in text
     diffs = text.split("## Differences from the paper")[1]
     assert "The robot's mesh convergence (`convergence/robot/convergence.json`) was computed on another robot" in diffs
+
+
+def test_the_printed_robot_beside_is_the_tables_third_column(tmp_path):
+    """Issue 62 item 5: the paper's report reads the printed-robot pipeline's printed.json beside it
+    (the same output root) as its side-by-side table's third column, says where it came from and
+    whether on this pipeline's robot; without it the table names the command that makes it."""
+    from metasheet.pipeline.registry import StageContext
+    from metasheet.pipeline.stages import report as report_stage
+
+    maze = {"foam_impossible_segments": [], "segments": 8, "silicone_impossible_segments": None, "tilt_deg": 1.5}
+    (tmp_path / "paper/maze/reproduction").mkdir(parents=True)
+    (tmp_path / "paper/maze/reproduction/maze.json").write_text(json.dumps({**maze, "column": "reproduction"}))
+    _folder(tmp_path, "paper/maze", {})  # the reproduction column only: no maze section of its own
+    hashes = {"orient": {"sheet.vtu": "a"}, "material": {"material.json": "b"}}
+    _folder(tmp_path, "paper/robot", {"jacobian.json": "{}"}, inputs=hashes)
+    printed = {"claims": {"maze": "predicted"}, "realisations": [
+        {"seed": s, "studies": {"maze": {"verdict": {"text": f"{s} solved", "status": "predicted"}}}} for s in (1, 2)]}
+    params = report_stage.ReportParams(printed="printed-robot")
+    inputs = {"maze": tmp_path / "paper/maze", "robot": tmp_path / "paper/robot"}
+
+    def report(name, siblings):
+        work = tmp_path / name
+        report_stage.run(StageContext("report", params, work, inputs, tmp_path, siblings=siblings))
+        return (work / "report.md").read_text()
+
+    text = report("alone", {})
+    assert "| figure | the paper | reproduction | prediction | verdict |" in text
+    assert ("The printed robot is not in this output root (`printed-robot/printed/printed.json`): `metasheet run "
+            "pipelines/printed-robot.toml`") in text
+    _folder(tmp_path, "printed-robot/printed", {"printed.json": json.dumps(printed)}, inputs=hashes)
+    text = report("beside", {"printed-robot/printed": tmp_path / "printed-robot/printed"})
+    assert "| figure | the paper | reproduction | prediction | printed robot | verdict |" in text
+    assert "| **predicted** (seed 1: 1 solved; seed 2: 2 solved) | reproduced |" in text
+    assert "From the `printed-robot` pipeline beside this one" in text and "on the same robot" in text
+    assert "## The printed robot against" not in text  # its own section is in its pipeline's report

@@ -16,7 +16,7 @@ from .convergence import HEADING as CONVERGENCE_HEADING, convergence_section
 from .design import design_section, print_check_section
 from .dynamics import HEADING as DYNAMICS_HEADING, dynamics_section
 from .model import model_section
-from .printed import printed_robot_section
+from .printed import printed_column, printed_robot_section
 from .reduce import reduce_section
 from .scale_map import scale_map_section
 from .sheet import sheet_dns_section
@@ -235,7 +235,11 @@ def build_report(summaries: Mapping[str, dict | None], pictures: Mapping[str, st
     lines += section
     diffs += [f"Reproduction column: {d}" for d in found]
     lines += scene_facts_section(s.get("scene"), s.get("robot"), s.get("columns") or {})
-    lines += columns_section(s.get("columns") or {}, pictures)
+    printed_note, printed_diffs = source_lines(beside.get("printed"), "robot")
+    section = columns_section(s.get("columns") or {}, pictures, printed_column(s.get("printed_column")),
+                              printed_note)
+    lines += section + (missing_lines(beside.get("printed")) if section else [])
+    diffs += printed_diffs if section else []
     if "workspace" in s:
         w = s["workspace"]
         lines += ["## Workspace exploration (reproduces paper Fig. 5)", "",

@@ -90,13 +90,18 @@ def study_verdict(study: str, summary: Mapping) -> tuple[str, bool]:
     return ROWS[study](summary)
 
 
-def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping[str, str]) -> list[str]:
+def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping[str, str],
+                    printed: Mapping[str, str] | None = None, printed_note: list[str] | None = None) -> list[str]:
     """Markdown lines: per study that ran a reproduction column, the paper's statement, the
     reproduction, the prediction and the verdict; ``columns`` is study -> column -> summary,
-    ``pictures`` "<study>/<column>" -> picture path. Empty when no study ran a reproduction."""
+    ``pictures`` "<study>/<column>" -> picture path. ``printed``: study -> the printed robot's
+    cell (:func:`metasheet.report.printed.printed_column`), a third column when given, with
+    ``printed_note`` (lines: where it came from) under the table. Empty when no study ran a
+    reproduction."""
     studies = [k for k in ROWS if "reproduction" in columns.get(k, {})]
     if not studies:
         return []
+    third = bool(printed)
     out = ["## The paper, reproduced and predicted", "",
            "The **reproduction** runs each study as the paper's figures were made: the published constants under "
            "the authors' force field, no strain stop, on the authors' kind of mesh (uniform P1, 5 mm; "
@@ -104,15 +109,21 @@ def columns_section(columns: Mapping[str, Mapping[str, dict]], pictures: Mapping
            "(the Jacobian, the rod's compliance) is in the section \"Mesh convergence of the robot\" when "
            "`pipelines/convergence.toml` ran beside this pipeline, and docs/paper.md (\"Which results rest on "
            "the coarse mesh\") gives the rest-pose test on the converged mesh. The **prediction** runs it "
-           "on the printed foam's homogenised constants, within the homogenisation's strain limit.", "",
-           "| figure | the paper | reproduction | prediction | verdict |", "|---|---|---|---|---|"]
+           "on the printed foam's homogenised constants, within the homogenisation's strain limit."
+           + (" The **printed robot** runs it on each print's own sheets (their voxel DNS, the rod's motion "
+              "within the walls' first self-contact; the section \"The printed robot against the paper's robot\" "
+              "of that pipeline's report): the claim's status over the prints, then each print's figure."
+              if third else ""), "",
+           "| figure | the paper | reproduction | prediction |" + (" printed robot |" if third else "")
+           + " verdict |", "|---|---|---|---|" + ("---|" if third else "") + "---|"]
     for k in studies:
         rep_text, ok = ROWS[k](columns[k]["reproduction"])
         pred = columns[k].get("prediction")
         pred_text = ROWS[k](pred)[0] if pred else "not run"
         verdict = "reproduced" if ok else "not reproduced"
-        out.append(f"| {k} | {STATEMENTS[k]} | {rep_text} | {pred_text} | {verdict} |")
-    out.append("")
+        cell = f" {printed.get(k, 'not run')} |" if third else ""
+        out.append(f"| {k} | {STATEMENTS[k]} | {rep_text} | {pred_text} |{cell} {verdict} |")
+    out += ["", *(printed_note or [])] if third else [""]
     for k in studies:
         pics = [f"![{k}, {c}]({pictures[f'{k}/{c}']})" for c in ("reproduction", "prediction") if f"{k}/{c}" in pictures]
         if pics:

@@ -82,6 +82,31 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
     return lines, diffs
 
 
+#: the paper-study rows of the report's side-by-side table (:func:`.columns.columns_section`) and
+#: the printed robot's claim each is read from
+COLUMN_CLAIMS = {"workspace": "workspace", "ranges": "ranges", "anisotropy": "roll", "maze": "maze"}
+
+
+def printed_column(d: Mapping | None) -> dict[str, str]:
+    """Study -> the printed robot's cell of the side-by-side table, from the ``printed`` stage's
+    ``printed.json`` ``d`` (this pipeline's or the printed-robot pipeline's beside it): the claim's
+    status over the prints (the worst print's), then each print's figure; {} without it."""
+    if not d:
+        return {}
+    out = {}
+    for study, key in COLUMN_CLAIMS.items():
+        if key not in d["claims"]:
+            continue
+        rows = d["realisations"]
+        if key == "roll":
+            per = [f"seed {r['seed']}: {_f(r[key]['rod_rotation_within_limits_deg']['pull'])} deg pulled, "
+                   f"{_f(r[key]['rod_rotation_within_limits_deg']['push'])} deg pushed" for r in rows]
+        else:
+            per = [f"seed {r['seed']}: {r['studies'][key]['verdict']['text']}" for r in rows]
+        out[study] = f"**{d['claims'][key]}** ({'; '.join(per)})"
+    return out
+
+
 def _touch_words(lim: Mapping) -> str:
     """Where the finite-strain robot searched the first-order box's direction again (the stage's
     ``touch``): what it found there, beside the first-order value."""

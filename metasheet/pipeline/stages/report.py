@@ -6,8 +6,9 @@ ran, copies their pictures next to ``report.md`` so the page is self-contained.
 
 The studies of our own model that are not the paper's figures run as pipelines of their
 own (issue 59): the design chart, the cell-size study and the robot's mesh convergence; so
-does the robot in time (issue 64, the maze played). ``[report] chart``, ``cell_size``,
-``convergence`` and ``dynamics`` name those pipelines' runs; the report
+does the robot in time (issue 64, the maze played), and the printed robot (issue 62: the
+side-by-side table's third column). ``[report] chart``, ``cell_size``, ``convergence``,
+``dynamics`` and ``printed`` name those pipelines' runs; the report
 reads their outputs beside its own (``<out root>/<run>/<stage>/``) when this pipeline does
 not hold them itself, and otherwise names the command that makes them. Their outputs are
 inputs of the report's cache key (:attr:`~metasheet.pipeline.registry.Stage.siblings`).
@@ -33,7 +34,8 @@ STUDIES = ("workspace", "ranges", "anisotropy", "maze")
 SIBLINGS = {"chart": ("chart", "chart.csv", "the design chart"),
             "cell_size": ("homogenize", "convergence.json", "the cell-size study"),
             "convergence": ("robot", "convergence.json", "the robot's mesh convergence"),
-            "dynamics": ("dynamics", "dynamics.json", "the maze played in time")}
+            "dynamics": ("dynamics", "dynamics.json", "the maze played in time"),
+            "printed": ("printed", "printed.json", "the printed robot")}
 _BESIDE = ("run name of the pipeline beside this one (the same output root) whose {} the report shows when "
            "this pipeline has none; '': none")
 
@@ -44,8 +46,10 @@ class ReportParams(Params):
     cell_size: str = Field("", description=_BESIDE.format("cell-size study (homogenize/convergence.json)"))
     convergence: str = Field("", description=_BESIDE.format("mesh convergence (robot/convergence.json)"))
     dynamics: str = Field("", description=_BESIDE.format("maze played in time (dynamics/dynamics.json)"))
+    printed: str = Field("", description=_BESIDE.format("printed robot (printed/printed.json: the side-by-side "
+                                                         "table's third column)"))
 
-    @field_validator("chart", "cell_size", "convergence", "dynamics")
+    @field_validator("chart", "cell_size", "convergence", "dynamics", "printed")
     @classmethod
     def _run_name(cls, name: str) -> str:
         return check_run_name(name) if name else name
@@ -117,6 +121,16 @@ def run(ctx: StageContext) -> dict:
         summaries["dynamics"] = _dynamics(dyn, pictures, ctx)
         if notes["dynamics"]:
             notes["dynamics"]["differs"] = _differs(dyn, ctx.inputs.get("robot"), ("orient", "material"))
+    pr, notes["printed"] = _source(ctx, "printed")
+    if pr is not None:  # the printed robot (issue 62): this pipeline's printed stage, or the printed-robot pipeline's
+        summaries["printed_column"] = json.loads((pr / "printed.json").read_text())
+        if notes["printed"]:
+            notes["printed"]["differs"] = _differs(pr, ctx.inputs.get("robot"), ("orient", "material"))
+        else:  # its own: the whole section, with its picture
+            summaries["printed"] = summaries["printed_column"]
+            if (pr / "printed_robot.png").exists():
+                shutil.copyfile(pr / "printed_robot.png", ctx.path("printed_robot.png"))
+                pictures["printed_robot"] = "printed_robot.png"
     summaries["siblings"] = {k: v for k, v in notes.items() if v}
     if "reduce" in ctx.inputs and (ctx.inputs["reduce"] / "reduce.json").exists():
         summaries["reduce_json"] = json.loads((ctx.inputs["reduce"] / "reduce.json").read_text())
@@ -130,11 +144,6 @@ def run(ctx: StageContext) -> dict:
             if (ctx.inputs["sheet"] / f"{key}.png").exists():
                 shutil.copyfile(ctx.inputs["sheet"] / f"{key}.png", ctx.path(f"{key}.png"))
                 pictures[key] = f"{key}.png"
-    if "printed" in ctx.inputs and (ctx.inputs["printed"] / "printed.json").exists():  # the printed robot (issue 62)
-        summaries["printed"] = json.loads((ctx.inputs["printed"] / "printed.json").read_text())
-        if (ctx.inputs["printed"] / "printed_robot.png").exists():
-            shutil.copyfile(ctx.inputs["printed"] / "printed_robot.png", ctx.path("printed_robot.png"))
-            pictures["printed_robot"] = "printed_robot.png"
     if "scalemap" in ctx.inputs and (ctx.inputs["scalemap"] / "scale_map.json").exists():  # issue 63's map
         summaries["scale_map"] = json.loads((ctx.inputs["scalemap"] / "scale_map.json").read_text())
         if (ctx.inputs["scalemap"] / "scale_map.png").exists():
