@@ -70,14 +70,15 @@ def test_the_printed_robot_is_the_side_by_side_tables_third_column():
     d["realisations"].append({**d["realisations"][0], "seed": 2,
                               "roll": {**d["realisations"][0]["roll"],
                                        "rod_rotation_within_limits_deg": {"pull": -2.5, "push": None}}})
-    for r, status in zip(d["realisations"], ("predicted", "not predicted")):
+    d["realisations"].append({**d["realisations"][0], "seed": 3})
+    for r, status in zip(d["realisations"], ("predicted", "not predicted", "predicted")):
         r["studies"] = {"maze": {**maze, "verdict": {"text": f"maze of seed {r['seed']}", "status": status}}}
     d["claims"]["maze"] = "not predicted"
     cells = printed_column(d)
     assert set(cells) == {"anisotropy", "maze"}  # the roll is Fig. 7's claim; no workspace or ranges here
-    assert cells["anisotropy"] == ("**predicted up to the walls' limit** (seed 1: -1 deg pulled, 2 deg pushed; "
-                                   "seed 2: -2.5 deg pulled, - deg pushed)")
-    assert cells["maze"] == "**not predicted** (seed 1: maze of seed 1; seed 2: maze of seed 2)"
+    assert cells["anisotropy"] == ("**predicted up to the walls' limit** (seeds 1, 3: -1 deg pulled, 2 deg pushed; "
+                                   "seed 2: -2.5 deg pulled, - deg pushed)")  # equal figures said once
+    assert cells["maze"] == "**not predicted** (seed 1: maze of seed 1; seed 2: maze of seed 2; seed 3: maze of seed 3)"
     assert printed_column(None) == {}
     columns = {"maze": {"reproduction": {**maze, "foam_impossible_segments": []}}}
     two = columns_section(columns, {})

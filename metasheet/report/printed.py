@@ -50,11 +50,11 @@ def printed_robot_section(d: Mapping | None, pictures: Mapping[str, str] | None 
         lines += [f"![The printed robot's roll and its walls' limits]({pictures['printed_robot']})", ""]
     lines += ["| the paper's robot | printed robot | per print |", "|---|---|---|"]
     for key in ("roll", "rotations"):
-        per = ", ".join(f"seed {r['seed']}: {r[key]['status']}" for r in rows)
+        per = _per_print((r["seed"], r[key]["status"]) for r in rows)
         lines.append(f"| {text[key]} | **{d['claims'][key]}** | {per} |")
     for key in ("workspace", "ranges", "maze"):
         if key in d["claims"]:
-            per = "; ".join(f"seed {r['seed']}: {r['studies'][key]['verdict']['text']}" for r in rows)
+            per = _per_print((r["seed"], r["studies"][key]["verdict"]["text"]) for r in rows)
             lines.append(f"| {STATEMENTS[key]} | **{d['claims'][key]}** | {per} |")
     lines.append("")
     spr = d["spread"]
@@ -99,12 +99,22 @@ def printed_column(d: Mapping | None) -> dict[str, str]:
             continue
         rows = d["realisations"]
         if key == "roll":
-            per = [f"seed {r['seed']}: {_f(r[key]['rod_rotation_within_limits_deg']['pull'])} deg pulled, "
-                   f"{_f(r[key]['rod_rotation_within_limits_deg']['push'])} deg pushed" for r in rows]
+            at = [r[key]["rod_rotation_within_limits_deg"] for r in rows]
+            per = _per_print((r["seed"], f"{_f(a['pull'])} deg pulled, {_f(a['push'])} deg pushed")
+                             for r, a in zip(rows, at))
         else:
-            per = [f"seed {r['seed']}: {r['studies'][key]['verdict']['text']}" for r in rows]
-        out[study] = f"**{d['claims'][key]}** ({'; '.join(per)})"
+            per = _per_print((r["seed"], r["studies"][key]["verdict"]["text"]) for r in rows)
+        out[study] = f"**{d['claims'][key]}** ({per})"
     return out
+
+
+def _per_print(figures) -> str:
+    """"seed 1: a; seeds 2, 3: b" from (seed, figure) pairs in the prints' order: prints with
+    the same figure named together."""
+    texts = {}
+    for seed, text in figures:
+        texts.setdefault(text, []).append(str(seed))
+    return "; ".join(f"seed{'s' if len(seeds) > 1 else ''} {', '.join(seeds)}: {text}" for text, seeds in texts.items())
 
 
 def _touch_words(lim: Mapping) -> str:
