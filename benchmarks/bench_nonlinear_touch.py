@@ -14,6 +14,10 @@ goes on where a killed one stopped.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_nonlinear_touch.py --outputs OUT/printed-robot \
         --voxel 0.25 --directions 'roll up' --cache OUT/dns_ladder --processes --save
+
+Several prints, each along its own binding direction (the printed stage's box), into one table:
+``--print 1 'roll up' --print 2 'plane 315' --print 3 'plane 292.5'`` (the searches kept in the
+journals are replayed, the others solved).
 """
 
 from __future__ import annotations
