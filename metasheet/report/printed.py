@@ -90,7 +90,8 @@ COLUMN_CLAIMS = {"workspace": "workspace", "ranges": "ranges", "anisotropy": "ro
 def printed_column(d: Mapping | None) -> dict[str, str]:
     """Study -> the printed robot's cell of the side-by-side table, from the ``printed`` stage's
     ``printed.json`` ``d`` (this pipeline's or the printed-robot pipeline's beside it): the claim's
-    status over the prints (the worst print's), then each print's figure; {} without it."""
+    status over the prints (the worst print's), then each print's figure (prints with the same
+    figure named together); {} without it."""
     if not d:
         return {}
     out = {}
@@ -99,9 +100,8 @@ def printed_column(d: Mapping | None) -> dict[str, str]:
             continue
         rows = d["realisations"]
         if key == "roll":
-            at = [r[key]["rod_rotation_within_limits_deg"] for r in rows]
-            per = _per_print((r["seed"], f"{_f(a['pull'])} deg pulled, {_f(a['push'])} deg pushed")
-                             for r, a in zip(rows, at))
+            per = _per_print((r["seed"], "{} deg pulled, {} deg pushed".format(
+                *(_f(r[key]["rod_rotation_within_limits_deg"][k]) for k in ("pull", "push")))) for r in rows)
         else:
             per = _per_print((r["seed"], r["studies"][key]["verdict"]["text"]) for r in rows)
         out[study] = f"**{d['claims'][key]}** ({per})"
